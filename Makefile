@@ -1,0 +1,51 @@
+# anisocb — `make demo` runs the main job, `make test` runs every check.
+CARGO ?= cargo
+
+.PHONY: all build test lint fmt-check clippy check-features bench demo weights dist fixtures clean
+
+all: build
+
+build:
+	$(CARGO) build --release
+
+## test: format check + clippy (-D warnings) + every test in release mode + feature builds
+test: fmt-check clippy check-features
+	$(CARGO) test --release
+
+fmt-check:
+	$(CARGO) fmt --all -- --check
+
+clippy:
+	$(CARGO) clippy --release --all-targets -- -D warnings
+
+lint: fmt-check clippy
+
+## The core builds without the CLI crates, and the CUDA path builds without a CUDA toolkit.
+check-features:
+	$(CARGO) build --release --lib --no-default-features
+	@if $(CARGO) build --release --features cuda >/dev/null 2>&1; then \
+		echo "✓ --features cuda builds (cudarc, dynamic loading)"; \
+	else \
+		echo "✗ --features cuda failed to build:"; $(CARGO) build --release --features cuda; exit 1; \
+	fi
+	@if command -v nvidia-smi >/dev/null 2>&1; then echo "✓ nvidia-smi found: CUDA parity tests can run"; \
+	else echo "✗ no NVIDIA GPU here: CUDA parity tests report 'skipped: no CUDA device'"; fi
+
+bench:
+	$(CARGO) run --release -- bench
+
+demo:
+	$(CARGO) run --release -- demo
+
+## Regenerate reference .npy files (needs Python; `make test` does not).
+fixtures:
+	python3 -m pip install -q -r tests/fixtures/requirements.txt
+	cd tests/fixtures && for g in gen_*.py; do python3 $$g || exit 1; done
+
+## Portable single binary for x86-64-v3 (AVX2 + FMA), weights embedded.
+dist:
+	RUSTFLAGS="-C target-cpu=x86-64-v3" $(CARGO) build --profile dist --target-dir target/dist
+	@echo "portable binary: target/dist/dist/anisocb (baseline x86-64-v3)"
+
+clean:
+	$(CARGO) clean

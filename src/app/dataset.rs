@@ -1,0 +1,10 @@
+//! `anisocb dataset`. TODO: filled by its issue.
+
+use crate::error::{Error, Result};
+
+#[derive(clap::Args, Debug)]
+pub struct Args {}
+
+pub fn run(_args: Args) -> Result<()> {
+    Err(Error::config("`dataset` is not implemented yet"))
+}

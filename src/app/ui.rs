@@ -1,0 +1,34 @@
+//! Shared pieces of the front end: progress bars and PNG output.
+
+use crate::error::{Error, Result};
+use indicatif::{ProgressBar, ProgressStyle};
+use std::path::Path;
+
+/// A progress bar on stderr with ETA; hidden when stderr is not a terminal.
+pub fn progress(len: u64, what: &str) -> ProgressBar {
+    let pb = ProgressBar::new(len);
+    pb.set_style(
+        ProgressStyle::with_template("{prefix:>10} [{bar:30}] {pos}/{len} {msg} ({elapsed} < {eta})")
+            .expect("static template")
+            .progress_chars("=> "),
+    );
+    pb.set_prefix(what.to_string());
+    pb
+}
+
+/// Write an 8-bit RGB image (row-major, `w*h*3` bytes) as PNG, atomically.
+pub fn save_png_rgb(path: &Path, w: usize, h: usize, rgb: &[u8]) -> Result<()> {
+    assert_eq!(rgb.len(), w * h * 3);
+    crate::io::write_atomic(path, |out| {
+        let mut enc = png::Encoder::new(out, w as u32, h as u32);
+        enc.set_color(png::ColorType::Rgb);
+        enc.set_depth(png::BitDepth::Eight);
+        let mut wr = enc.write_header().map_err(std::io::Error::other)?;
+        wr.write_image_data(rgb).map_err(std::io::Error::other)?;
+        wr.finish().map_err(std::io::Error::other)
+    })
+    .map_err(|e| match e {
+        Error::Io { path, source } => Error::format(path, format!("cannot write PNG: {source}")),
+        e => e,
+    })
+}

@@ -1,0 +1,73 @@
+//! One error type for the whole crate: every failure names *what* (usually a file) and *why*,
+//! and, where it helps, what to do about it. No panics on user input.
+
+use std::fmt;
+use std::path::{Path, PathBuf};
+
+#[derive(Debug)]
+pub enum Error {
+    /// Reading or writing `path` failed at the OS level.
+    Io { path: PathBuf, source: std::io::Error },
+    /// `path` exists but its contents are malformed (bad header, truncated, NaN, wrong topology …).
+    Format { path: PathBuf, msg: String },
+    /// Tensors, configs or meshes that do not fit together.
+    Shape(String),
+    /// Bad parameters or options.
+    Config(String),
+    /// A numeric failure (NaN/Inf loss, a solver that did not converge …).
+    Numeric(String),
+    /// The CUDA path is unavailable or failed.
+    Device(String),
+}
+
+pub type Result<T> = std::result::Result<T, Error>;
+
+impl Error {
+    pub fn io(path: impl AsRef<Path>, source: std::io::Error) -> Self {
+        Error::Io { path: path.as_ref().to_path_buf(), source }
+    }
+    pub fn format(path: impl AsRef<Path>, msg: impl Into<String>) -> Self {
+        Error::Format { path: path.as_ref().to_path_buf(), msg: msg.into() }
+    }
+    pub fn shape(msg: impl Into<String>) -> Self {
+        Error::Shape(msg.into())
+    }
+    pub fn config(msg: impl Into<String>) -> Self {
+        Error::Config(msg.into())
+    }
+    pub fn numeric(msg: impl Into<String>) -> Self {
+        Error::Numeric(msg.into())
+    }
+    pub fn device(msg: impl Into<String>) -> Self {
+        Error::Device(msg.into())
+    }
+    /// Attach a file to an error that did not know it (e.g. a shape error while loading `path`).
+    pub fn in_file(self, path: impl AsRef<Path>) -> Self {
+        match self {
+            Error::Shape(m) | Error::Config(m) | Error::Numeric(m) => Error::format(path, m),
+            e => e,
+        }
+    }
+}
+
+impl fmt::Display for Error {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Error::Io { path, source } => write!(f, "{}: {}", path.display(), source),
+            Error::Format { path, msg } => write!(f, "{}: {}", path.display(), msg),
+            Error::Shape(m) => write!(f, "shape mismatch: {m}"),
+            Error::Config(m) => write!(f, "invalid option: {m}"),
+            Error::Numeric(m) => write!(f, "numeric failure: {m}"),
+            Error::Device(m) => write!(f, "device: {m}"),
+        }
+    }
+}
+
+impl std::error::Error for Error {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        match self {
+            Error::Io { source, .. } => Some(source),
+            _ => None,
+        }
+    }
+}

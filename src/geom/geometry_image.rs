@@ -1,0 +1,127 @@
+//! Geometry images (paper Eq 1, 2): pixel (row j, col i) holds vertex (i, j) with its
+//! position normalised by a sequence-wide domain, `c = (p − bmin) / (bmax − bmin)` per axis
+//! (x→R, y→G, z→B). Values stay f32 and may leave [0,1] slightly; they are clamped only when
+//! written as an 8-bit picture.
+
+use super::mesh::GridMesh;
+use crate::error::{Error, Result};
+use crate::tensor::Tensor;
+
+/// The axis-aligned box (metres) that maps to [0,1]³.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Domain {
+    pub bmin: [f32; 3],
+    pub bmax: [f32; 3],
+}
+
+impl Domain {
+    /// Bounding box of all frames, grown by `margin` (fraction of the largest extent) on every
+    /// side; degenerate axes (a flat sheet) get the largest extent so no axis divides by ~0.
+    pub fn enclosing(frames: &[GridMesh], margin: f32) -> Domain {
+        let mut lo = [f32::INFINITY; 3];
+        let mut hi = [f32::NEG_INFINITY; 3];
+        for f in frames {
+            let (a, b) = f.bounds();
+            for k in 0..3 {
+                lo[k] = lo[k].min(a[k]);
+                hi[k] = hi[k].max(b[k]);
+            }
+        }
+        let ext = (0..3).map(|k| hi[k] - lo[k]).fold(0.0f32, f32::max).max(1e-6);
+        let mut d = Domain { bmin: lo, bmax: hi };
+        for k in 0..3 {
+            let c = 0.5 * (lo[k] + hi[k]);
+            let half = 0.5 * (hi[k] - lo[k]).max(ext * 0.5) + margin * ext;
+            d.bmin[k] = c - half;
+            d.bmax[k] = c + half;
+        }
+        d
+    }
+
+    pub fn validate(&self) -> Result<()> {
+        for k in 0..3 {
+            if !(self.bmin[k].is_finite() && self.bmax[k].is_finite() && self.bmax[k] > self.bmin[k]) {
+                return Err(Error::config(format!("domain axis {k} is empty or not finite: {self:?}")));
+            }
+        }
+        Ok(())
+    }
+
+    /// As a (2, 3) tensor [bmin; bmax], the form stored beside geometry images.
+    pub fn to_tensor(&self) -> Tensor {
+        let mut d = self.bmin.to_vec();
+        d.extend_from_slice(&self.bmax);
+        Tensor { shape: vec![2, 3], data: d }
+    }
+
+    pub fn from_tensor(t: &Tensor) -> Result<Domain> {
+        if t.shape != [2, 3] {
+            return Err(Error::shape(format!("domain must have shape [2, 3], got {:?}", t.shape)));
+        }
+        let d = Domain { bmin: [t.data[0], t.data[1], t.data[2]], bmax: [t.data[3], t.data[4], t.data[5]] };
+        d.validate()?;
+        Ok(d)
+    }
+
+    #[inline]
+    pub fn encode(&self, p: [f32; 3]) -> [f32; 3] {
+        std::array::from_fn(|k| (p[k] - self.bmin[k]) / (self.bmax[k] - self.bmin[k]))
+    }
+
+    #[inline]
+    pub fn decode(&self, c: [f32; 3]) -> [f32; 3] {
+        std::array::from_fn(|k| self.bmin[k] + c[k] * (self.bmax[k] - self.bmin[k]))
+    }
+}
+
+/// Eq 1: mesh → (3, H, W) image.
+pub fn mesh_to_image(mesh: &GridMesh, domain: &Domain) -> Tensor {
+    let (w, h) = (mesh.w, mesh.h);
+    let mut t = Tensor::zeros(&[3, h, w]);
+    for (v, p) in mesh.pos.iter().enumerate() {
+        let c = domain.encode(*p);
+        for k in 0..3 {
+            t.data[k * h * w + v] = c[k];
+        }
+    }
+    t
+}
+
+/// Eq 2: (3, H, W) image (or one frame of a batch, `frame` of (T, 3, H, W)) → mesh.
+pub fn image_to_mesh(img: &Tensor, frame: usize, domain: &Domain) -> GridMesh {
+    let (h, w) = (img.shape[img.rank() - 2], img.shape[img.rank() - 1]);
+    let base = frame * 3 * h * w;
+    let pos =
+        (0..h * w).map(|v| domain.decode(std::array::from_fn(|k| img.data[base + k * h * w + v]))).collect();
+    GridMesh::new(w, h, pos)
+}
+
+/// A sequence of meshes → (T, 3, H, W).
+pub fn sequence_to_images(frames: &[GridMesh], domain: &Domain) -> Tensor {
+    let (w, h) = (frames[0].w, frames[0].h);
+    let mut data = Vec::with_capacity(frames.len() * 3 * h * w);
+    for f in frames {
+        data.extend_from_slice(&mesh_to_image(f, domain).data);
+    }
+    Tensor { shape: vec![frames.len(), 3, h, w], data }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn geometry_image_round_trip_is_exact_to_f32_rounding() {
+        let mut m = GridMesh::flat(7, 5, 1.3, 0.7);
+        for (k, p) in m.pos.iter_mut().enumerate() {
+            p[2] = (k as f32 * 0.37).sin() * 0.2;
+        }
+        let d = Domain::enclosing(std::slice::from_ref(&m), 0.05);
+        let back = image_to_mesh(&mesh_to_image(&m, &d), 0, &d);
+        for (a, b) in m.pos.iter().zip(&back.pos) {
+            for k in 0..3 {
+                assert!((a[k] - b[k]).abs() <= 4.0 * f32::EPSILON * (1.0 + a[k].abs()), "{a:?} vs {b:?}");
+            }
+        }
+    }
+}

@@ -1,0 +1,1 @@
+//! TODO(maps/sim issue): see issue text.

@@ -1,0 +1,108 @@
+//! A cloth is a regular grid of `w × h` vertices (columns × rows). Vertex (i, j) — column i,
+//! row j — is stored at `j * w + i`; in a geometry image it is pixel (row j, col i).
+
+/// Positions in metres.
+#[derive(Clone, Debug, PartialEq)]
+pub struct GridMesh {
+    pub w: usize,
+    pub h: usize,
+    pub pos: Vec<[f32; 3]>,
+}
+
+impl GridMesh {
+    pub fn new(w: usize, h: usize, pos: Vec<[f32; 3]>) -> Self {
+        assert_eq!(pos.len(), w * h, "grid {w}x{h} needs {} vertices", w * h);
+        GridMesh { w, h, pos }
+    }
+
+    /// Flat sheet in the z = 0 plane spanning `size_x × size_y` metres, row 0 at y = size_y.
+    pub fn flat(w: usize, h: usize, size_x: f32, size_y: f32) -> Self {
+        let mut pos = Vec::with_capacity(w * h);
+        for j in 0..h {
+            for i in 0..w {
+                let (u, v) = rest_uv(i, j, w, h);
+                pos.push([u * size_x, (1.0 - v) * size_y, 0.0]);
+            }
+        }
+        GridMesh { w, h, pos }
+    }
+
+    #[inline]
+    pub fn idx(&self, i: usize, j: usize) -> usize {
+        j * self.w + i
+    }
+
+    /// Triangles of the grid: each quad (i,j)-(i+1,j+1) split along its (i,j)–(i+1,j+1)
+    /// diagonal, counter-clockwise seen from +z for a flat sheet with rows going down in y.
+    pub fn triangles(&self) -> Vec<[usize; 3]> {
+        let mut t = Vec::with_capacity(2 * (self.w - 1) * (self.h - 1));
+        for j in 0..self.h.saturating_sub(1) {
+            for i in 0..self.w.saturating_sub(1) {
+                let a = self.idx(i, j);
+                let b = self.idx(i + 1, j);
+                let c = self.idx(i + 1, j + 1);
+                let d = self.idx(i, j + 1);
+                t.push([a, c, b]);
+                t.push([a, d, c]);
+            }
+        }
+        t
+    }
+
+    /// Quads (a, b, c, d) in the same winding as [`GridMesh::triangles`].
+    pub fn quads(&self) -> Vec<[usize; 4]> {
+        let mut q = Vec::with_capacity((self.w - 1) * (self.h - 1));
+        for j in 0..self.h.saturating_sub(1) {
+            for i in 0..self.w.saturating_sub(1) {
+                q.push([self.idx(i, j), self.idx(i, j + 1), self.idx(i + 1, j + 1), self.idx(i + 1, j)]);
+            }
+        }
+        q
+    }
+
+    /// True for vertices on the grid's border (the topological boundary of the sheet).
+    pub fn is_border(&self, i: usize, j: usize) -> bool {
+        i == 0 || j == 0 || i + 1 == self.w || j + 1 == self.h
+    }
+
+    /// Longest edge length (metres) over the grid's structural edges and quad diagonals used by
+    /// the triangulation.
+    pub fn longest_edge(&self) -> f32 {
+        let mut m = 0.0f32;
+        for t in self.triangles() {
+            for k in 0..3 {
+                m = m.max(dist(self.pos[t[k]], self.pos[t[(k + 1) % 3]]));
+            }
+        }
+        m
+    }
+
+    pub fn bounds(&self) -> ([f32; 3], [f32; 3]) {
+        bounds(&self.pos)
+    }
+}
+
+/// Rest parameter (u, v) ∈ [0,1]² of vertex (i, j) on a `w × h` grid (corners aligned).
+#[inline]
+pub fn rest_uv(i: usize, j: usize, w: usize, h: usize) -> (f32, f32) {
+    let u = if w > 1 { i as f32 / (w - 1) as f32 } else { 0.0 };
+    let v = if h > 1 { j as f32 / (h - 1) as f32 } else { 0.0 };
+    (u, v)
+}
+
+#[inline]
+pub fn dist(a: [f32; 3], b: [f32; 3]) -> f32 {
+    ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
+}
+
+pub fn bounds(pts: &[[f32; 3]]) -> ([f32; 3], [f32; 3]) {
+    let mut lo = [f32::INFINITY; 3];
+    let mut hi = [f32::NEG_INFINITY; 3];
+    for p in pts {
+        for k in 0..3 {
+            lo[k] = lo[k].min(p[k]);
+            hi[k] = hi[k].max(p[k]);
+        }
+    }
+    (lo, hi)
+}

@@ -1,0 +1,86 @@
+//! Dense f32 tensors, row-major. Images and activations are NCHW; conv weights are OIHW
+//! (PyTorch's layout), so weights move to and from PyTorch/JAX through `.npz` unchanged.
+
+use crate::error::{Error, Result};
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct Tensor {
+    pub shape: Vec<usize>,
+    pub data: Vec<f32>,
+}
+
+impl Tensor {
+    pub fn zeros(shape: &[usize]) -> Self {
+        Tensor { shape: shape.to_vec(), data: vec![0.0; shape.iter().product()] }
+    }
+
+    pub fn full(shape: &[usize], v: f32) -> Self {
+        Tensor { shape: shape.to_vec(), data: vec![v; shape.iter().product()] }
+    }
+
+    pub fn from_vec(shape: &[usize], data: Vec<f32>) -> Result<Self> {
+        let n: usize = shape.iter().product();
+        if n != data.len() {
+            return Err(Error::shape(format!("shape {:?} needs {} values, got {}", shape, n, data.len())));
+        }
+        Ok(Tensor { shape: shape.to_vec(), data })
+    }
+
+    pub fn len(&self) -> usize {
+        self.data.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.data.is_empty()
+    }
+
+    pub fn rank(&self) -> usize {
+        self.shape.len()
+    }
+
+    /// (N, C, H, W) of a rank-4 tensor; panics on another rank (a programming error, not input).
+    pub fn dims4(&self) -> (usize, usize, usize, usize) {
+        assert_eq!(self.shape.len(), 4, "expected NCHW, got shape {:?}", self.shape);
+        (self.shape[0], self.shape[1], self.shape[2], self.shape[3])
+    }
+
+    /// Checked variant of [`Tensor::dims4`] for data that came from outside.
+    pub fn expect_rank4(&self, what: &str) -> Result<(usize, usize, usize, usize)> {
+        if self.shape.len() != 4 {
+            return Err(Error::shape(format!("{what}: expected (N, C, H, W), got shape {:?}", self.shape)));
+        }
+        Ok(self.dims4())
+    }
+
+    pub fn reshape(mut self, shape: &[usize]) -> Result<Self> {
+        if shape.iter().product::<usize>() != self.data.len() {
+            return Err(Error::shape(format!("cannot reshape {:?} to {:?}", self.shape, shape)));
+        }
+        self.shape = shape.to_vec();
+        Ok(self)
+    }
+
+    /// Index of element (n, c, y, x) in an NCHW tensor.
+    #[inline]
+    pub fn idx4(&self, n: usize, c: usize, y: usize, x: usize) -> usize {
+        ((n * self.shape[1] + c) * self.shape[2] + y) * self.shape[3] + x
+    }
+
+    /// Samples `n0..n0+count` of the leading axis, as a new tensor.
+    pub fn slice_batch(&self, n0: usize, count: usize) -> Tensor {
+        let per: usize = self.shape[1..].iter().product();
+        let mut shape = self.shape.clone();
+        shape[0] = count;
+        Tensor { shape, data: self.data[n0 * per..(n0 + count) * per].to_vec() }
+    }
+
+    /// First non-finite value, as (flat index, value).
+    pub fn first_non_finite(&self) -> Option<(usize, f32)> {
+        self.data.iter().enumerate().find(|(_, v)| !v.is_finite()).map(|(i, v)| (i, *v))
+    }
+
+    pub fn max_abs_diff(&self, other: &Tensor) -> f32 {
+        assert_eq!(self.shape, other.shape);
+        self.data.iter().zip(&other.data).map(|(a, b)| (a - b).abs()).fold(0.0, f32::max)
+    }
+}
