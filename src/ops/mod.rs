@@ -1,7 +1,89 @@
 //! The closed list of ops. Each op has a plain scalar reference `*_ref` (the spec) and a fast
 //! path (SIMD via `wide` + threads via `rayon`) with the same signature; tests compare them.
 //! Backward functions sit next to their forwards and ADD into gradient buffers (`+=`).
+//!
+//! [`Ops`] is the op table the networks are written against: [`Cpu`] fills it with the fast
+//! CPU kernels, `cuda::Cuda` (feature `cuda`) with GPU kernels. Shapes: NCHW activations,
+//! OIHW conv weights.
 
 pub mod conv2d;
 
 pub use conv2d::Padding;
+
+use crate::tensor::Tensor;
+
+/// Resampling kernels (all with align-corners semantics).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Interp {
+    Bilinear,
+    /// Keys cubic convolution, a = −0.75 (PyTorch's), border samples clamped.
+    Bicubic,
+}
+
+/// Adam hyper-parameters (paper: lr 1e-4).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct AdamParams {
+    /// Learning rate (step size in parameter units).
+    pub lr: f32,
+    pub beta1: f32,
+    pub beta2: f32,
+    pub eps: f32,
+}
+
+impl Default for AdamParams {
+    fn default() -> Self {
+        AdamParams { lr: 1e-4, beta1: 0.9, beta2: 0.999, eps: 1e-8 }
+    }
+}
+
+/// The op table. Every method has the contract of the CPU function of the same name.
+pub trait Ops: Sync {
+    fn name(&self) -> &'static str;
+    /// x: (N, C, H, W), w: (O, C, KH, KW), b: (O) → y: (N, O, H, W); stride 1, "same" padding.
+    fn conv2d(&self, x: &Tensor, w: &Tensor, b: Option<&Tensor>, pad: Padding) -> Tensor;
+    /// Adds into dx (if given), dw, db (if given).
+    #[allow(clippy::too_many_arguments)]
+    fn conv2d_backward(
+        &self,
+        x: &Tensor,
+        w: &Tensor,
+        dy: &Tensor,
+        pad: Padding,
+        dx: Option<&mut Tensor>,
+        dw: &mut Tensor,
+        db: Option<&mut Tensor>,
+    );
+    fn relu(&self, x: &Tensor) -> Tensor;
+    /// dx += dy ⊙ [x > 0]
+    fn relu_backward(&self, x: &Tensor, dy: &Tensor, dx: &mut Tensor);
+    /// a += b (residual add; its backward is the identity on both inputs).
+    fn add_assign(&self, a: &mut Tensor, b: &Tensor);
+    /// (N, C·r², H, W) → (N, C, H·r, W·r), PyTorch's channel order.
+    fn pixel_shuffle(&self, x: &Tensor, r: usize) -> Tensor;
+    /// Inverse of pixel_shuffle (and its backward).
+    fn pixel_unshuffle(&self, x: &Tensor, r: usize) -> Tensor;
+    /// (N, C, H, W) → (N, C, out_h, out_w), align corners.
+    fn resize(&self, x: &Tensor, out_h: usize, out_w: usize, mode: Interp) -> Tensor;
+    /// Adds the gradient w.r.t. the input of `resize` into dx (N, C, in_h, in_w).
+    fn resize_backward(&self, dy: &Tensor, mode: Interp, dx: &mut Tensor);
+    fn sigmoid(&self, x: &Tensor) -> Tensor;
+    /// Mean squared error and its gradient w.r.t. pred.
+    fn mse(&self, pred: &Tensor, target: &Tensor) -> (f32, Tensor);
+    /// Mean of −[w·t·log σ(z) + (1−t)·log(1−σ(z))] (stable form) and its gradient w.r.t. z.
+    fn bce_with_logits(&self, logits: &Tensor, target: &Tensor, pos_weight: f32) -> (f32, Tensor);
+    /// One Adam step with bias correction; `step` counts from 1.
+    #[allow(clippy::too_many_arguments)]
+    fn adam_update(
+        &self,
+        p: &mut [f32],
+        g: &[f32],
+        m: &mut [f32],
+        v: &mut [f32],
+        step: u64,
+        hp: &AdamParams,
+    );
+}
+
+/// The CPU op table: the fast kernels of this module.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Cpu;
