@@ -80,8 +80,8 @@ pub fn mesh_to_image(mesh: &GridMesh, domain: &Domain) -> Tensor {
     let mut t = Tensor::zeros(&[3, h, w]);
     for (v, p) in mesh.pos.iter().enumerate() {
         let c = domain.encode(*p);
-        for k in 0..3 {
-            t.data[k * h * w + v] = c[k];
+        for (k, ck) in c.iter().enumerate() {
+            t.data[k * h * w + v] = *ck;
         }
     }
     t

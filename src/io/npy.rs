@@ -35,7 +35,7 @@ pub fn tensor_from_npy_bytes(bytes: &[u8]) -> std::result::Result<Tensor, String
     let payload = (bytes.len() - header_len.min(bytes.len())) as u64;
     let dtype = npy.dtype();
     let item = match &dtype {
-        npyz::DType::Plain(ts) => ts.size_field() as u64,
+        npyz::DType::Plain(ts) => ts.size_field(),
         _ => return Err(format!("unsupported dtype {}; expected float32", dtype.descr())),
     };
     if payload < n * item {
