@@ -6,7 +6,13 @@
 //! CPU kernels, `cuda::Cuda` (feature `cuda`) with GPU kernels. Shapes: NCHW activations,
 //! OIHW conv weights.
 
+pub mod activation;
+pub mod adam;
 pub mod conv2d;
+pub mod cpu;
+pub mod loss;
+pub mod pixel_shuffle;
+pub mod resample;
 
 pub use conv2d::Padding;
 
@@ -73,15 +79,7 @@ pub trait Ops: Sync {
     fn bce_with_logits(&self, logits: &Tensor, target: &Tensor, pos_weight: f32) -> (f32, Tensor);
     /// One Adam step with bias correction; `step` counts from 1.
     #[allow(clippy::too_many_arguments)]
-    fn adam_update(
-        &self,
-        p: &mut [f32],
-        g: &[f32],
-        m: &mut [f32],
-        v: &mut [f32],
-        step: u64,
-        hp: &AdamParams,
-    );
+    fn adam_update(&self, p: &mut [f32], g: &[f32], m: &mut [f32], v: &mut [f32], step: u64, hp: &AdamParams);
 }
 
 /// The CPU op table: the fast kernels of this module.

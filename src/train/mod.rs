@@ -1,1 +1,3 @@
-//! TODO: filled by its issue.
+//! Training: the Adam optimizer, the dataset, the trainer loop.
+
+pub mod adam;

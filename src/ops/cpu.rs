@@ -1,0 +1,67 @@
+//! [`Cpu`]: the op table filled with this module's fast CPU kernels.
+
+use super::{activation, adam, conv2d, loss, pixel_shuffle, resample};
+use super::{AdamParams, Cpu, Interp, Ops, Padding};
+use crate::tensor::Tensor;
+
+impl Ops for Cpu {
+    fn name(&self) -> &'static str {
+        "cpu"
+    }
+    fn conv2d(&self, x: &Tensor, w: &Tensor, b: Option<&Tensor>, pad: Padding) -> Tensor {
+        conv2d::conv2d(x, w, b, pad)
+    }
+    fn conv2d_backward(
+        &self,
+        x: &Tensor,
+        w: &Tensor,
+        dy: &Tensor,
+        pad: Padding,
+        dx: Option<&mut Tensor>,
+        dw: &mut Tensor,
+        db: Option<&mut Tensor>,
+    ) {
+        conv2d::conv2d_backward(x, w, dy, pad, dx, dw, db)
+    }
+    fn relu(&self, x: &Tensor) -> Tensor {
+        activation::relu(x)
+    }
+    fn relu_backward(&self, x: &Tensor, dy: &Tensor, dx: &mut Tensor) {
+        activation::relu_backward(x, dy, dx)
+    }
+    fn add_assign(&self, a: &mut Tensor, b: &Tensor) {
+        activation::add_assign(a, b)
+    }
+    fn pixel_shuffle(&self, x: &Tensor, r: usize) -> Tensor {
+        pixel_shuffle::pixel_shuffle(x, r)
+    }
+    fn pixel_unshuffle(&self, x: &Tensor, r: usize) -> Tensor {
+        pixel_shuffle::pixel_unshuffle(x, r)
+    }
+    fn resize(&self, x: &Tensor, out_h: usize, out_w: usize, mode: Interp) -> Tensor {
+        resample::resize(x, out_h, out_w, mode)
+    }
+    fn resize_backward(&self, dy: &Tensor, mode: Interp, dx: &mut Tensor) {
+        resample::resize_backward(dy, mode, dx)
+    }
+    fn sigmoid(&self, x: &Tensor) -> Tensor {
+        activation::sigmoid(x)
+    }
+    fn mse(&self, pred: &Tensor, target: &Tensor) -> (f32, Tensor) {
+        loss::mse(pred, target)
+    }
+    fn bce_with_logits(&self, logits: &Tensor, target: &Tensor, pos_weight: f32) -> (f32, Tensor) {
+        loss::bce_with_logits(logits, target, pos_weight)
+    }
+    fn adam_update(
+        &self,
+        p: &mut [f32],
+        g: &[f32],
+        m: &mut [f32],
+        v: &mut [f32],
+        step: u64,
+        hp: &AdamParams,
+    ) {
+        adam::adam_update(p, g, m, v, step, hp)
+    }
+}

@@ -1,0 +1,174 @@
+//! Losses, each returning (mean loss, gradient w.r.t. the prediction). Any shape.
+//!
+//! Loss sums are accumulated in f64. The fast paths thread over fixed chunks (partial sums
+//! added in chunk order, so the result does not depend on the thread count); their per-element
+//! gradients are the reference's expressions (bitwise equal), their loss agrees to rounding.
+
+use super::activation::{sigmoid1, CHUNK, PAR_MIN};
+use crate::tensor::Tensor;
+use rayon::prelude::*;
+
+/// softplus(z) = log(1 + e^z), without overflow for large |z|.
+#[inline(always)]
+fn softplus(z: f32) -> f32 {
+    z.max(0.0) + (-z.abs()).exp().ln_1p()
+}
+
+/// One element of BCE-with-logits: (loss, d loss / d z), not yet divided by the count.
+/// loss = −[w·t·log σ(z) + (1−t)·log(1−σ(z))] = w·t·softplus(−z) + (1−t)·softplus(z)
+/// d/dz = w·t·(σ(z) − 1) + (1−t)·σ(z)
+#[inline(always)]
+fn bce1(z: f32, t: f32, pos_weight: f32) -> (f32, f32) {
+    let wt = pos_weight * t;
+    let loss = wt * softplus(-z) + (1.0 - t) * softplus(z);
+    let s = sigmoid1(z);
+    (loss, wt * (s - 1.0) + (1.0 - t) * s)
+}
+
+fn check(pred: &Tensor, target: &Tensor, what: &str) {
+    assert_eq!(pred.shape, target.shape, "{what}: prediction {:?} vs target {:?}", pred.shape, target.shape);
+}
+
+/// mean((pred − target)²) and its gradient 2·(pred − target)/count.
+pub fn mse_ref(pred: &Tensor, target: &Tensor) -> (f32, Tensor) {
+    check(pred, target, "mse");
+    let n = pred.len().max(1) as f32;
+    let mut sum = 0.0f64;
+    let mut g = Tensor::zeros(&pred.shape);
+    for i in 0..pred.len() {
+        let d = pred.data[i] - target.data[i];
+        sum += (d as f64) * (d as f64);
+        g.data[i] = 2.0 * d / n;
+    }
+    ((sum / n as f64) as f32, g)
+}
+
+/// Fast [`mse_ref`].
+pub fn mse(pred: &Tensor, target: &Tensor) -> (f32, Tensor) {
+    check(pred, target, "mse");
+    let n = pred.len().max(1) as f32;
+    let mut g = Tensor::zeros(&pred.shape);
+    let body = |g: &mut [f32], p: &[f32], t: &[f32]| -> f64 {
+        let mut s = 0.0f64;
+        for ((g, &p), &t) in g.iter_mut().zip(p).zip(t) {
+            let d = p - t;
+            s += (d as f64) * (d as f64);
+            *g = 2.0 * d / n;
+        }
+        s
+    };
+    let sum: f64 = if pred.len() < PAR_MIN {
+        body(&mut g.data, &pred.data, &target.data)
+    } else {
+        let parts: Vec<f64> = g
+            .data
+            .par_chunks_mut(CHUNK)
+            .zip(pred.data.par_chunks(CHUNK))
+            .zip(target.data.par_chunks(CHUNK))
+            .map(|((g, p), t)| body(g, p, t))
+            .collect();
+        parts.iter().sum()
+    };
+    ((sum / n as f64) as f32, g)
+}
+
+/// Mean binary cross-entropy on logits with positive-class weight `pos_weight` (1 = none),
+/// stable for any |z|, and its gradient w.r.t. the logits. target values in [0, 1].
+pub fn bce_with_logits_ref(logits: &Tensor, target: &Tensor, pos_weight: f32) -> (f32, Tensor) {
+    check(logits, target, "bce_with_logits");
+    let n = logits.len().max(1) as f32;
+    let mut sum = 0.0f64;
+    let mut g = Tensor::zeros(&logits.shape);
+    for i in 0..logits.len() {
+        let (l, d) = bce1(logits.data[i], target.data[i], pos_weight);
+        sum += l as f64;
+        g.data[i] = d / n;
+    }
+    ((sum / n as f64) as f32, g)
+}
+
+/// Fast [`bce_with_logits_ref`].
+pub fn bce_with_logits(logits: &Tensor, target: &Tensor, pos_weight: f32) -> (f32, Tensor) {
+    check(logits, target, "bce_with_logits");
+    let n = logits.len().max(1) as f32;
+    let mut g = Tensor::zeros(&logits.shape);
+    let body = |g: &mut [f32], z: &[f32], t: &[f32]| -> f64 {
+        let mut s = 0.0f64;
+        for ((g, &z), &t) in g.iter_mut().zip(z).zip(t) {
+            let (l, d) = bce1(z, t, pos_weight);
+            s += l as f64;
+            *g = d / n;
+        }
+        s
+    };
+    let sum: f64 = if logits.len() < PAR_MIN {
+        body(&mut g.data, &logits.data, &target.data)
+    } else {
+        let parts: Vec<f64> = g
+            .data
+            .par_chunks_mut(CHUNK)
+            .zip(logits.data.par_chunks(CHUNK))
+            .zip(target.data.par_chunks(CHUNK))
+            .map(|((g, z), t)| body(g, z, t))
+            .collect();
+        parts.iter().sum()
+    };
+    ((sum / n as f64) as f32, g)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::ops::activation::tests::TestRng;
+
+    #[test]
+    fn fast_losses_match_ref() {
+        let mut rng = TestRng(6);
+        for n in [1, 3, 17, 1001, PAR_MIN - 1, PAR_MIN + 3, 3 * CHUNK + 11] {
+            let p = rng.tensor(&[n], -2.0, 2.0);
+            let t = rng.tensor(&[n], 0.0, 1.0);
+            let (la, ga) = mse(&p, &t);
+            let (lb, gb) = mse_ref(&p, &t);
+            assert!((la - lb).abs() <= 1e-6 * lb.abs(), "mse n={n}: {la} vs {lb}");
+            assert_eq!(ga, gb, "mse grad n={n}");
+            for w in [1.0, 4.5] {
+                let (la, ga) = bce_with_logits(&p, &t, w);
+                let (lb, gb) = bce_with_logits_ref(&p, &t, w);
+                assert!((la - lb).abs() <= 1e-6 * lb.abs(), "bce n={n} w={w}: {la} vs {lb}");
+                assert_eq!(ga, gb, "bce grad n={n} w={w}");
+            }
+        }
+    }
+
+    #[test]
+    fn bce_is_finite_and_exact_at_extreme_logits() {
+        let z = Tensor { shape: vec![4], data: vec![-100.0, 100.0, -100.0, 100.0] };
+        let t = Tensor { shape: vec![4], data: vec![1.0, 0.0, 0.0, 1.0] };
+        let (l, g) = bce_with_logits(&z, &t, 2.0);
+        // two confidently wrong samples (w=2 for the positive one): (2·100 + 100)/4
+        assert!((l - 75.0).abs() < 1e-4, "{l}");
+        for (gi, want) in g.data.iter().zip([-0.5, 0.25, 0.0, 0.0]) {
+            assert!((gi - want).abs() < 1e-30, "{:?}", g.data);
+        }
+    }
+
+    #[test]
+    fn loss_gradients_match_finite_differences() {
+        let mut rng = TestRng(7);
+        let p = rng.tensor(&[2, 3, 4, 5], -2.0, 2.0);
+        let t = rng.tensor(&[2, 3, 4, 5], 0.0, 1.0);
+        for which in 0..2 {
+            let f = |p: &Tensor| if which == 0 { mse(p, &t) } else { bce_with_logits(p, &t, 3.0) };
+            let (_, g) = f(&p);
+            for i in [0, 17, 119] {
+                let h = 1e-2;
+                let mut a = p.clone();
+                a.data[i] += h;
+                let mut b = p.clone();
+                b.data[i] -= h;
+                let fd = (f(&a).0 as f64 - f(&b).0 as f64) / (2.0 * h as f64);
+                assert!((fd - g.data[i] as f64).abs() < 2e-4, "loss {which} i={i}: fd {fd} vs {}", g.data[i]);
+            }
+        }
+    }
+}
