@@ -37,7 +37,7 @@ fn relu1(v: f32) -> f32 {
 
 /// Numerically stable logistic function (no overflow of exp for large |z|).
 #[inline(always)]
-pub(crate) fn sigmoid1(z: f32) -> f32 {
+fn sigmoid1(z: f32) -> f32 {
     if z >= 0.0 {
         1.0 / (1.0 + (-z).exp())
     } else {

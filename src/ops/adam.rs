@@ -22,13 +22,12 @@ fn corrections(step: u64, hp: &AdamParams) -> (f32, f32) {
 #[allow(clippy::too_many_arguments)]
 fn update(p: &mut [f32], g: &[f32], m: &mut [f32], v: &mut [f32], c1: f32, c2: f32, hp: &AdamParams) {
     let (b1, b2, lr, eps) = (hp.beta1, hp.beta2, hp.lr, hp.eps);
-    for i in 0..p.len() {
-        let gi = g[i];
-        let mi = (1.0 - b1) * gi + b1 * m[i];
-        let vi = (1.0 - b2) * (gi * gi) + b2 * v[i];
-        m[i] = mi;
-        v[i] = vi;
-        p[i] -= lr * ((mi / c1) / ((vi / c2).sqrt() + eps));
+    for (((p, &g), m), v) in p.iter_mut().zip(g).zip(m.iter_mut()).zip(v.iter_mut()) {
+        let mi = (1.0 - b1) * g + b1 * *m;
+        let vi = (1.0 - b2) * (g * g) + b2 * *v;
+        *m = mi;
+        *v = vi;
+        *p -= lr * ((mi / c1) / ((vi / c2).sqrt() + eps));
     }
 }
 

@@ -4,25 +4,24 @@
 //! added in chunk order, so the result does not depend on the thread count); their per-element
 //! gradients are the reference's expressions (bitwise equal), their loss agrees to rounding.
 
-use super::activation::{sigmoid1, CHUNK, PAR_MIN};
+use super::activation::{CHUNK, PAR_MIN};
 use crate::tensor::Tensor;
 use rayon::prelude::*;
-
-/// softplus(z) = log(1 + e^z), without overflow for large |z|.
-#[inline(always)]
-fn softplus(z: f32) -> f32 {
-    z.max(0.0) + (-z.abs()).exp().ln_1p()
-}
 
 /// One element of BCE-with-logits: (loss, d loss / d z), not yet divided by the count.
 /// loss = −[w·t·log σ(z) + (1−t)·log(1−σ(z))] = w·t·softplus(−z) + (1−t)·softplus(z)
 /// d/dz = w·t·(σ(z) − 1) + (1−t)·σ(z)
+/// Stable for any |z|: with e = exp(−|z|) ∈ (0, 1], softplus(±z) = max(±z, 0) + ln(1 + e) and
+/// σ(z) = 1/(1 + e) for z ≥ 0, e/(1 + e) otherwise (one exp and one log per element).
 #[inline(always)]
 fn bce1(z: f32, t: f32, pos_weight: f32) -> (f32, f32) {
+    let e = (-z.abs()).exp();
+    let l1p = e.ln_1p();
+    let sp_pos = z.max(0.0) + l1p; // softplus(z)
+    let sp_neg = (-z).max(0.0) + l1p; // softplus(−z)
+    let s = if z >= 0.0 { 1.0 / (1.0 + e) } else { e / (1.0 + e) };
     let wt = pos_weight * t;
-    let loss = wt * softplus(-z) + (1.0 - t) * softplus(z);
-    let s = sigmoid1(z);
-    (loss, wt * (s - 1.0) + (1.0 - t) * s)
+    (wt * sp_neg + (1.0 - t) * sp_pos, wt * (s - 1.0) + (1.0 - t) * s)
 }
 
 fn check(pred: &Tensor, target: &Tensor, what: &str) {

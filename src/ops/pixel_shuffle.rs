@@ -75,9 +75,12 @@ pub fn pixel_shuffle(x: &Tensor, r: usize) -> Tensor {
         let src = &x.data[p * r * r * plane_in..(p + 1) * r * r * plane_in];
         for (yo, row) in out.chunks_exact_mut(wo).enumerate() {
             let (hi, i) = (yo / r, yo % r);
-            for (wi, px) in row.chunks_exact_mut(r).enumerate() {
-                for (j, v) in px.iter_mut().enumerate() {
-                    *v = src[(i * r + j) * plane_in + hi * w + wi];
+            // Output row (hi·r + i) interleaves row hi of the r input planes i·r + j.
+            for j in 0..r {
+                let base = (i * r + j) * plane_in + hi * w;
+                let srow = &src[base..base + w];
+                for (o, &s) in row[j..].iter_mut().step_by(r).zip(srow) {
+                    *o = s;
                 }
             }
         }
