@@ -1,9 +1,11 @@
 //! Thin entry point: check the CPU, parse arguments, hand over to the library's `app` module.
 
 fn main() {
-    // Before anything that may use the wide instructions this binary was compiled for.
-    if let Err(msg) = anisocb::app::cpu::check_cpu_features() {
-        eprintln!("anisocb: {msg}");
+    // First, before anything that may use the wide instructions this binary was compiled for
+    // (see src/app/cpu.rs for what this can and cannot guarantee).
+    let missing = anisocb::app::cpu::missing_cpu_features();
+    if !missing.is_empty() {
+        let _ = anisocb::app::cpu::write_missing_report(&mut std::io::stderr(), missing.as_slice());
         std::process::exit(3);
     }
     std::process::exit(anisocb::app::main_with_args(std::env::args_os()));

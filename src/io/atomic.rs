@@ -1,38 +1,144 @@
-//! Atomic file writes: write to `NAME.tmp.<pid>` in the same directory, fsync, rename over
-//! `NAME`. A crash leaves either the old file or the new one, never half of one.
+//! Atomic file writes: write to `.NAME.tmp.<pid>.<n>` in the same directory, fsync, rename over
+//! `NAME`, fsync the directory. A crash leaves either the old file or the new one, never half
+//! of one. An error or a panic inside the writer removes the temporary file; only a kill
+//! (SIGKILL, power loss) can leave one behind, and [`remove_stale_temps`] clears those.
 
 use crate::error::{Error, Result};
 use std::fs::{self, File};
 use std::io::{BufWriter, Write};
-use std::path::Path;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
+
+/// Distinguishes concurrent writes of the same path from one process.
+static COUNTER: AtomicU64 = AtomicU64::new(0);
+
+/// Removes the temporary file unless disarmed (after a successful rename), also on panic.
+struct TempGuard(Option<PathBuf>);
+
+impl Drop for TempGuard {
+    fn drop(&mut self) {
+        if let Some(p) = self.0.take() {
+            let _ = fs::remove_file(p);
+        }
+    }
+}
+
+fn temp_prefix(name: &std::ffi::OsStr) -> String {
+    format!(".{}.tmp.", name.to_string_lossy())
+}
 
 pub fn write_atomic(path: &Path, f: impl FnOnce(&mut dyn Write) -> std::io::Result<()>) -> Result<()> {
     let dir = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
     let name =
         path.file_name().ok_or_else(|| Error::config(format!("{}: not a file name", path.display())))?;
-    let tmp = dir.join(format!(".{}.tmp.{}", name.to_string_lossy(), std::process::id()));
+    let n = COUNTER.fetch_add(1, Ordering::Relaxed);
+    let tmp = dir.join(format!("{}{}.{n}", temp_prefix(name), std::process::id()));
+    let mut guard = TempGuard(None);
     let result = (|| {
         let file = File::create(&tmp)?;
+        guard.0 = Some(tmp.clone());
         let mut w = BufWriter::new(file);
         f(&mut w)?;
         let file = w.into_inner().map_err(|e| e.into_error())?;
         file.sync_all()?;
-        fs::rename(&tmp, path)
+        fs::rename(&tmp, path)?;
+        guard.0 = None;
+        // Make the rename itself durable; not every filesystem allows syncing a directory.
+        if let Ok(d) = File::open(dir) {
+            let _ = d.sync_all();
+        }
+        Ok(())
     })();
-    if let Err(e) = result {
-        let _ = fs::remove_file(&tmp);
-        return Err(Error::io(path, e));
-    }
-    Ok(())
+    drop(guard);
+    result.map_err(|e| Error::io(path, e))
 }
 
 pub fn write_atomic_bytes(path: &Path, bytes: &[u8]) -> Result<()> {
     write_atomic(path, |w| w.write_all(bytes))
 }
 
+/// Remove temporary files that a killed writer of `path` left behind (`.NAME.tmp.*` beside it).
+/// Call it where a run restarts (e.g. `--resume`), when no other process writes `path`.
+/// Returns how many were removed.
+pub fn remove_stale_temps(path: &Path) -> Result<usize> {
+    let dir = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    let Some(name) = path.file_name() else { return Ok(0) };
+    let prefix = temp_prefix(name);
+    let Ok(list) = fs::read_dir(dir) else { return Ok(0) };
+    let mut removed = 0;
+    for e in list.flatten() {
+        if e.file_name().to_string_lossy().starts_with(&prefix) {
+            fs::remove_file(e.path()).map_err(|err| Error::io(e.path(), err))?;
+            removed += 1;
+        }
+    }
+    Ok(removed)
+}
+
 /// Create `dir` (and parents), with an error that names it and says what to do.
 pub fn ensure_dir(dir: &Path) -> Result<()> {
+    if dir.exists() && !dir.is_dir() {
+        return Err(Error::format(dir, "output path exists and is not a directory; choose a writable --out"));
+    }
     fs::create_dir_all(dir).map_err(|e| {
         Error::format(dir, format!("cannot create output directory ({e}); choose a writable --out"))
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn scratch(name: &str) -> PathBuf {
+        let d = std::env::temp_dir().join(format!("anisocb-atomic-{name}-{}", std::process::id()));
+        let _ = fs::remove_dir_all(&d);
+        fs::create_dir_all(&d).unwrap();
+        d
+    }
+
+    fn entries(d: &Path) -> Vec<String> {
+        let mut v: Vec<String> =
+            fs::read_dir(d).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into()).collect();
+        v.sort();
+        v
+    }
+
+    #[test]
+    fn failed_write_keeps_old_file_and_leaves_no_temp() {
+        let d = scratch("fail");
+        let p = d.join("a.bin");
+        write_atomic_bytes(&p, b"old").unwrap();
+        let e = write_atomic(&p, |w| {
+            w.write_all(b"half")?;
+            Err(std::io::Error::other("disk full"))
+        })
+        .unwrap_err();
+        assert!(e.to_string().contains("a.bin") && e.to_string().contains("disk full"), "{e}");
+        assert_eq!(fs::read(&p).unwrap(), b"old");
+        assert_eq!(entries(&d), ["a.bin"]);
+        let _ = fs::remove_dir_all(&d);
+    }
+
+    #[test]
+    fn panicking_writer_leaves_no_temp() {
+        let d = scratch("panic");
+        let p = d.join("b.bin");
+        let r = std::panic::catch_unwind(|| {
+            let _ = write_atomic(&p, |_| panic!("writer bug"));
+        });
+        assert!(r.is_err());
+        assert!(entries(&d).is_empty(), "{:?}", entries(&d));
+        let _ = fs::remove_dir_all(&d);
+    }
+
+    #[test]
+    fn stale_temps_of_a_killed_writer_are_removed() {
+        let d = scratch("stale");
+        let p = d.join("ckpt.npz");
+        fs::write(d.join(".ckpt.npz.tmp.999.0"), b"partial").unwrap();
+        fs::write(d.join("other.npz"), b"x").unwrap();
+        assert_eq!(remove_stale_temps(&p).unwrap(), 1);
+        assert_eq!(entries(&d), ["other.npz"]);
+        let _ = fs::remove_dir_all(&d);
+    }
 }

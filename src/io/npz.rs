@@ -124,6 +124,9 @@ fn u32_at(b: &[u8], i: usize) -> std::result::Result<u32, String> {
 }
 
 pub fn npz_from_bytes(b: &[u8]) -> std::result::Result<NpzEntries, String> {
+    if b.is_empty() {
+        return Err("empty file (0 bytes); expected an .npz archive".into());
+    }
     if b.len() < 22 || &b[..2] != b"PK" {
         return Err("not an .npz (zip) file".into());
     }
@@ -135,6 +138,9 @@ pub fn npz_from_bytes(b: &[u8]) -> std::result::Result<NpzEntries, String> {
     let count = u16_at(b, eocd + 10)? as usize;
     let mut p = u32_at(b, eocd + 16)? as usize;
     let mut entries = NpzEntries::default();
+    // Entries must not overlap: the sum of their sizes is bounded by the file's size, so a
+    // directory that points many entries at one big array cannot multiply the memory used.
+    let mut total = 0usize;
     for _ in 0..count {
         if u32_at(b, p)? != 0x0201_4b50 {
             return Err("corrupt zip central directory".into());
@@ -154,6 +160,9 @@ pub fn npz_from_bytes(b: &[u8]) -> std::result::Result<NpzEntries, String> {
                 "entry '{name}' is compressed (method {method}); only stored .npz is supported — save with numpy.savez, not savez_compressed"
             ));
         }
+        if csize == u32::MAX as usize || local == u32::MAX as usize {
+            return Err(format!("entry '{name}' needs zip64 (over 4 GiB), which is not supported"));
+        }
         if u32_at(b, local)? != 0x0403_4b50 {
             return Err(format!("entry '{name}': corrupt local header"));
         }
@@ -161,6 +170,17 @@ pub fn npz_from_bytes(b: &[u8]) -> std::result::Result<NpzEntries, String> {
         let data = b
             .get(start..start.saturating_add(csize))
             .ok_or_else(|| format!("entry '{name}' is truncated"))?;
+        total = total.saturating_add(30 + name_len + csize);
+        if total > b.len() {
+            return Err(format!(
+                "entry '{name}': entries overlap or exceed the file (corrupt zip directory)"
+            ));
+        }
+        if entries.arrays.iter().any(|(n, _)| name.strip_suffix(".npy") == Some(n.as_str()))
+            || entries.files.iter().any(|(n, _)| *n == name)
+        {
+            return Err(format!("duplicate entry '{name}'"));
+        }
         if crc32(data) != crc {
             return Err(format!("entry '{name}': CRC mismatch (corrupted file)"));
         }

@@ -1,0 +1,418 @@
+//! A catalogue of hostile and broken inputs, each with the error it must produce. Every error
+//! names the file and the problem; nothing allocates beyond the size of the file it reads
+//! (checked with a counting allocator); nothing is left half-written.
+
+use anisocb::io::{npz, read_npy, read_npz, write_npy, NpzEntries};
+use anisocb::tensor::Tensor;
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::cell::Cell;
+use std::path::{Path, PathBuf};
+
+// ---------------------------------------------------------------------------------------------
+// Largest single allocation made by the current thread (tests run on parallel threads).
+
+struct Counting;
+
+thread_local! {
+    static LARGEST: Cell<usize> = const { Cell::new(0) };
+}
+
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, l: Layout) -> *mut u8 {
+        let _ = LARGEST.try_with(|m| m.set(m.get().max(l.size())));
+        unsafe { System.alloc(l) }
+    }
+    unsafe fn alloc_zeroed(&self, l: Layout) -> *mut u8 {
+        let _ = LARGEST.try_with(|m| m.set(m.get().max(l.size())));
+        unsafe { System.alloc_zeroed(l) }
+    }
+    unsafe fn realloc(&self, p: *mut u8, l: Layout, new: usize) -> *mut u8 {
+        let _ = LARGEST.try_with(|m| m.set(m.get().max(new)));
+        unsafe { System.realloc(p, l, new) }
+    }
+    unsafe fn dealloc(&self, p: *mut u8, l: Layout) {
+        unsafe { System.dealloc(p, l) }
+    }
+}
+
+#[global_allocator]
+static ALLOC: Counting = Counting;
+
+/// Run `f` and return its result with the largest single allocation it made (bytes).
+fn largest_alloc<T>(f: impl FnOnce() -> T) -> (T, usize) {
+    LARGEST.with(|m| m.set(0));
+    let r = f();
+    (r, LARGEST.with(|m| m.get()))
+}
+
+// ---------------------------------------------------------------------------------------------
+// Helpers.
+
+fn scratch(test: &str) -> PathBuf {
+    let d = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("hostile-{test}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+/// Assert `r` failed with a message naming `path` and containing every piece of `want`.
+#[track_caller]
+fn expect_err<T: std::fmt::Debug>(r: anisocb::Result<T>, path: &Path, want: &[&str]) -> String {
+    let msg = r.expect_err("hostile input was accepted").to_string();
+    assert!(msg.contains(&path.display().to_string()), "error does not name {}: {msg}", path.display());
+    for w in want {
+        assert!(msg.contains(w), "error lacks {w:?}: {msg}");
+    }
+    msg
+}
+
+/// A `.npy` v1.0 file with a hand-written header (padded like numpy's) and raw payload.
+fn npy_raw(descr: &str, fortran: bool, shape: &str, payload: &[u8]) -> Vec<u8> {
+    let mut text = format!(
+        "{{'descr': '{descr}', 'fortran_order': {}, 'shape': {shape}, }}",
+        if fortran { "True" } else { "False" }
+    );
+    while (10 + text.len() + 1) % 64 != 0 {
+        text.push(' ');
+    }
+    text.push('\n');
+    let mut v = b"\x93NUMPY\x01\x00".to_vec();
+    v.extend_from_slice(&(text.len() as u16).to_le_bytes());
+    v.extend_from_slice(text.as_bytes());
+    v.extend_from_slice(payload);
+    v
+}
+
+fn f32_bytes(v: &[f32]) -> Vec<u8> {
+    v.iter().flat_map(|x| x.to_le_bytes()).collect()
+}
+
+fn write(dir: &Path, name: &str, bytes: &[u8]) -> PathBuf {
+    let p = dir.join(name);
+    std::fs::write(&p, bytes).unwrap();
+    p
+}
+
+fn ramp(shape: &[usize]) -> Tensor {
+    let n: usize = shape.iter().product();
+    Tensor::from_vec(shape, (0..n).map(|i| (i % 17) as f32 / 17.0).collect()).unwrap()
+}
+
+fn file_names(dir: &Path) -> Vec<String> {
+    let mut v: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    v.sort();
+    v
+}
+
+// ---------------------------------------------------------------------------------------------
+// .npy
+
+#[test]
+fn npy_catalogue_each_bad_file_gives_its_error() {
+    let d = scratch("npy");
+    let good = anisocb::io::npy_bytes(&ramp(&[2, 3, 4, 5]));
+    let mut bad_version = good.clone();
+    bad_version[6] = 9;
+    let cases: Vec<(&str, Vec<u8>, &[&str])> = vec![
+        ("empty.npy", vec![], &["empty file"]),
+        ("garbage.npy", b"hello, I am not an array at all".to_vec(), &["not a .npy file"]),
+        ("tiny.npy", b"\x93NUM".to_vec(), &["not a .npy file"]),
+        ("header_cut.npy", good[..40].to_vec(), &["truncated: header claims"]),
+        ("data_cut.npy", good[..good.len() - 4].to_vec(), &["truncated", "needs 480 bytes", "file has 476"]),
+        (
+            "only_header.npy",
+            npy_raw("<f4", false, "(3,)", &[]),
+            &["truncated", "needs 12 bytes", "file has 0"],
+        ),
+        (
+            "trailing.npy",
+            npy_raw("<f4", false, "(2,)", &f32_bytes(&[1.0, 2.0, 3.0])),
+            &["4 unexpected bytes"],
+        ),
+        ("int.npy", npy_raw("<i4", false, "(2,)", &[0; 8]), &["unsupported dtype", "<i4", "float32"]),
+        ("bigendian.npy", npy_raw(">f4", false, "(2,)", &[0; 8]), &["unsupported dtype", ">f4"]),
+        ("f16.npy", npy_raw("<f2", false, "(2,)", &[0; 4]), &["unsupported dtype", "<f2"]),
+        ("object.npy", npy_raw("|O", false, "(2,)", &[0; 16]), &["unsupported dtype"]),
+        ("fortran.npy", npy_raw("<f4", true, "(2, 3)", &[0; 24]), &["Fortran-order", "ascontiguousarray"]),
+        ("huge_shape.npy", npy_raw("<f4", false, "(1000000, 1000000)", &[0; 16]), &["too large"]),
+        (
+            "overflow_shape.npy",
+            npy_raw("<f4", false, "(4294967296, 4294967296, 4294967296)", &[0; 16]),
+            &["too large"],
+        ),
+        ("negative_shape.npy", npy_raw("<f4", false, "(-1, 3)", &[0; 16]), &["bad .npy header"]),
+        ("bad_literal.npy", npy_raw("<f4", false, "(2, 3", &[0; 24]), &["bad .npy header"]),
+        ("version.npy", bad_version, &["unsupported .npy format version 9.0"]),
+    ];
+    for (name, bytes, want) in cases {
+        let p = write(&d, name, &bytes);
+        let (r, big) = largest_alloc(|| read_npy(&p));
+        expect_err(r, &p, want);
+        assert!(
+            big <= 64 * 1024 + 2 * bytes.len(),
+            "{name}: allocated {big} bytes for a {}-byte file",
+            bytes.len()
+        );
+    }
+}
+
+/// A header claiming 10⁸ floats (400 MB) on a 100-byte file is refused before any allocation
+/// larger than the file: the size check runs before npyz's `into_vec`.
+#[test]
+fn npy_header_claiming_more_than_the_file_allocates_nothing_big() {
+    let d = scratch("npy_claim");
+    let bytes = npy_raw("<f4", false, "(100000, 1000)", &[0; 36]);
+    let p = write(&d, "claims_400mb.npy", &bytes);
+    let (r, big) = largest_alloc(|| read_npy(&p));
+    expect_err(r, &p, &["truncated", "needs 400000000 bytes", "file has 36"]);
+    assert!(big < 64 * 1024, "allocated {big} bytes");
+}
+
+/// npyz allocates the header length the file claims before reading it; a 4 GiB claim in a
+/// 12-byte file must be refused first.
+#[test]
+fn npy_header_length_field_is_checked_before_npyz_allocates_it() {
+    let d = scratch("npy_hlen");
+    let mut bytes = b"\x93NUMPY\x02\x00".to_vec();
+    bytes.extend_from_slice(&0xFFFF_FFF0u32.to_le_bytes());
+    bytes.extend_from_slice(b"{'descr'");
+    let p = write(&d, "hlen.npy", &bytes);
+    let (r, big) = largest_alloc(|| read_npy(&p));
+    expect_err(r, &p, &["header claims 4294967280 bytes", "limit"]);
+    assert!(big < 64 * 1024, "allocated {big} bytes");
+    // Within the limit but longer than the file.
+    let mut bytes = b"\x93NUMPY\x01\x00".to_vec();
+    bytes.extend_from_slice(&5000u16.to_le_bytes());
+    bytes.extend_from_slice(b"{'descr'");
+    let p = write(&d, "hlen2.npy", &bytes);
+    expect_err(read_npy(&p), &p, &["truncated: header claims 5010 bytes, file has 18"]);
+}
+
+/// npyz's header parser is recursive: 9 000 nested brackets would overflow the stack (an
+/// abort, not an error) if they reached it.
+#[test]
+fn npy_deeply_nested_header_is_refused_not_a_stack_overflow() {
+    let d = scratch("npy_nest");
+    let text = format!("{{'descr': '<f4', 'fortran_order': False, 'shape': {}, }}\n", "[".repeat(9000));
+    let mut bytes = b"\x93NUMPY\x01\x00".to_vec();
+    bytes.extend_from_slice(&(text.len() as u16).to_le_bytes());
+    bytes.extend_from_slice(text.as_bytes());
+    let p = write(&d, "nested.npy", &bytes);
+    expect_err(read_npy(&p), &p, &["nested deeper"]);
+}
+
+#[test]
+fn npy_missing_file_names_it() {
+    let p = scratch("npy_missing").join("nope.npy");
+    expect_err(read_npy(&p), &p, &["No such file"]);
+}
+
+#[test]
+fn npy_float64_and_scalars_are_read() {
+    let d = scratch("npy_ok");
+    let p = write(
+        &d,
+        "f8.npy",
+        &npy_raw("<f8", false, "(2,)", &[1.5f64.to_le_bytes(), 2.5f64.to_le_bytes()].concat()),
+    );
+    assert_eq!(read_npy(&p).unwrap().data, [1.5, 2.5]);
+    let p = write(&d, "scalar.npy", &npy_raw("<f4", false, "()", &f32_bytes(&[7.0])));
+    let t = read_npy(&p).unwrap();
+    assert_eq!((t.shape.len(), t.data.as_slice()), (0, &[7.0f32][..]));
+}
+
+// ---------------------------------------------------------------------------------------------
+// Geometry images (T, 3, H, W)
+
+#[test]
+fn geometry_images_catalogue() {
+    use anisocb::io::npy::read_geometry_images;
+    let d = scratch("gi");
+    let mut nan = ramp(&[2, 3, 4, 5]);
+    let i = nan.idx4(1, 2, 3, 4);
+    nan.data[i] = f32::NAN;
+    let mut inf = ramp(&[2, 3, 4, 5]);
+    let i = inf.idx4(0, 1, 0, 2);
+    inf.data[i] = f32::NEG_INFINITY;
+    let cases: Vec<(&str, Tensor, &[&str])> = vec![
+        ("rank3.npy", ramp(&[3, 4, 5]), &["(T, 3, H, W)", "rank 3", "(1, 3, H, W)"]),
+        ("rank2.npy", ramp(&[4, 5]), &["rank 2"]),
+        ("four_channels.npy", ramp(&[2, 4, 4, 5]), &["3 channels", "got 4"]),
+        ("no_frames.npy", ramp(&[0, 3, 4, 5]), &["no frames"]),
+        ("one_row.npy", ramp(&[2, 3, 1, 5]), &["at least 2×2", "1×5"]),
+        ("nan.npy", nan, &["non-finite value NaN at frame 1, channel 2 (z), pixel (row 3, col 4)"]),
+        ("inf.npy", inf, &["non-finite value -inf at frame 0, channel 1 (y), pixel (row 0, col 2)"]),
+    ];
+    for (name, t, want) in cases {
+        let p = d.join(name);
+        write_npy(&p, &t).unwrap();
+        expect_err(read_geometry_images(&p), &p, want);
+    }
+    let p = d.join("ok.npy");
+    write_npy(&p, &ramp(&[2, 3, 4, 5])).unwrap();
+    assert_eq!(read_geometry_images(&p).unwrap().shape, [2, 3, 4, 5]);
+}
+
+// ---------------------------------------------------------------------------------------------
+// .npz
+
+fn sample_npz() -> Vec<u8> {
+    let mut e = NpzEntries::default();
+    e.push_array("conv_in.weight", ramp(&[4, 3, 3, 3]));
+    e.push_array("conv_in.bias", ramp(&[4]));
+    e.push_file("config.json", b"{\"width\": 4}".to_vec());
+    npz::npz_bytes(&e).unwrap()
+}
+
+/// Offset of the central directory's first entry (from the end-of-directory record).
+fn cd_offset(b: &[u8]) -> usize {
+    let eocd = b.len() - 22;
+    u32::from_le_bytes(b[eocd + 16..eocd + 20].try_into().unwrap()) as usize
+}
+
+#[test]
+fn npz_catalogue_each_bad_file_gives_its_error() {
+    let d = scratch("npz");
+    let good = sample_npz();
+    let cd = cd_offset(&good);
+    let mut compressed = good.clone();
+    compressed[cd + 10] = 8; // method: deflate
+    let mut bad_crc = good.clone();
+    bad_crc[cd + 16] ^= 0xFF;
+    let mut bad_data = good.clone();
+    bad_data[200] ^= 0x55; // inside the first array's data: the CRC catches it
+    let mut bad_cd = good.clone();
+    bad_cd[cd] = b'X';
+    let mut bad_local = good.clone();
+    bad_local[0..4].copy_from_slice(b"PKxx");
+    let mut zip64 = good.clone();
+    zip64[cd + 20..cd + 24].copy_from_slice(&u32::MAX.to_le_bytes());
+    let mut far_cd = good.clone();
+    let eocd = far_cd.len() - 22;
+    far_cd[eocd + 16..eocd + 20].copy_from_slice(&0x7FFF_FFFFu32.to_le_bytes());
+    let mut many = good.clone();
+    many[eocd + 10..eocd + 12].copy_from_slice(&65535u16.to_le_bytes());
+    let cases: Vec<(&str, Vec<u8>, &[&str])> = vec![
+        ("empty.npz", vec![], &["empty file"]),
+        ("garbage.npz", b"this is plainly not a zip archive, sorry".to_vec(), &["not an .npz (zip) file"]),
+        ("half.npz", good[..good.len() / 2].to_vec(), &["no zip end-of-directory record"]),
+        ("cut_tail.npz", good[..good.len() - 1].to_vec(), &["no zip end-of-directory record"]),
+        ("compressed.npz", compressed, &["compressed", "numpy.savez"]),
+        ("bad_crc.npz", bad_crc, &["CRC mismatch"]),
+        ("bad_data.npz", bad_data, &["'conv_in.weight.npy'", "CRC mismatch"]),
+        ("bad_cd.npz", bad_cd, &["corrupt zip central directory"]),
+        ("bad_local.npz", bad_local, &["corrupt local header"]),
+        ("zip64.npz", zip64, &["zip64"]),
+        ("far_cd.npz", far_cd, &["truncated zip"]),
+        ("many_entries.npz", many, &["corrupt zip central directory"]),
+    ];
+    for (name, bytes, want) in cases {
+        let p = write(&d, name, &bytes);
+        let (r, big) = largest_alloc(|| read_npz(&p));
+        expect_err(r, &p, want);
+        assert!(big <= 64 * 1024 + 2 * bytes.len(), "{name}: allocated {big} bytes");
+    }
+}
+
+#[test]
+fn npz_entry_with_broken_array_names_the_array() {
+    let d = scratch("npz_arr");
+    let mut e = NpzEntries::default();
+    e.push_file("w.npy", npy_raw("<f4", false, "(1000, 1000)", &[0; 8]));
+    let p = write(&d, "w.npz", &npz::npz_bytes(&e).unwrap());
+    expect_err(read_npz(&p), &p, &["array 'w'", "truncated", "needs 4000000 bytes"]);
+}
+
+#[test]
+fn npz_duplicate_entries_are_refused() {
+    let d = scratch("npz_dup");
+    let mut e = NpzEntries::default();
+    e.push_array("a", ramp(&[2]));
+    e.push_array("a", ramp(&[3]));
+    let p = write(&d, "dup.npz", &npz::npz_bytes(&e).unwrap());
+    expect_err(read_npz(&p), &p, &["duplicate entry 'a.npy'"]);
+}
+
+/// A central directory that lists one 40 kB array 1 000 times would make the reader build
+/// 40 MB from a 90 kB file; entries must not overlap.
+#[test]
+fn npz_overlapping_entries_cannot_multiply_memory() {
+    let d = scratch("npz_overlap");
+    let mut e = NpzEntries::default();
+    e.push_array("big", ramp(&[10_000]));
+    let good = npz::npz_bytes(&e).unwrap();
+    let cd = cd_offset(&good);
+    let entry = good[cd..good.len() - 22].to_vec();
+    let mut bomb = good[..cd].to_vec();
+    for k in 0..1000u32 {
+        let mut en = entry.clone();
+        let name_at = en.len() - 7; // "big.npy": vary one letter to dodge the duplicate check
+        en[name_at] = b'a' + (k % 26) as u8;
+        en[name_at + 1] = b'a' + (k / 26 % 26) as u8;
+        en[name_at + 2] = b'a' + (k / 676) as u8;
+        bomb.extend_from_slice(&en);
+    }
+    let cd_len = (bomb.len() - cd) as u32;
+    bomb.extend_from_slice(&0x0605_4b50u32.to_le_bytes());
+    bomb.extend_from_slice(&[0u8; 4]);
+    bomb.extend_from_slice(&1000u16.to_le_bytes());
+    bomb.extend_from_slice(&1000u16.to_le_bytes());
+    bomb.extend_from_slice(&cd_len.to_le_bytes());
+    bomb.extend_from_slice(&(cd as u32).to_le_bytes());
+    bomb.extend_from_slice(&0u16.to_le_bytes());
+    let p = write(&d, "bomb.npz", &bomb);
+    expect_err(read_npz(&p), &p, &["overlap"]);
+}
+
+/// numpy's own `np.savez` (zip64 extra fields in local headers) is read; the fixture comes
+/// from tests/fixtures/gen_hostile.py.
+#[test]
+fn npz_written_by_numpy_is_read() {
+    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/hostile/numpy_savez.npz");
+    let e = read_npz(&p).unwrap();
+    assert_eq!(e.array("a").unwrap().shape, [2, 3]);
+    assert_eq!(e.array("a").unwrap().data, [0.0, 1.0, 2.0, 3.0, 4.0, 5.0]);
+    assert_eq!(e.array("b").unwrap().data, [1.0, 1.0]);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Output locations that cannot be written.
+
+#[test]
+fn writing_under_a_regular_file_fails_naming_the_path_and_leaves_nothing() {
+    let d = scratch("unwritable");
+    let file = write(&d, "a_file", b"I am a file, not a directory");
+    let target = file.join("out.npy");
+    expect_err(write_npy(&target, &ramp(&[2])), &target, &["Not a directory"]);
+    let sub = file.join("sub");
+    expect_err(anisocb::io::atomic::ensure_dir(&sub), &sub, &["cannot create output directory", "--out"]);
+    expect_err(anisocb::io::atomic::ensure_dir(&file), &file, &["not a directory"]);
+    assert_eq!(file_names(&d), ["a_file"]);
+    assert_eq!(std::fs::read(&file).unwrap(), b"I am a file, not a directory");
+}
+
+#[test]
+fn writing_into_a_missing_directory_fails_naming_the_path() {
+    let d = scratch("missing_dir");
+    let target = d.join("no/such/dir/x.npz");
+    expect_err(anisocb::io::write_npz(&target, &NpzEntries::default()), &target, &["No such file"]);
+    assert!(file_names(&d).is_empty());
+}
+
+// ---------------------------------------------------------------------------------------------
+// The CLI: bad input → non-zero exit, a message naming the file, nothing half-written.
+
+fn anisocb(args: &[&str]) -> std::process::Output {
+    std::process::Command::new(env!("CARGO_BIN_EXE_anisocb")).args(args).output().unwrap()
+}
+
+#[test]
+fn cli_usage_errors_exit_2() {
+    let o = anisocb(&["no-such-command"]);
+    assert_eq!(o.status.code(), Some(2), "{o:?}");
+    let o = anisocb(&["--help"]);
+    assert_eq!(o.status.code(), Some(0), "{o:?}");
+}
