@@ -1,10 +1,140 @@
-//! `anisocb train`. TODO: filled by its issue.
+//! `anisocb train`: train GeometryNet / BoundaryNet / EnhanceNet (or all three) on a dataset.
 
-use crate::error::{Error, Result};
+use super::ui::{progress, save_png_rgb};
+use crate::error::Result;
+use crate::nn::config::parse_padding;
+use crate::nn::{NetConfig, NetKind};
+use crate::ops::{AdamParams, Cpu};
+use crate::train::data::Dataset;
+use crate::train::plot::loss_curve_rgb;
+use crate::train::trainer::{train, train_all, Event, TrainOptions};
+use std::path::PathBuf;
 
 #[derive(clap::Args, Debug)]
-pub struct Args {}
+pub struct Args {
+    /// Training set written by `anisocb dataset` (data.npz).
+    #[arg(long)]
+    pub data: PathBuf,
+    /// Which network: geometry, boundary, enhance, or all (one after another, into one bundle).
+    #[arg(long, default_value = "geometry")]
+    pub net: String,
+    /// Net size: small (C=32, 4 blocks; CPU), paper (C=64, 10 blocks) or tiny (tests).
+    #[arg(long, default_value = "small")]
+    pub config: String,
+    /// Conv padding: zero (paper) or replicate.
+    #[arg(long, default_value = "zero")]
+    pub padding: String,
+    /// Output folder: checkpoint.npz, loss.csv, loss.png, weights.npz.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Optimisation steps per net.
+    #[arg(long, default_value_t = 2000)]
+    pub steps: u64,
+    #[arg(long, default_value_t = 32)]
+    pub batch: usize,
+    /// LR patch side in pixels (HR patch = 2× it); clamped to the frame size.
+    #[arg(long, default_value_t = 16)]
+    pub patch: usize,
+    /// Adam learning rate.
+    #[arg(long, default_value_t = 1e-4)]
+    pub lr: f32,
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Fraction of frames (the last ones) held out for validation.
+    #[arg(long, default_value_t = 0.1)]
+    pub val_frac: f32,
+    /// Validation every N steps (and at the end).
+    #[arg(long, default_value_t = 100)]
+    pub val_every: u64,
+    /// Checkpoint every N steps (and at the end).
+    #[arg(long, default_value_t = 500)]
+    pub checkpoint_every: u64,
+    /// BCE weight of positive pixels for boundary/enhance (1 = plain BCE, calibrated maps).
+    #[arg(long, default_value_t = 1.0)]
+    pub pos_weight: f32,
+    /// Continue from OUT/checkpoint.npz, bit-identically to an uninterrupted run.
+    #[arg(long)]
+    pub resume: bool,
+}
 
-pub fn run(_args: Args) -> Result<()> {
-    Err(Error::config("`train` is not implemented yet"))
+pub fn run(a: Args) -> Result<()> {
+    let config = NetConfig::preset(&a.config)?.with_padding(parse_padding(&a.padding)?);
+    let which = if a.net == "all" { None } else { Some(NetKind::parse(&a.net)?) };
+    let data = Dataset::load(&a.data)?;
+    let opts = TrainOptions {
+        config,
+        steps: a.steps,
+        batch: a.batch,
+        patch: a.patch,
+        adam: AdamParams { lr: a.lr, ..AdamParams::default() },
+        seed: a.seed,
+        val_frac: a.val_frac,
+        val_every: a.val_every,
+        checkpoint_every: a.checkpoint_every,
+        pos_weight: a.pos_weight,
+        resume: a.resume,
+        out: a.out.clone(),
+    };
+    let mut pb = progress(a.steps, "train");
+    let mut ema: Option<f32> = None;
+    let mut val: Option<f32> = None;
+    let mut png_err = None;
+    let mut on_event = |e: Event| match e {
+        Event::Start { net, start, steps, train_frames, val_frames } => {
+            pb.finish_and_clear();
+            pb = progress(steps, net.name());
+            pb.set_position(start);
+            ema = None;
+            val = None;
+            pb.println(format!(
+                "{}: {} params, {train_frames} training / {val_frames} validation frames{}",
+                net.name(),
+                crate::nn::Trunk::zeros(net, config).num_params(),
+                if start > 0 { format!(", resuming at step {start}") } else { String::new() }
+            ));
+        }
+        Event::Step { step, loss, .. } => {
+            let e = ema.map_or(loss, |e| 0.95 * e + 0.05 * loss);
+            ema = Some(e);
+            pb.set_position(step);
+            let v = val.map_or(String::new(), |v| format!(" val {v:.3e}"));
+            pb.set_message(format!("loss {e:.3e}{v}"));
+        }
+        Event::Validation { loss, .. } => val = Some(loss),
+        Event::Checkpoint { dir, history, .. } => {
+            let rgb = loss_curve_rgb(history, 640, 360);
+            if let Err(e) = save_png_rgb(&dir.join("loss.png"), 640, 360, &rgb) {
+                png_err.get_or_insert(e);
+            }
+        }
+    };
+    let summary = match which {
+        Some(kind) => {
+            let r = train(&Cpu, &data, kind, &opts, &mut on_event)?;
+            format!(
+                "{}: train loss {:.4e}, val loss {}, {:.1} samples/s → {}",
+                kind.name(),
+                r.last_train_loss,
+                r.last_val_loss.map_or("-".into(), |v| format!("{v:.4e}")),
+                r.samples_per_s,
+                r.weights.display()
+            )
+        }
+        None => {
+            let (_, reports) = train_all(&Cpu, &data, &opts, &mut on_event)?;
+            let mut s: Vec<String> = reports
+                .iter()
+                .map(|r| format!("{}: train {:.4e} val {}", r.trunk.kind.name(), r.last_train_loss,
+                    r.last_val_loss.map_or("-".into(), |v| format!("{v:.4e}"))))
+                .collect();
+            s.push(format!("bundle → {}", a.out.join("weights.npz").display()));
+            s.join("\n")
+        }
+    };
+    pb.finish_and_clear();
+    if let Some(e) = png_err {
+        return Err(e);
+    }
+    println!("{summary}");
+    Ok(())
 }

@@ -1,3 +1,6 @@
 //! Training: the Adam optimizer, the dataset, the trainer loop.
 
 pub mod adam;
+pub mod data;
+pub mod plot;
+pub mod trainer;

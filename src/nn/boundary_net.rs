@@ -1,0 +1,82 @@
+//! BoundaryNet and EnhanceNet: the plain trunk (no residual skips) ending in one channel of
+//! logits `z`; the map is `Γ = σ(z)` and the loss the mean sigmoid binary cross-entropy
+//!
+//! `ℓ = −mean[ w·t·log σ(z) + (1 − t)·log(1 − σ(z)) ]`  (paper Eq 10, 11),
+//!
+//! where `w` (`pos_weight`, PyTorch's `BCEWithLogitsLoss(pos_weight=…)`) up-weights the rare
+//! positive pixels. `w = 1` (the default) keeps `Γ` a calibrated probability, which the
+//! composition `(1 − Γb)(1 + ηΓe)R` expects; `w > 1` trades calibration for recall.
+
+use super::config::{NetConfig, NetKind};
+use super::geometry_net::{check_input, check_target};
+use super::layers::Trunk;
+use crate::error::{Error, Result};
+use crate::ops::Ops;
+use crate::tensor::Tensor;
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct MapNet {
+    pub trunk: Trunk,
+}
+
+impl MapNet {
+    /// `kind` is [`NetKind::Boundary`] or [`NetKind::Enhance`].
+    pub fn new(kind: NetKind, config: NetConfig, seed: u64) -> Result<Self> {
+        if kind == NetKind::Geometry {
+            return Err(Error::config("MapNet is BoundaryNet or EnhanceNet, not GeometryNet"));
+        }
+        Ok(MapNet { trunk: Trunk::init(kind, config, seed) })
+    }
+
+    pub fn kind(&self) -> NetKind {
+        self.trunk.kind
+    }
+
+    /// lr (N, 3, H, W) → logits (N, 1, rH, rW).
+    pub fn logits(&self, ops: &dyn Ops, lr: &Tensor) -> Result<Tensor> {
+        check_input(lr, "map net input")?;
+        Ok(self.trunk.forward(ops, lr))
+    }
+
+    /// lr (N, 3, H, W) → Γ = σ(logits) (N, 1, rH, rW), probabilities in [0, 1].
+    pub fn probabilities(&self, ops: &dyn Ops, lr: &Tensor) -> Result<Tensor> {
+        Ok(ops.sigmoid(&self.logits(ops, lr)?))
+    }
+
+    /// Mean BCE against `target` (N, 1, rH, rW) in [0, 1]; adds gradients into `grads` if given.
+    pub fn loss(
+        &self,
+        ops: &dyn Ops,
+        lr: &Tensor,
+        target: &Tensor,
+        pos_weight: f32,
+        grads: Option<&mut Trunk>,
+    ) -> Result<f32> {
+        map_loss(ops, &self.trunk, lr, target, pos_weight, grads)
+    }
+}
+
+/// [`MapNet::loss`] on a bare trunk (of kind Boundary or Enhance).
+pub fn map_loss(
+    ops: &dyn Ops,
+    trunk: &Trunk,
+    lr: &Tensor,
+    target: &Tensor,
+    pos_weight: f32,
+    grads: Option<&mut Trunk>,
+) -> Result<f32> {
+    check_target(lr, target, 1, trunk.config.scale, "map target")?;
+    if !(pos_weight.is_finite() && pos_weight > 0.0) {
+        return Err(Error::config(format!("pos_weight must be > 0, got {pos_weight}")));
+    }
+    Ok(match grads {
+        None => ops.bce_with_logits(&trunk.forward(ops, lr), target, pos_weight).0,
+        Some(g) => {
+            let (z, tape) = trunk.forward_train(ops, lr);
+            let (loss, dz) = ops.bce_with_logits(&z, target, pos_weight);
+            drop(z);
+            trunk.backward(ops, &tape, &dz, g);
+            loss
+        }
+    })
+}

@@ -1,0 +1,72 @@
+//! The three networks together, as the upscale pipeline uses them.
+
+use super::boundary_net::MapNet;
+use super::config::{NetConfig, NetKind};
+use super::geometry_net::{check_input, GeometryNet};
+use super::layers::Trunk;
+use crate::error::{Error, Result};
+use crate::ops::Ops;
+use crate::tensor::Tensor;
+
+/// GeometryNet, BoundaryNet and EnhanceNet. All three must share the upscale factor.
+#[derive(Clone, Debug, PartialEq)]
+pub struct AnisoCb {
+    pub geometry: GeometryNet,
+    pub boundary: MapNet,
+    pub enhance: MapNet,
+}
+
+/// What the nets say about one batch; every map is (N, ·, r·H, r·W).
+#[derive(Clone, Debug)]
+pub struct SrOutputs {
+    /// Bicubic (align-corners) interpolation of the input, (N, 3, rH, rW).
+    pub u: Tensor,
+    /// GeometryNet's residual, (N, 3, rH, rW).
+    pub r: Tensor,
+    /// Γb = σ(BoundaryNet logits), (N, 1, rH, rW), in [0, 1].
+    pub boundary: Tensor,
+    /// Γe = σ(EnhanceNet logits), (N, 1, rH, rW), in [0, 1].
+    pub enhance: Tensor,
+}
+
+impl AnisoCb {
+    /// Fresh nets, all with `config`, initialised from `seed` (each net gets its own stream).
+    pub fn new(config: NetConfig, seed: u64) -> Self {
+        AnisoCb {
+            geometry: GeometryNet::new(config, seed),
+            boundary: MapNet { trunk: Trunk::init(NetKind::Boundary, config, seed) },
+            enhance: MapNet { trunk: Trunk::init(NetKind::Enhance, config, seed) },
+        }
+    }
+
+    /// Assemble from three trunks (checks kinds and scales).
+    pub fn from_trunks(geometry: Trunk, boundary: Trunk, enhance: Trunk) -> Result<Self> {
+        for (t, k) in [(&geometry, NetKind::Geometry), (&boundary, NetKind::Boundary), (&enhance, NetKind::Enhance)] {
+            if t.kind != k {
+                return Err(Error::config(format!("expected a {} net, got {}", k.name(), t.kind.name())));
+            }
+        }
+        if geometry.config.scale != boundary.config.scale || geometry.config.scale != enhance.config.scale {
+            return Err(Error::config("the three nets have different upscale factors"));
+        }
+        Ok(AnisoCb { geometry: GeometryNet { trunk: geometry }, boundary: MapNet { trunk: boundary }, enhance: MapNet { trunk: enhance } })
+    }
+
+    pub fn scale(&self) -> usize {
+        self.geometry.trunk.config.scale
+    }
+
+    pub fn trunks(&self) -> [&Trunk; 3] {
+        [&self.geometry.trunk, &self.boundary.trunk, &self.enhance.trunk]
+    }
+
+    /// lr (N, 3, H, W) → (U, R, Γb, Γe). Inference only: no activations are kept; run it in
+    /// batches that fit memory (≈ 2·C·r²·H·W floats per sample at the widest layer).
+    pub fn forward(&self, ops: &dyn Ops, lr: &Tensor) -> Result<SrOutputs> {
+        check_input(lr, "AnisoCb input")?;
+        let (u, r) = self.geometry.forward(ops, lr)?;
+        let boundary = self.boundary.probabilities(ops, lr)?;
+        let enhance = self.enhance.probabilities(ops, lr)?;
+        Ok(SrOutputs { u, r, boundary, enhance })
+    }
+}

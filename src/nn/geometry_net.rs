@@ -1,0 +1,100 @@
+//! GeometryNet: the residual trunk predicting the detail `R` over the bicubic interpolation `U`
+//! (align corners, ×r) of the LR geometry image; the estimate is `U + R`, the loss
+//! `MSE(U + R, HR)` (paper Eq 3).
+
+use super::config::{NetConfig, NetKind, IN_CHANNELS};
+use super::layers::Trunk;
+use crate::error::{Error, Result};
+use crate::ops::{Interp, Ops};
+use crate::tensor::Tensor;
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct GeometryNet {
+    pub trunk: Trunk,
+}
+
+/// Check that `x` is a batch of 3-channel geometry images; returns (N, H, W).
+pub fn check_input(x: &Tensor, what: &str) -> Result<(usize, usize, usize)> {
+    let (n, c, h, w) = x.expect_rank4(what)?;
+    if c != IN_CHANNELS || n == 0 || h == 0 || w == 0 {
+        return Err(Error::shape(format!("{what}: expected (N, 3, H, W) with N, H, W > 0, got {:?}", x.shape)));
+    }
+    Ok((n, h, w))
+}
+
+/// `target` must be (N, channels, r·H, r·W) for an input (N, 3, H, W).
+pub fn check_target(x: &Tensor, target: &Tensor, channels: usize, scale: usize, what: &str) -> Result<()> {
+    let (n, h, w) = check_input(x, "input")?;
+    let want = [n, channels, h * scale, w * scale];
+    if target.shape != want {
+        return Err(Error::shape(format!("{what}: expected {want:?} for input {:?}, got {:?}", x.shape, target.shape)));
+    }
+    Ok(())
+}
+
+/// `U`: the LR batch (N, C, H, W) resized to (N, C, r·H, r·W), bicubic with aligned corners.
+pub fn interpolate(ops: &dyn Ops, lr: &Tensor, scale: usize) -> Tensor {
+    let (_, _, h, w) = lr.dims4();
+    ops.resize(lr, h * scale, w * scale, Interp::Bicubic)
+}
+
+impl GeometryNet {
+    pub fn new(config: NetConfig, seed: u64) -> Self {
+        GeometryNet { trunk: Trunk::init(NetKind::Geometry, config, seed) }
+    }
+
+    pub fn config(&self) -> NetConfig {
+        self.trunk.config
+    }
+
+    /// lr (N, 3, H, W) → (U, R), both (N, 3, rH, rW). Inference: keeps no activations.
+    pub fn forward(&self, ops: &dyn Ops, lr: &Tensor) -> Result<(Tensor, Tensor)> {
+        check_input(lr, "GeometryNet input")?;
+        let u = interpolate(ops, lr, self.trunk.config.scale);
+        let r = self.trunk.forward(ops, lr);
+        Ok((u, r))
+    }
+
+    /// `MSE(U + R, HR)` for a batch, with `U` given (e.g. cropped from a whole-frame
+    /// interpolation, see `train::data`); adds the parameter gradients into `grads` if given.
+    pub fn loss(
+        &self,
+        ops: &dyn Ops,
+        lr: &Tensor,
+        u: &Tensor,
+        hr: &Tensor,
+        grads: Option<&mut Trunk>,
+    ) -> Result<f32> {
+        geometry_loss(ops, &self.trunk, lr, u, hr, grads)
+    }
+}
+
+/// [`GeometryNet::loss`] on a bare trunk (of kind Geometry).
+pub fn geometry_loss(
+    ops: &dyn Ops,
+    trunk: &Trunk,
+    lr: &Tensor,
+    u: &Tensor,
+    hr: &Tensor,
+    grads: Option<&mut Trunk>,
+) -> Result<f32> {
+    let r = trunk.config.scale;
+    check_target(lr, u, 3, r, "U")?;
+    check_target(lr, hr, 3, r, "HR target")?;
+    Ok(match grads {
+        None => {
+            let mut est = trunk.forward(ops, lr);
+            ops.add_assign(&mut est, u);
+            ops.mse(&est, hr).0
+        }
+        Some(g) => {
+            let (mut est, tape) = trunk.forward_train(ops, lr);
+            ops.add_assign(&mut est, u);
+            let (loss, d_est) = ops.mse(&est, hr);
+            drop(est);
+            // d(U + R)/dR = identity; U is not trained.
+            trunk.backward(ops, &tape, &d_est, g);
+            loss
+        }
+    })
+}

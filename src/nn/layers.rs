@@ -1,0 +1,330 @@
+//! Layers and the shared trunk of all three networks.
+//!
+//! ```text
+//! x (N,3,H,W) ─ conv_in ─► a ─┬─ blocks.k: conv1 ─ relu ─ conv2 ─(+a if residual)─► a   (k = 0..B)
+//!                              └─ upscale (C→r²C) ─ pixel shuffle ─► (N,C,rH,rW)
+//!               ─ tail.0 ─ relu ─ tail.1 ─ relu ─ tail.2 ─ relu ─ tail.3 ─► y (N,out,rH,rW)
+//! ```
+//! GeometryNet uses the residual form (`a ← a + conv2(relu(conv1(a)))`), BoundaryNet and
+//! EnhanceNet the plain one (`a ← conv2(relu(conv1(a)))`), as in the paper. Every conv is 3×3,
+//! stride 1, "same" size, with bias. Every op goes through `&dyn Ops`.
+
+use super::config::{NetConfig, NetKind, IN_CHANNELS, KERNEL, TAIL_CONVS};
+use super::rng::Rng;
+use crate::ops::{Ops, Padding};
+use crate::tensor::Tensor;
+
+/// A 3×3 convolution: weight (O, I, 3, 3) OIHW, bias (O).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Conv {
+    pub weight: Tensor,
+    pub bias: Tensor,
+}
+
+impl Conv {
+    pub fn zeros(out_c: usize, in_c: usize) -> Conv {
+        Conv { weight: Tensor::zeros(&[out_c, in_c, KERNEL, KERNEL]), bias: Tensor::zeros(&[out_c]) }
+    }
+
+    /// Kaiming-uniform weights, `U(−b, b)` with `b = gain·√(3 / fan_in)`, `fan_in = I·3·3`
+    /// (PyTorch's `kaiming_uniform_` with that gain); zero bias.
+    pub fn kaiming(out_c: usize, in_c: usize, gain: f32, rng: &mut Rng) -> Conv {
+        let mut c = Conv::zeros(out_c, in_c);
+        let bound = gain * (3.0 / (in_c * KERNEL * KERNEL) as f32).sqrt();
+        for w in &mut c.weight.data {
+            *w = rng.uniform_in(-bound, bound);
+        }
+        c
+    }
+
+    /// x: (N, I, H, W) → (N, O, H, W).
+    pub fn forward(&self, ops: &dyn Ops, x: &Tensor, pad: Padding) -> Tensor {
+        ops.conv2d(x, &self.weight, Some(&self.bias), pad)
+    }
+
+    /// Adds into `grad` (dW, db) and into `dx` if given. x: the forward input, dy like the output.
+    pub fn backward(
+        &self,
+        ops: &dyn Ops,
+        x: &Tensor,
+        dy: &Tensor,
+        pad: Padding,
+        dx: Option<&mut Tensor>,
+        grad: &mut Conv,
+    ) {
+        ops.conv2d_backward(x, &self.weight, dy, pad, dx, &mut grad.weight, Some(&mut grad.bias));
+    }
+}
+
+/// `conv1 → relu → conv2`, with or without the skip.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Block {
+    pub conv1: Conv,
+    pub conv2: Conv,
+}
+
+/// Parameters of one network (also used, zero-filled, as its gradient and Adam moments).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Trunk {
+    pub kind: NetKind,
+    pub config: NetConfig,
+    pub conv_in: Conv,
+    pub blocks: Vec<Block>,
+    pub upscale: Conv,
+    pub tail: Vec<Conv>,
+}
+
+/// Activations kept by a training forward pass for its backward.
+#[derive(Clone, Debug)]
+pub struct Tape {
+    input: Tensor,
+    /// Per block: its input `a`, conv1's output (pre-ReLU), the ReLU's output.
+    blocks: Vec<[Tensor; 3]>,
+    upscale_in: Tensor,
+    /// Input of each tail conv; pre-ReLU outputs of the first three.
+    tail_in: Vec<Tensor>,
+    tail_pre: Vec<Tensor>,
+}
+
+impl Default for Tape {
+    fn default() -> Self {
+        let e = Tensor::zeros(&[0]);
+        Tape { input: e.clone(), blocks: Vec::new(), upscale_in: e, tail_in: Vec::new(), tail_pre: Vec::new() }
+    }
+}
+
+impl Trunk {
+    /// All parameters zero (the shape of a gradient buffer).
+    pub fn zeros(kind: NetKind, config: NetConfig) -> Trunk {
+        let c = config.channels;
+        Trunk {
+            kind,
+            config,
+            conv_in: Conv::zeros(c, IN_CHANNELS),
+            blocks: (0..config.blocks).map(|_| Block { conv1: Conv::zeros(c, c), conv2: Conv::zeros(c, c) }).collect(),
+            upscale: Conv::zeros(c * config.scale * config.scale, c),
+            tail: (0..TAIL_CONVS)
+                .map(|i| Conv::zeros(if i + 1 == TAIL_CONVS { kind.out_channels() } else { c }, c))
+                .collect(),
+        }
+    }
+
+    /// Deterministic initialisation from `seed` (same seed, same bits).
+    ///
+    /// Kaiming-uniform ([`Conv::kaiming`]) with gain √2 for convs followed by a ReLU (conv1,
+    /// tail.0–2) and gain 1 for the others, so the plain trunk keeps its activation scale;
+    /// in the residual trunk conv2 gets gain 1/√B so the sum of B branches stays O(1), and the
+    /// last conv of GeometryNet gets gain 0.1 so training starts near `R = 0`, i.e. from the
+    /// bicubic baseline. Biases start at 0.
+    pub fn init(kind: NetKind, config: NetConfig, seed: u64) -> Trunk {
+        let mut rng = Rng::new(super::rng::mix_seed(&[seed, kind as u64]));
+        let c = config.channels;
+        let relu_gain = std::f32::consts::SQRT_2;
+        let conv2_gain = if kind.residual() { 1.0 / (config.blocks.max(1) as f32).sqrt() } else { 1.0 };
+        let conv_in = Conv::kaiming(c, IN_CHANNELS, 1.0, &mut rng);
+        let blocks = (0..config.blocks)
+            .map(|_| {
+                let conv1 = Conv::kaiming(c, c, relu_gain, &mut rng);
+                let conv2 = Conv::kaiming(c, c, conv2_gain, &mut rng);
+                Block { conv1, conv2 }
+            })
+            .collect();
+        let upscale = Conv::kaiming(c * config.scale * config.scale, c, 1.0, &mut rng);
+        let last_gain = if kind == NetKind::Geometry { 0.1 } else { 1.0 };
+        let tail = (0..TAIL_CONVS)
+            .map(|i| {
+                if i + 1 == TAIL_CONVS {
+                    Conv::kaiming(kind.out_channels(), c, last_gain, &mut rng)
+                } else {
+                    Conv::kaiming(c, c, relu_gain, &mut rng)
+                }
+            })
+            .collect();
+        Trunk { kind, config, conv_in, blocks, upscale, tail }
+    }
+
+    pub fn zeros_like(&self) -> Trunk {
+        Trunk::zeros(self.kind, self.config)
+    }
+
+    /// The convolutions with their PyTorch-style names (`conv_in`, `blocks.3.conv1`, `upscale`,
+    /// `tail.0` …), in the canonical order.
+    pub fn convs(&self) -> Vec<(String, &Conv)> {
+        let mut v = vec![("conv_in".to_string(), &self.conv_in)];
+        for (k, b) in self.blocks.iter().enumerate() {
+            v.push((format!("blocks.{k}.conv1"), &b.conv1));
+            v.push((format!("blocks.{k}.conv2"), &b.conv2));
+        }
+        v.push(("upscale".to_string(), &self.upscale));
+        for (i, t) in self.tail.iter().enumerate() {
+            v.push((format!("tail.{i}"), t));
+        }
+        v
+    }
+
+    fn convs_mut(&mut self) -> Vec<&mut Conv> {
+        let mut v = vec![&mut self.conv_in];
+        for b in &mut self.blocks {
+            v.push(&mut b.conv1);
+            v.push(&mut b.conv2);
+        }
+        v.push(&mut self.upscale);
+        v.extend(self.tail.iter_mut());
+        v
+    }
+
+    /// Every parameter tensor with its name (`conv_in.weight`, `conv_in.bias`, …), canonical order.
+    pub fn params(&self) -> Vec<(String, &Tensor)> {
+        self.convs()
+            .into_iter()
+            .flat_map(|(n, c)| [(format!("{n}.weight"), &c.weight), (format!("{n}.bias"), &c.bias)])
+            .collect()
+    }
+
+    /// Every parameter tensor, mutable, in the order of [`Trunk::params`].
+    pub fn params_mut(&mut self) -> Vec<&mut Tensor> {
+        self.convs_mut().into_iter().flat_map(|c| [&mut c.weight, &mut c.bias]).collect()
+    }
+
+    pub fn num_params(&self) -> usize {
+        self.params().iter().map(|(_, t)| t.len()).sum()
+    }
+
+    pub fn fill_zero(&mut self) {
+        for t in self.params_mut() {
+            t.data.fill(0.0);
+        }
+    }
+
+    /// Inference forward: x (N, 3, H, W) → (N, out, rH, rW). Keeps no activations beyond the
+    /// current layer; `observe(layer_name, activation)` sees every layer's output (audit).
+    pub fn forward_observed(&self, ops: &dyn Ops, x: &Tensor, observe: &mut dyn FnMut(&str, &Tensor)) -> Tensor {
+        self.run(ops, x, None, observe)
+    }
+
+    pub fn forward(&self, ops: &dyn Ops, x: &Tensor) -> Tensor {
+        self.run(ops, x, None, &mut |_, _| {})
+    }
+
+    /// Training forward: the output and the activations [`Trunk::backward`] needs.
+    pub fn forward_train(&self, ops: &dyn Ops, x: &Tensor) -> (Tensor, Tape) {
+        let mut tape = Tape::default();
+        let y = self.run(ops, x, Some(&mut tape), &mut |_, _| {});
+        (y, tape)
+    }
+
+    fn run(
+        &self,
+        ops: &dyn Ops,
+        x: &Tensor,
+        mut tape: Option<&mut Tape>,
+        observe: &mut dyn FnMut(&str, &Tensor),
+    ) -> Tensor {
+        let pad = self.config.padding;
+        let (_, c, _, _) = x.dims4();
+        assert_eq!(c, IN_CHANNELS, "trunk input must have {IN_CHANNELS} channels");
+        if let Some(t) = tape.as_deref_mut() {
+            t.input = x.clone();
+        }
+        let mut a = self.conv_in.forward(ops, x, pad);
+        observe("conv_in", &a);
+        for (k, b) in self.blocks.iter().enumerate() {
+            let t1 = b.conv1.forward(ops, &a, pad);
+            observe(&format!("blocks.{k}.conv1"), &t1);
+            let r1 = ops.relu(&t1);
+            observe(&format!("blocks.{k}.relu"), &r1);
+            let mut out = b.conv2.forward(ops, &r1, pad);
+            observe(&format!("blocks.{k}.conv2"), &out);
+            if self.kind.residual() {
+                ops.add_assign(&mut out, &a);
+                observe(&format!("blocks.{k}"), &out);
+            }
+            if let Some(t) = tape.as_deref_mut() {
+                t.blocks.push([a, t1, r1]);
+            }
+            a = out;
+        }
+        let u = self.upscale.forward(ops, &a, pad);
+        observe("upscale", &u);
+        if let Some(t) = tape.as_deref_mut() {
+            t.upscale_in = a;
+        }
+        let mut z = ops.pixel_shuffle(&u, self.config.scale);
+        drop(u);
+        observe("pixel_shuffle", &z);
+        for (i, conv) in self.tail.iter().enumerate() {
+            let y = conv.forward(ops, &z, pad);
+            observe(&format!("tail.{i}"), &y);
+            if i + 1 == self.tail.len() {
+                if let Some(t) = tape.as_deref_mut() {
+                    t.tail_in.push(z);
+                }
+                return y;
+            }
+            let r = ops.relu(&y);
+            observe(&format!("tail.{i}.relu"), &r);
+            let zin = std::mem::replace(&mut z, r);
+            if let Some(t) = tape.as_deref_mut() {
+                t.tail_in.push(zin);
+                t.tail_pre.push(y);
+            }
+        }
+        unreachable!("the tail has {TAIL_CONVS} convs")
+    }
+
+    /// Backward of [`Trunk::forward_train`]: `dy` is the gradient w.r.t. its output; adds the
+    /// parameter gradients into `grads` (a trunk of the same config). The input gets no gradient.
+    pub fn backward(&self, ops: &dyn Ops, tape: &Tape, dy: &Tensor, grads: &mut Trunk) {
+        assert_eq!((grads.kind, grads.config), (self.kind, self.config), "gradient buffer of another net");
+        let pad = self.config.padding;
+        let last = self.tail.len() - 1;
+        let mut dz = Tensor::zeros(&tape.tail_in[last].shape);
+        self.tail[last].backward(ops, &tape.tail_in[last], dy, pad, Some(&mut dz), &mut grads.tail[last]);
+        for i in (0..last).rev() {
+            let mut dpre = Tensor::zeros(&dz.shape);
+            ops.relu_backward(&tape.tail_pre[i], &dz, &mut dpre);
+            let mut dzin = Tensor::zeros(&tape.tail_in[i].shape);
+            self.tail[i].backward(ops, &tape.tail_in[i], &dpre, pad, Some(&mut dzin), &mut grads.tail[i]);
+            dz = dzin;
+        }
+        let du = ops.pixel_unshuffle(&dz, self.config.scale);
+        drop(dz);
+        let mut da = Tensor::zeros(&tape.upscale_in.shape);
+        self.upscale.backward(ops, &tape.upscale_in, &du, pad, Some(&mut da), &mut grads.upscale);
+        drop(du);
+        for (k, b) in self.blocks.iter().enumerate().rev() {
+            let [a_in, t1, r1] = &tape.blocks[k];
+            let g = &mut grads.blocks[k];
+            let mut dr1 = Tensor::zeros(&r1.shape);
+            b.conv2.backward(ops, r1, &da, pad, Some(&mut dr1), &mut g.conv2);
+            let mut dt1 = Tensor::zeros(&t1.shape);
+            ops.relu_backward(t1, &dr1, &mut dt1);
+            drop(dr1);
+            let mut da_in = Tensor::zeros(&a_in.shape);
+            b.conv1.backward(ops, a_in, &dt1, pad, Some(&mut da_in), &mut g.conv1);
+            if self.kind.residual() {
+                ops.add_assign(&mut da_in, &da);
+            }
+            da = da_in;
+        }
+        self.conv_in.backward(ops, &tape.input, &da, pad, None, &mut grads.conv_in);
+    }
+}
+
+/// Names and shapes of every parameter of a net, in canonical order (what a weights file holds).
+pub fn param_shapes(kind: NetKind, config: NetConfig) -> Vec<(String, Vec<usize>)> {
+    let c = config.channels;
+    let mut convs = vec![("conv_in".to_string(), c, IN_CHANNELS)];
+    for k in 0..config.blocks {
+        convs.push((format!("blocks.{k}.conv1"), c, c));
+        convs.push((format!("blocks.{k}.conv2"), c, c));
+    }
+    convs.push(("upscale".to_string(), c * config.scale * config.scale, c));
+    for i in 0..TAIL_CONVS {
+        convs.push((format!("tail.{i}"), if i + 1 == TAIL_CONVS { kind.out_channels() } else { c }, c));
+    }
+    convs
+        .into_iter()
+        .flat_map(|(n, o, i)| [(format!("{n}.weight"), vec![o, i, KERNEL, KERNEL]), (format!("{n}.bias"), vec![o])])
+        .collect()
+}

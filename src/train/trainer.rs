@@ -1,0 +1,375 @@
+//! The training loop: seeded patches → forward/backward → Adam, validation on held-out
+//! frames, `loss.csv`, atomic checkpoints, bit-identical `resume`, and a NaN/Inf guard.
+//!
+//! Library entry points: [`train`] (one net, `DIR/weights.npz`) and [`train_all`] (the three
+//! nets one after another in `DIR/{geometry,boundary,enhance}/`, then the bundle
+//! `DIR/weights.npz`). Both report progress through an [`Event`] callback; the CLI draws the
+//! progress bar and the PNG loss curve from it ([`super::plot`] draws the pixels).
+//!
+//! `DIR/checkpoint.npz` holds `net.*` (weights + `net.config.json`), `adam.m.*`, `adam.v.*`,
+//! `history` (K, 3: step, train loss, val loss or NaN) and `trainer.json` (step, seed and every
+//! option that must not change across a resume). Sampling is keyed by (seed, step) (see
+//! [`super::data`]), so `(seed, step)` *is* the RNG state.
+
+use super::data::{gather, interpolate_all, split, Dataset, PatchSampler};
+use crate::error::{Error, Result};
+use crate::io::{read_npz, write_atomic_bytes, write_npz, NpzEntries};
+use crate::nn::json::Object;
+use crate::nn::weights::{push_trunk, save_net, trunk_from_npz};
+use crate::nn::boundary_net::map_loss;
+use crate::nn::geometry_net::geometry_loss;
+use crate::nn::{AnisoCb, NetConfig, NetKind, Trunk};
+use crate::ops::{AdamParams, Ops};
+use crate::tensor::Tensor;
+use std::path::{Path, PathBuf};
+
+/// Everything a run needs besides the data. Defaults follow the paper (Adam, lr 1e-4, batch 32).
+#[derive(Clone, Debug)]
+pub struct TrainOptions {
+    pub config: NetConfig,
+    /// Optimisation steps (batches) per net.
+    pub steps: u64,
+    pub batch: usize,
+    /// LR patch side in pixels (clamped to the frame); the HR patch is r× it.
+    pub patch: usize,
+    pub adam: AdamParams,
+    pub seed: u64,
+    /// Fraction of frames held out for validation (the last ones).
+    pub val_frac: f32,
+    /// Validation every this many steps (and at the last step); 0 = only at the end.
+    pub val_every: u64,
+    /// Checkpoint every this many steps (and at the last step); 0 = only at the end.
+    pub checkpoint_every: u64,
+    /// BCE weight of positive pixels for BoundaryNet/EnhanceNet (1 = plain BCE).
+    pub pos_weight: f32,
+    /// Continue from `out/checkpoint.npz`.
+    pub resume: bool,
+    pub out: PathBuf,
+}
+
+impl Default for TrainOptions {
+    fn default() -> Self {
+        TrainOptions {
+            config: NetConfig::small(),
+            steps: 2000,
+            batch: 32,
+            patch: 16,
+            adam: AdamParams::default(),
+            seed: 0,
+            val_frac: 0.1,
+            val_every: 100,
+            checkpoint_every: 500,
+            pos_weight: 1.0,
+            resume: false,
+            out: PathBuf::from("out"),
+        }
+    }
+}
+
+/// One row of the loss log.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LogRow {
+    /// 1-based step after which the losses were measured.
+    pub step: u64,
+    /// Loss of the step's training batch (before its update).
+    pub train: f32,
+    /// Validation loss after the step, NaN where not measured.
+    pub val: f32,
+}
+
+/// What the loop tells its caller.
+#[derive(Debug)]
+pub enum Event<'a> {
+    /// A run of `net` begins at `start` (0, or the resumed step) of `steps`.
+    Start { net: NetKind, start: u64, steps: u64, train_frames: usize, val_frames: usize },
+    Step { net: NetKind, step: u64, loss: f32 },
+    Validation { net: NetKind, step: u64, loss: f32 },
+    /// A checkpoint was written; `history` is the whole log so far (for `loss.csv` / the curve).
+    Checkpoint { net: NetKind, step: u64, dir: &'a Path, history: &'a [LogRow] },
+}
+
+/// Result of one net's run.
+#[derive(Clone, Debug)]
+pub struct TrainReport {
+    pub trunk: Trunk,
+    pub history: Vec<LogRow>,
+    pub last_train_loss: f32,
+    pub last_val_loss: Option<f32>,
+    /// Training samples per second over the steps run in this process.
+    pub samples_per_s: f64,
+    pub weights: PathBuf,
+}
+
+/// Loss of `trunk` on a batch; adds gradients into `grads` if given.
+fn batch_loss(
+    ops: &dyn Ops,
+    trunk: &Trunk,
+    lr: &Tensor,
+    u: &Tensor,
+    target: &Tensor,
+    pos_weight: f32,
+    grads: Option<&mut Trunk>,
+) -> Result<f32> {
+    match trunk.kind {
+        NetKind::Geometry => geometry_loss(ops, trunk, lr, u, target, grads),
+        _ => map_loss(ops, trunk, lr, target, pos_weight, grads),
+    }
+}
+
+/// Mean loss over the validation frames (whole frames, 8 at a time), weighted by pixels.
+fn validation_loss(
+    ops: &dyn Ops,
+    trunk: &Trunk,
+    data: &Dataset,
+    u_all: Option<&Tensor>,
+    val: &[usize],
+    pos_weight: f32,
+) -> Result<Option<f32>> {
+    if val.is_empty() {
+        return Ok(None);
+    }
+    let mut sum = 0.0f64;
+    for chunk in val.chunks(8) {
+        let lr = gather(&data.lr, chunk);
+        let u = u_all.map(|u| gather(u, chunk)).unwrap_or_else(|| Tensor::zeros(&[0]));
+        let t = gather(data.target(trunk.kind), chunk);
+        sum += batch_loss(ops, trunk, &lr, &u, &t, pos_weight, None)? as f64 * chunk.len() as f64;
+    }
+    Ok(Some((sum / val.len() as f64) as f32))
+}
+
+fn options_json(net: NetKind, o: &TrainOptions, step: u64) -> String {
+    Object::default()
+        .str("format", "anisocb-checkpoint")
+        .num("version", 1)
+        .str("net", net.name())
+        .num("step", step)
+        .num("seed", o.seed)
+        .num("batch", o.batch)
+        .num("patch", o.patch)
+        .num("lr", o.adam.lr)
+        .num("beta1", o.adam.beta1)
+        .num("beta2", o.adam.beta2)
+        .num("eps", o.adam.eps)
+        .num("val_frac", o.val_frac)
+        .num("pos_weight", o.pos_weight)
+        .to_json()
+}
+
+/// Options that must be equal for a resume to reproduce an uninterrupted run.
+fn check_resumable(path: &Path, saved: &Object, net: NetKind, o: &TrainOptions) -> Result<u64> {
+    let now = Object::parse(&options_json(net, o, 0)).expect("own JSON parses");
+    let mut diffs = Vec::new();
+    for (k, v) in &now.0 {
+        if k == "step" {
+            continue;
+        }
+        match saved.get(k) {
+            Some(s) if s == v => {}
+            Some(s) => diffs.push(format!("{k}: {s:?} in checkpoint vs {v:?} now")),
+            None => diffs.push(format!("{k}: missing in checkpoint")),
+        }
+    }
+    if !diffs.is_empty() {
+        return Err(Error::format(
+            path,
+            format!("cannot resume with different options ({}); rerun with the original ones", diffs.join("; ")),
+        ));
+    }
+    saved.get("step").and_then(|v| v.as_u64()).ok_or_else(|| Error::format(path, "trainer.json: missing 'step'"))
+}
+
+struct State {
+    trunk: Trunk,
+    m: Trunk,
+    v: Trunk,
+    step: u64,
+    history: Vec<LogRow>,
+}
+
+fn write_checkpoint(path: &Path, net: NetKind, o: &TrainOptions, s: &State) -> Result<()> {
+    let mut e = NpzEntries::default();
+    push_trunk(&mut e, &s.trunk, "net.");
+    for (prefix, t) in [("adam.m.", &s.m), ("adam.v.", &s.v)] {
+        for (name, p) in t.params() {
+            e.push_array(format!("{prefix}{name}"), p.clone());
+        }
+    }
+    let mut h = Vec::with_capacity(s.history.len() * 3);
+    for r in &s.history {
+        h.extend_from_slice(&[r.step as f32, r.train, r.val]);
+    }
+    e.push_array("history", Tensor { shape: vec![s.history.len(), 3], data: h });
+    e.push_file("trainer.json", options_json(net, o, s.step).into_bytes());
+    write_npz(path, &e)
+}
+
+fn read_checkpoint(path: &Path, net: NetKind, o: &TrainOptions) -> Result<State> {
+    let e = read_npz(path)?;
+    let tj = e.file("trainer.json").ok_or_else(|| Error::format(path, "not a checkpoint (no trainer.json)"))?;
+    let saved = Object::parse(&String::from_utf8_lossy(tj)).map_err(|m| Error::format(path, m))?;
+    let step = check_resumable(path, &saved, net, o)?;
+    let trunk = trunk_from_npz(&e, "net.", path, Some((net, o.config)))?;
+    let mut m = trunk.zeros_like();
+    let mut v = trunk.zeros_like();
+    let names: Vec<String> = trunk.params().into_iter().map(|(n, _)| n).collect();
+    for (prefix, t) in [("adam.m.", &mut m), ("adam.v.", &mut v)] {
+        for (name, dst) in names.iter().zip(t.params_mut()) {
+            let src = e.require(path, &format!("{prefix}{name}"))?;
+            if src.shape != dst.shape {
+                return Err(Error::format(path, format!("{prefix}{name}: shape {:?}", src.shape)));
+            }
+            dst.data.copy_from_slice(&src.data);
+        }
+    }
+    let h = e.require(path, "history")?;
+    let history = h.data.chunks_exact(3).map(|r| LogRow { step: r[0] as u64, train: r[1], val: r[2] }).collect();
+    Ok(State { trunk, m, v, step, history })
+}
+
+/// `loss.csv` (step, train_loss, val_loss; val empty where not measured), atomically.
+pub fn write_loss_csv(path: &Path, history: &[LogRow]) -> Result<()> {
+    let mut s = String::from("step,train_loss,val_loss\n");
+    for r in history {
+        let val = if r.val.is_nan() { String::new() } else { format!("{}", r.val) };
+        s.push_str(&format!("{},{},{}\n", r.step, r.train, val));
+    }
+    write_atomic_bytes(path, s.as_bytes())
+}
+
+/// Train one net on `data` into `opts.out`: `checkpoint.npz`, `loss.csv`, `weights.npz`.
+pub fn train(
+    ops: &dyn Ops,
+    data: &Dataset,
+    net: NetKind,
+    opts: &TrainOptions,
+    on_event: &mut dyn FnMut(Event),
+) -> Result<TrainReport> {
+    opts.config.validate()?;
+    if opts.config.scale != data.scale {
+        return Err(Error::config(format!(
+            "net upscale ×{} but the data is ×{} (hr vs lr shapes)",
+            opts.config.scale, data.scale
+        )));
+    }
+    if !(opts.adam.lr > 0.0 && opts.adam.lr.is_finite()) {
+        return Err(Error::config(format!("learning rate must be > 0, got {}", opts.adam.lr)));
+    }
+    crate::io::atomic::ensure_dir(&opts.out)?;
+    let ckpt = opts.out.join("checkpoint.npz");
+    let mut st = if opts.resume {
+        if !ckpt.exists() {
+            return Err(Error::format(&ckpt, "--resume given but there is no checkpoint to resume from"));
+        }
+        read_checkpoint(&ckpt, net, opts)?
+    } else {
+        if ckpt.exists() {
+            return Err(Error::format(
+                &ckpt,
+                "a checkpoint already exists here: pass --resume to continue it, or choose another --out",
+            ));
+        }
+        let trunk = Trunk::init(net, opts.config, opts.seed);
+        State { m: trunk.zeros_like(), v: trunk.zeros_like(), trunk, step: 0, history: Vec::new() }
+    };
+    let (train_idx, val_idx) = split(data.len(), opts.val_frac)?;
+    let mut sampler = PatchSampler::new(data, train_idx.clone(), opts.seed, opts.batch, opts.patch)?;
+    let u_all = (net == NetKind::Geometry).then(|| interpolate_all(ops, data));
+    on_event(Event::Start {
+        net,
+        start: st.step,
+        steps: opts.steps,
+        train_frames: train_idx.len(),
+        val_frames: val_idx.len(),
+    });
+    let mut grads = st.trunk.zeros_like();
+    let t0 = std::time::Instant::now();
+    let first = st.step;
+    let mut last_val = st.history.iter().rev().find(|r| !r.val.is_nan()).map(|r| r.val);
+    while st.step < opts.steps {
+        let b = sampler.batch(data, u_all.as_ref(), net, st.step);
+        grads.fill_zero();
+        let loss = batch_loss(ops, &st.trunk, &b.lr, &b.u, &b.target, opts.pos_weight, Some(&mut grads))?;
+        let bad_grad = grads.params().into_iter().find_map(|(n, g)| g.first_non_finite().map(|(_, v)| (n, v)));
+        if !loss.is_finite() || bad_grad.is_some() {
+            let what = match bad_grad {
+                Some((n, v)) if loss.is_finite() => format!("gradient of {n} is {v}"),
+                _ => format!("loss is {loss}"),
+            };
+            let last = if ckpt.exists() {
+                format!("the last good checkpoint is kept at {}", ckpt.display())
+            } else {
+                "no checkpoint was written yet".to_string()
+            };
+            return Err(Error::numeric(format!(
+                "{} net, step {}: {what}; stopped ({last}). Try a lower --lr or check the data.",
+                net.name(),
+                st.step + 1
+            )));
+        }
+        let gs = grads.params();
+        let (ms, vs) = (st.m.params_mut(), st.v.params_mut());
+        for (((p, (_, g)), m), v) in st.trunk.params_mut().into_iter().zip(gs).zip(ms).zip(vs) {
+            ops.adam_update(&mut p.data, &g.data, &mut m.data, &mut v.data, st.step + 1, &opts.adam);
+        }
+        st.step += 1;
+        on_event(Event::Step { net, step: st.step, loss });
+        let last_step = st.step == opts.steps;
+        let mut row = LogRow { step: st.step, train: loss, val: f32::NAN };
+        if last_step || (opts.val_every > 0 && st.step % opts.val_every == 0) {
+            if let Some(vl) = validation_loss(ops, &st.trunk, data, u_all.as_ref(), &val_idx, opts.pos_weight)? {
+                if !vl.is_finite() {
+                    return Err(Error::numeric(format!(
+                        "{} net, step {}: validation loss is {vl}; stopped (last good checkpoint kept at {})",
+                        net.name(),
+                        st.step,
+                        ckpt.display()
+                    )));
+                }
+                row.val = vl;
+                last_val = Some(vl);
+                on_event(Event::Validation { net, step: st.step, loss: vl });
+            }
+        }
+        st.history.push(row);
+        if last_step || (opts.checkpoint_every > 0 && st.step % opts.checkpoint_every == 0) {
+            write_checkpoint(&ckpt, net, opts, &st)?;
+            write_loss_csv(&opts.out.join("loss.csv"), &st.history)?;
+            on_event(Event::Checkpoint { net, step: st.step, dir: &opts.out, history: &st.history });
+        }
+    }
+    let weights = opts.out.join("weights.npz");
+    save_net(&weights, &st.trunk)?;
+    let secs = t0.elapsed().as_secs_f64();
+    let ran = st.step - first;
+    Ok(TrainReport {
+        last_train_loss: st.history.last().map_or(f32::NAN, |r| r.train),
+        last_val_loss: last_val,
+        samples_per_s: if secs > 0.0 { (ran * opts.batch as u64) as f64 / secs } else { 0.0 },
+        history: st.history,
+        trunk: st.trunk,
+        weights,
+    })
+}
+
+/// Train GeometryNet, BoundaryNet and EnhanceNet one after another (each in
+/// `out/<net>/`, each resumable), then write the bundle `out/weights.npz`.
+pub fn train_all(
+    ops: &dyn Ops,
+    data: &Dataset,
+    opts: &TrainOptions,
+    on_event: &mut dyn FnMut(Event),
+) -> Result<(AnisoCb, Vec<TrainReport>)> {
+    let mut reports = Vec::new();
+    for kind in NetKind::ALL {
+        let out = opts.out.join(kind.name());
+        // With --resume, a net whose run had not started yet starts fresh; a finished one is a no-op.
+        let resume = opts.resume && out.join("checkpoint.npz").exists();
+        let sub = TrainOptions { out, resume, ..opts.clone() };
+        reports.push(train(ops, data, kind, &sub, on_event)?);
+    }
+    let mut t = reports.iter().map(|r| r.trunk.clone());
+    let bundle = AnisoCb::from_trunks(t.next().unwrap(), t.next().unwrap(), t.next().unwrap())?;
+    bundle.save(&opts.out.join("weights.npz"))?;
+    Ok((bundle, reports))
+}

@@ -1,0 +1,93 @@
+//! Weights files: round trips, deterministic initialisation, and refusal of mismatched files
+//! with a message that lists what differs.
+
+use anisocb::io::{read_npz, write_npz};
+use anisocb::nn::weights::{load_any, load_net, save_net, Weights};
+use anisocb::nn::{AnisoCb, NetConfig, NetKind, Trunk};
+use anisocb::ops::Padding;
+use anisocb::Tensor;
+use std::path::PathBuf;
+
+fn tmp(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("anisocb-nets-weights-{}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    d.join(name)
+}
+
+#[test]
+fn same_seed_gives_same_bits_and_other_seed_differs() {
+    let a = Trunk::init(NetKind::Geometry, NetConfig::small(), 42);
+    let b = Trunk::init(NetKind::Geometry, NetConfig::small(), 42);
+    let c = Trunk::init(NetKind::Geometry, NetConfig::small(), 43);
+    assert_eq!(a, b);
+    assert_ne!(a.blocks[0].conv1.weight, c.blocks[0].conv1.weight);
+    // The map nets get streams of their own.
+    let d = Trunk::init(NetKind::Boundary, NetConfig::small(), 42);
+    assert_ne!(a.conv_in.weight, d.conv_in.weight);
+}
+
+#[test]
+fn paper_preset_has_the_papers_shapes_and_names() {
+    let t = Trunk::zeros(NetKind::Geometry, NetConfig::paper());
+    let names: Vec<String> = t.params().into_iter().map(|(n, _)| n).collect();
+    assert_eq!(names.len(), 2 * (1 + 20 + 1 + 4));
+    assert_eq!(names[0], "conv_in.weight");
+    assert!(names.contains(&"blocks.9.conv2.bias".to_string()));
+    assert_eq!(t.upscale.weight.shape, vec![256, 64, 3, 3]);
+    assert_eq!(t.tail[3].weight.shape, vec![3, 64, 3, 3]);
+    assert_eq!(Trunk::zeros(NetKind::Enhance, NetConfig::paper()).tail[3].weight.shape, vec![1, 64, 3, 3]);
+}
+
+#[test]
+fn net_and_bundle_files_round_trip_bit_exactly() {
+    let cfg = NetConfig::tiny().with_padding(Padding::Replicate);
+    let t = Trunk::init(NetKind::Boundary, cfg, 5);
+    let p = tmp("net.npz");
+    save_net(&p, &t).unwrap();
+    assert_eq!(load_net(&p, Some((NetKind::Boundary, cfg))).unwrap(), t);
+    let b = AnisoCb::new(NetConfig::tiny(), 9);
+    let pb = tmp("bundle.npz");
+    b.save(&pb).unwrap();
+    assert_eq!(AnisoCb::load(&pb).unwrap(), b);
+    assert!(matches!(load_any(&pb).unwrap(), Weights::Bundle(_)));
+    assert!(matches!(load_any(&p).unwrap(), Weights::Net(_)));
+    let e = read_npz(&pb).unwrap();
+    assert!(e.array("geometry.blocks.1.conv2.weight").is_some());
+    assert!(e.file("enhance.config.json").is_some());
+}
+
+#[test]
+fn mismatched_weights_are_refused_with_a_readable_message() {
+    let p = tmp("small.npz");
+    save_net(&p, &Trunk::init(NetKind::Geometry, NetConfig::small(), 1)).unwrap();
+    // Config differs from what the caller expects.
+    let err = load_net(&p, Some((NetKind::Boundary, NetConfig::paper()))).unwrap_err().to_string();
+    println!("{err}");
+    assert!(err.contains("small.npz"), "{err}");
+    assert!(err.contains("kind: geometry vs boundary"), "{err}");
+    assert!(err.contains("channels: 32 vs 64") && err.contains("blocks: 4 vs 10"), "{err}");
+
+    // Arrays that do not fit their own config: one missing, one reshaped, one extra.
+    let mut e = read_npz(&p).unwrap();
+    e.arrays.retain(|(n, _)| n != "blocks.2.conv1.bias");
+    for (n, t) in e.arrays.iter_mut() {
+        if n == "tail.3.weight" {
+            *t = Tensor::zeros(&[1, 32, 3, 3]);
+        }
+    }
+    e.push_array("head.weight", Tensor::zeros(&[1]));
+    let q = tmp("broken.npz");
+    write_npz(&q, &e).unwrap();
+    let err = load_net(&q, None).unwrap_err().to_string();
+    println!("{err}");
+    assert!(err.contains("missing 1: blocks.2.conv1.bias"), "{err}");
+    assert!(err.contains("tail.3.weight is [1, 32, 3, 3], expected [3, 32, 3, 3]"), "{err}");
+    assert!(err.contains("unexpected 1: head.weight"), "{err}");
+
+    // Not a weights file at all.
+    let mut e = read_npz(&p).unwrap();
+    e.files.clear();
+    write_npz(&q, &e).unwrap();
+    let err = load_net(&q, None).unwrap_err().to_string();
+    assert!(err.contains("not an anisocb weights file"), "{err}");
+}
