@@ -29,7 +29,8 @@ fn assert_close(what: &str, got: &Tensor, want: &Tensor, atol: f32, rtol: f32) {
         if d > worst.0 || d.is_nan() {
             worst = (d, i);
         }
-        if !(d <= atol + rtol * w.abs()) && bad.len() < 5 {
+        let ok = d <= atol + rtol * w.abs();
+        if !ok && bad.len() < 5 {
             bad.push(format!("[{i}] got {g} want {w}"));
         }
     }
@@ -77,7 +78,10 @@ fn forward_loss_and_gradients_match_jax_for_all_nets_and_paddings() {
             let pw = io.array("pos_weight").unwrap().data[0];
             net.loss(ops, x, target, pw, Some(&mut grads)).unwrap()
         };
-        assert!((loss - want_loss).abs() <= 1e-6 + 1e-5 * want_loss.abs(), "{case}: loss {loss} vs JAX {want_loss}");
+        assert!(
+            (loss - want_loss).abs() <= 1e-6 + 1e-5 * want_loss.abs(),
+            "{case}: loss {loss} vs JAX {want_loss}"
+        );
         let want = load(&format!("{case}_grads.npz"));
         let names: Vec<String> = grads.params().into_iter().map(|(n, _)| n).collect();
         assert_eq!(names.len(), want.arrays.len(), "{case}: number of gradient arrays");
@@ -125,7 +129,9 @@ fn ten_adam_steps_of_geometry_net_follow_optax() {
         println!("step {step}: loss {loss:.7} optax {want:.7}");
         assert!((loss - want).abs() <= 1e-6 + 1e-4 * want, "step {step}: loss {loss} vs optax {want}");
         let gs: Vec<Tensor> = grads.params().into_iter().map(|(_, t)| t.clone()).collect();
-        for (((p, g), m), v) in net.trunk.params_mut().into_iter().zip(&gs).zip(m.params_mut()).zip(v.params_mut()) {
+        for (((p, g), m), v) in
+            net.trunk.params_mut().into_iter().zip(&gs).zip(m.params_mut()).zip(v.params_mut())
+        {
             ops.adam_update(&mut p.data, &g.data, &mut m.data, &mut v.data, step, &hp);
         }
     }

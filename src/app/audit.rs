@@ -28,7 +28,10 @@ pub fn run(a: Args) -> Result<()> {
         x = x.reshape(&[1, s[0], s[1], s[2]])?;
     }
     if x.rank() != 4 || x.shape[1] != 3 {
-        return Err(Error::format(&a.input, format!("expected (N, 3, H, W) or (3, H, W), got {:?}", x.shape)));
+        return Err(Error::format(
+            &a.input,
+            format!("expected (N, 3, H, W) or (3, H, W), got {:?}", x.shape),
+        ));
     }
     if let Some((i, v)) = x.first_non_finite() {
         return Err(Error::format(&a.input, format!("non-finite value {v} at index {i}")));

@@ -124,8 +124,14 @@ pub fn run(a: Args) -> Result<()> {
             let (_, reports) = train_all(&Cpu, &data, &opts, &mut on_event)?;
             let mut s: Vec<String> = reports
                 .iter()
-                .map(|r| format!("{}: train {:.4e} val {}", r.trunk.kind.name(), r.last_train_loss,
-                    r.last_val_loss.map_or("-".into(), |v| format!("{v:.4e}"))))
+                .map(|r| {
+                    format!(
+                        "{}: train {:.4e} val {}",
+                        r.trunk.kind.name(),
+                        r.last_train_loss,
+                        r.last_val_loss.map_or("-".into(), |v| format!("{v:.4e}"))
+                    )
+                })
                 .collect();
             s.push(format!("bundle → {}", a.out.join("weights.npz").display()));
             s.join("\n")

@@ -41,7 +41,9 @@ impl AnisoCb {
 
     /// Assemble from three trunks (checks kinds and scales).
     pub fn from_trunks(geometry: Trunk, boundary: Trunk, enhance: Trunk) -> Result<Self> {
-        for (t, k) in [(&geometry, NetKind::Geometry), (&boundary, NetKind::Boundary), (&enhance, NetKind::Enhance)] {
+        for (t, k) in
+            [(&geometry, NetKind::Geometry), (&boundary, NetKind::Boundary), (&enhance, NetKind::Enhance)]
+        {
             if t.kind != k {
                 return Err(Error::config(format!("expected a {} net, got {}", k.name(), t.kind.name())));
             }
@@ -49,7 +51,11 @@ impl AnisoCb {
         if geometry.config.scale != boundary.config.scale || geometry.config.scale != enhance.config.scale {
             return Err(Error::config("the three nets have different upscale factors"));
         }
-        Ok(AnisoCb { geometry: GeometryNet { trunk: geometry }, boundary: MapNet { trunk: boundary }, enhance: MapNet { trunk: enhance } })
+        Ok(AnisoCb {
+            geometry: GeometryNet { trunk: geometry },
+            boundary: MapNet { trunk: boundary },
+            enhance: MapNet { trunk: enhance },
+        })
     }
 
     pub fn scale(&self) -> usize {

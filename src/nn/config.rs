@@ -105,7 +105,11 @@ impl NetConfig {
     }
 
     pub fn validate(&self) -> Result<()> {
-        if self.channels == 0 || self.scale == 0 || self.channels > 4096 || self.blocks > 1000 || self.scale > 16
+        if self.channels == 0
+            || self.scale == 0
+            || self.channels > 4096
+            || self.blocks > 1000
+            || self.scale > 16
         {
             return Err(Error::config(format!("unreasonable net config {self:?}")));
         }
@@ -139,9 +143,13 @@ impl NetConfig {
     /// Parse a `config.json` entry; the message says which field is missing or wrong.
     pub fn from_json(text: &str) -> std::result::Result<(NetKind, NetConfig), String> {
         let o = Object::parse(text)?;
-        let s = |k: &str| o.get(k).and_then(|v| v.as_str()).ok_or(format!("config.json: missing string '{k}'"));
+        let s =
+            |k: &str| o.get(k).and_then(|v| v.as_str()).ok_or(format!("config.json: missing string '{k}'"));
         let n = |k: &str| {
-            o.get(k).and_then(|v| v.as_u64()).map(|v| v as usize).ok_or(format!("config.json: missing integer '{k}'"))
+            o.get(k)
+                .and_then(|v| v.as_u64())
+                .map(|v| v as usize)
+                .ok_or(format!("config.json: missing integer '{k}'"))
         };
         let kind = NetKind::parse(s("kind")?).map_err(|e| format!("config.json: {e}"))?;
         let padding = match s("padding")? {
@@ -179,7 +187,14 @@ impl NetConfig {
 
 impl std::fmt::Display for NetConfig {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "C={}, {} blocks, x{}, {} padding", self.channels, self.blocks, self.scale, padding_name(self.padding))
+        write!(
+            f,
+            "C={}, {} blocks, x{}, {} padding",
+            self.channels,
+            self.blocks,
+            self.scale,
+            padding_name(self.padding)
+        )
     }
 }
 

@@ -17,7 +17,10 @@ pub struct GeometryNet {
 pub fn check_input(x: &Tensor, what: &str) -> Result<(usize, usize, usize)> {
     let (n, c, h, w) = x.expect_rank4(what)?;
     if c != IN_CHANNELS || n == 0 || h == 0 || w == 0 {
-        return Err(Error::shape(format!("{what}: expected (N, 3, H, W) with N, H, W > 0, got {:?}", x.shape)));
+        return Err(Error::shape(format!(
+            "{what}: expected (N, 3, H, W) with N, H, W > 0, got {:?}",
+            x.shape
+        )));
     }
     Ok((n, h, w))
 }
@@ -27,7 +30,10 @@ pub fn check_target(x: &Tensor, target: &Tensor, channels: usize, scale: usize, 
     let (n, h, w) = check_input(x, "input")?;
     let want = [n, channels, h * scale, w * scale];
     if target.shape != want {
-        return Err(Error::shape(format!("{what}: expected {want:?} for input {:?}, got {:?}", x.shape, target.shape)));
+        return Err(Error::shape(format!(
+            "{what}: expected {want:?} for input {:?}, got {:?}",
+            x.shape, target.shape
+        )));
     }
     Ok(())
 }

@@ -89,7 +89,13 @@ pub struct Tape {
 impl Default for Tape {
     fn default() -> Self {
         let e = Tensor::zeros(&[0]);
-        Tape { input: e.clone(), blocks: Vec::new(), upscale_in: e, tail_in: Vec::new(), tail_pre: Vec::new() }
+        Tape {
+            input: e.clone(),
+            blocks: Vec::new(),
+            upscale_in: e,
+            tail_in: Vec::new(),
+            tail_pre: Vec::new(),
+        }
     }
 }
 
@@ -101,7 +107,9 @@ impl Trunk {
             kind,
             config,
             conv_in: Conv::zeros(c, IN_CHANNELS),
-            blocks: (0..config.blocks).map(|_| Block { conv1: Conv::zeros(c, c), conv2: Conv::zeros(c, c) }).collect(),
+            blocks: (0..config.blocks)
+                .map(|_| Block { conv1: Conv::zeros(c, c), conv2: Conv::zeros(c, c) })
+                .collect(),
             upscale: Conv::zeros(c * config.scale * config.scale, c),
             tail: (0..TAIL_CONVS)
                 .map(|i| Conv::zeros(if i + 1 == TAIL_CONVS { kind.out_channels() } else { c }, c))
@@ -198,7 +206,12 @@ impl Trunk {
 
     /// Inference forward: x (N, 3, H, W) → (N, out, rH, rW). Keeps no activations beyond the
     /// current layer; `observe(layer_name, activation)` sees every layer's output (audit).
-    pub fn forward_observed(&self, ops: &dyn Ops, x: &Tensor, observe: &mut dyn FnMut(&str, &Tensor)) -> Tensor {
+    pub fn forward_observed(
+        &self,
+        ops: &dyn Ops,
+        x: &Tensor,
+        observe: &mut dyn FnMut(&str, &Tensor),
+    ) -> Tensor {
         self.run(ops, x, None, observe)
     }
 
@@ -325,6 +338,8 @@ pub fn param_shapes(kind: NetKind, config: NetConfig) -> Vec<(String, Vec<usize>
     }
     convs
         .into_iter()
-        .flat_map(|(n, o, i)| [(format!("{n}.weight"), vec![o, i, KERNEL, KERNEL]), (format!("{n}.bias"), vec![o])])
+        .flat_map(|(n, o, i)| {
+            [(format!("{n}.weight"), vec![o, i, KERNEL, KERNEL]), (format!("{n}.bias"), vec![o])]
+        })
         .collect()
 }

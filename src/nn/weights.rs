@@ -43,7 +43,9 @@ pub fn trunk_from_npz(
     let cfg_bytes = entries.file(&cfg_name).ok_or_else(|| {
         Error::format(
             path,
-            format!("no '{cfg_name}' entry: not an anisocb weights file (see weights/README.md for the layout)"),
+            format!(
+                "no '{cfg_name}' entry: not an anisocb weights file (see weights/README.md for the layout)"
+            ),
         )
     })?;
     let (kind, config) = NetConfig::from_json(&String::from_utf8_lossy(cfg_bytes))
@@ -57,7 +59,10 @@ pub fn trunk_from_npz(
         if !diffs.is_empty() {
             return Err(Error::format(
                 path,
-                format!("{prefix}weights do not match the expected net (file vs expected): {}", diffs.join("; ")),
+                format!(
+                    "{prefix}weights do not match the expected net (file vs expected): {}",
+                    diffs.join("; ")
+                ),
             ));
         }
     }
@@ -73,7 +78,10 @@ pub fn trunk_from_npz(
             }
             Some(t) => {
                 if let Some((i, v)) = t.first_non_finite() {
-                    return Err(Error::format(path, format!("{prefix}{name}: non-finite value {v} at index {i}")));
+                    return Err(Error::format(
+                        path,
+                        format!("{prefix}{name}: non-finite value {v} at index {i}"),
+                    ));
                 }
                 dst.data.copy_from_slice(&t.data);
             }
@@ -85,7 +93,9 @@ pub fn trunk_from_npz(
         .filter_map(|(n, _)| n.strip_prefix(prefix).map(|rest| (n, rest)))
         .filter(|(_, rest)| !want.iter().any(|(w, _)| w == rest))
         // In a bundle, another net's names also start with the empty prefix; skip them.
-        .filter(|(_, rest)| !prefix.is_empty() || !NetKind::ALL.iter().any(|k| rest.starts_with(&format!("{}.", k.name()))))
+        .filter(|(_, rest)| {
+            !prefix.is_empty() || !NetKind::ALL.iter().any(|k| rest.starts_with(&format!("{}.", k.name())))
+        })
         .map(|(n, _)| n.clone())
         .collect();
     if !(missing.is_empty() && wrong.is_empty() && unexpected.is_empty()) {
@@ -127,7 +137,7 @@ pub fn load_net(path: &Path, expect: Option<(NetKind, NetConfig)>) -> Result<Tru
 /// A weights file holds either one net or a bundle of three.
 #[derive(Clone, Debug)]
 pub enum Weights {
-    Net(Trunk),
+    Net(Box<Trunk>),
     Bundle(Box<AnisoCb>),
 }
 
@@ -137,7 +147,7 @@ pub fn load_any(path: &Path) -> Result<Weights> {
     if e.file("geometry.config.json").is_some() {
         Ok(Weights::Bundle(Box::new(bundle_from_npz(&e, path)?)))
     } else {
-        Ok(Weights::Net(trunk_from_npz(&e, "", path, None)?))
+        Ok(Weights::Net(Box::new(trunk_from_npz(&e, "", path, None)?)))
     }
 }
 
@@ -159,7 +169,10 @@ pub fn bundle_from_npz(e: &NpzEntries, path: &Path) -> Result<AnisoCb> {
         .filter(|n| !NetKind::ALL.iter().any(|k| n.starts_with(&format!("{}.", k.name()))))
         .collect();
     if !other.is_empty() {
-        return Err(Error::format(path, format!("bundle has arrays outside its three nets: {}", listed(&other))));
+        return Err(Error::format(
+            path,
+            format!("bundle has arrays outside its three nets: {}", listed(&other)),
+        ));
     }
     AnisoCb::from_trunks(g, b, n).map_err(|e| e.in_file(path))
 }

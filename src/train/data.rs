@@ -50,7 +50,10 @@ impl Dataset {
         let (_, _, hh, _) = hr.expect_rank4("hr")?;
         let scale = hh / h;
         if scale == 0 || hr.shape != [n, 3, h * scale, w * scale] {
-            return Err(Error::shape(format!("hr: {:?} is not an integer upscale of lr {:?}", hr.shape, lr.shape)));
+            return Err(Error::shape(format!(
+                "hr: {:?} is not an integer upscale of lr {:?}",
+                hr.shape, lr.shape
+            )));
         }
         for (name, t) in [("boundary", &boundary), ("edges", &edges)] {
             if t.shape != [n, 1, h * scale, w * scale] {

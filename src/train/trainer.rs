@@ -6,18 +6,19 @@
 //! `DIR/weights.npz`). Both report progress through an [`Event`] callback; the CLI draws the
 //! progress bar and the PNG loss curve from it ([`super::plot`] draws the pixels).
 //!
-//! `DIR/checkpoint.npz` holds `net.*` (weights + `net.config.json`), `adam.m.*`, `adam.v.*`,
+//! `DIR/checkpoint.npz` holds `net.*` (weights + `net.config.json`), `adam.*` ([`Adam::save`]),
 //! `history` (K, 3: step, train loss, val loss or NaN) and `trainer.json` (step, seed and every
 //! option that must not change across a resume). Sampling is keyed by (seed, step) (see
 //! [`super::data`]), so `(seed, step)` *is* the RNG state.
 
+use super::adam::Adam;
 use super::data::{gather, interpolate_all, split, Dataset, PatchSampler};
 use crate::error::{Error, Result};
 use crate::io::{read_npz, write_atomic_bytes, write_npz, NpzEntries};
-use crate::nn::json::Object;
-use crate::nn::weights::{push_trunk, save_net, trunk_from_npz};
 use crate::nn::boundary_net::map_loss;
 use crate::nn::geometry_net::geometry_loss;
+use crate::nn::json::Object;
+use crate::nn::weights::{push_trunk, save_net, trunk_from_npz};
 use crate::nn::{AnisoCb, NetConfig, NetKind, Trunk};
 use crate::ops::{AdamParams, Ops};
 use crate::tensor::Tensor;
@@ -81,11 +82,30 @@ pub struct LogRow {
 #[derive(Debug)]
 pub enum Event<'a> {
     /// A run of `net` begins at `start` (0, or the resumed step) of `steps`.
-    Start { net: NetKind, start: u64, steps: u64, train_frames: usize, val_frames: usize },
-    Step { net: NetKind, step: u64, loss: f32 },
-    Validation { net: NetKind, step: u64, loss: f32 },
+    Start {
+        net: NetKind,
+        start: u64,
+        steps: u64,
+        train_frames: usize,
+        val_frames: usize,
+    },
+    Step {
+        net: NetKind,
+        step: u64,
+        loss: f32,
+    },
+    Validation {
+        net: NetKind,
+        step: u64,
+        loss: f32,
+    },
     /// A checkpoint was written; `history` is the whole log so far (for `loss.csv` / the curve).
-    Checkpoint { net: NetKind, step: u64, dir: &'a Path, history: &'a [LogRow] },
+    Checkpoint {
+        net: NetKind,
+        step: u64,
+        dir: &'a Path,
+        history: &'a [LogRow],
+    },
 }
 
 /// Result of one net's run.
@@ -173,28 +193,35 @@ fn check_resumable(path: &Path, saved: &Object, net: NetKind, o: &TrainOptions) 
     if !diffs.is_empty() {
         return Err(Error::format(
             path,
-            format!("cannot resume with different options ({}); rerun with the original ones", diffs.join("; ")),
+            format!(
+                "cannot resume with different options ({}); rerun with the original ones",
+                diffs.join("; ")
+            ),
         ));
     }
-    saved.get("step").and_then(|v| v.as_u64()).ok_or_else(|| Error::format(path, "trainer.json: missing 'step'"))
+    saved
+        .get("step")
+        .and_then(|v| v.as_u64())
+        .ok_or_else(|| Error::format(path, "trainer.json: missing 'step'"))
 }
 
 struct State {
     trunk: Trunk,
-    m: Trunk,
-    v: Trunk,
+    adam: Adam,
     step: u64,
     history: Vec<LogRow>,
+}
+
+/// Adam over the trunk's parameter buffers, in [`Trunk::params`] order.
+fn new_adam(trunk: &Trunk, o: &TrainOptions) -> Adam {
+    let sizes: Vec<usize> = trunk.params().iter().map(|(_, t)| t.len()).collect();
+    Adam::new(o.adam, &sizes)
 }
 
 fn write_checkpoint(path: &Path, net: NetKind, o: &TrainOptions, s: &State) -> Result<()> {
     let mut e = NpzEntries::default();
     push_trunk(&mut e, &s.trunk, "net.");
-    for (prefix, t) in [("adam.m.", &s.m), ("adam.v.", &s.v)] {
-        for (name, p) in t.params() {
-            e.push_array(format!("{prefix}{name}"), p.clone());
-        }
-    }
+    s.adam.save("adam.", &mut e);
     let mut h = Vec::with_capacity(s.history.len() * 3);
     for r in &s.history {
         h.extend_from_slice(&[r.step as f32, r.train, r.val]);
@@ -206,25 +233,20 @@ fn write_checkpoint(path: &Path, net: NetKind, o: &TrainOptions, s: &State) -> R
 
 fn read_checkpoint(path: &Path, net: NetKind, o: &TrainOptions) -> Result<State> {
     let e = read_npz(path)?;
-    let tj = e.file("trainer.json").ok_or_else(|| Error::format(path, "not a checkpoint (no trainer.json)"))?;
+    let tj =
+        e.file("trainer.json").ok_or_else(|| Error::format(path, "not a checkpoint (no trainer.json)"))?;
     let saved = Object::parse(&String::from_utf8_lossy(tj)).map_err(|m| Error::format(path, m))?;
     let step = check_resumable(path, &saved, net, o)?;
     let trunk = trunk_from_npz(&e, "net.", path, Some((net, o.config)))?;
-    let mut m = trunk.zeros_like();
-    let mut v = trunk.zeros_like();
-    let names: Vec<String> = trunk.params().into_iter().map(|(n, _)| n).collect();
-    for (prefix, t) in [("adam.m.", &mut m), ("adam.v.", &mut v)] {
-        for (name, dst) in names.iter().zip(t.params_mut()) {
-            let src = e.require(path, &format!("{prefix}{name}"))?;
-            if src.shape != dst.shape {
-                return Err(Error::format(path, format!("{prefix}{name}: shape {:?}", src.shape)));
-            }
-            dst.data.copy_from_slice(&src.data);
-        }
+    let mut adam = new_adam(&trunk, o);
+    adam.load(&e, "adam.", path)?;
+    if adam.step != step {
+        return Err(Error::format(path, format!("Adam is at step {} but the trainer at {step}", adam.step)));
     }
     let h = e.require(path, "history")?;
-    let history = h.data.chunks_exact(3).map(|r| LogRow { step: r[0] as u64, train: r[1], val: r[2] }).collect();
-    Ok(State { trunk, m, v, step, history })
+    let history =
+        h.data.chunks_exact(3).map(|r| LogRow { step: r[0] as u64, train: r[1], val: r[2] }).collect();
+    Ok(State { trunk, adam, step, history })
 }
 
 /// `loss.csv` (step, train_loss, val_loss; val empty where not measured), atomically.
@@ -270,7 +292,7 @@ pub fn train(
             ));
         }
         let trunk = Trunk::init(net, opts.config, opts.seed);
-        State { m: trunk.zeros_like(), v: trunk.zeros_like(), trunk, step: 0, history: Vec::new() }
+        State { adam: new_adam(&trunk, opts), trunk, step: 0, history: Vec::new() }
     };
     let (train_idx, val_idx) = split(data.len(), opts.val_frac)?;
     let mut sampler = PatchSampler::new(data, train_idx.clone(), opts.seed, opts.batch, opts.patch)?;
@@ -290,7 +312,8 @@ pub fn train(
         let b = sampler.batch(data, u_all.as_ref(), net, st.step);
         grads.fill_zero();
         let loss = batch_loss(ops, &st.trunk, &b.lr, &b.u, &b.target, opts.pos_weight, Some(&mut grads))?;
-        let bad_grad = grads.params().into_iter().find_map(|(n, g)| g.first_non_finite().map(|(_, v)| (n, v)));
+        let bad_grad =
+            grads.params().into_iter().find_map(|(n, g)| g.first_non_finite().map(|(_, v)| (n, v)));
         if !loss.is_finite() || bad_grad.is_some() {
             let what = match bad_grad {
                 Some((n, v)) if loss.is_finite() => format!("gradient of {n} is {v}"),
@@ -307,17 +330,18 @@ pub fn train(
                 st.step + 1
             )));
         }
-        let gs = grads.params();
-        let (ms, vs) = (st.m.params_mut(), st.v.params_mut());
-        for (((p, (_, g)), m), v) in st.trunk.params_mut().into_iter().zip(gs).zip(ms).zip(vs) {
-            ops.adam_update(&mut p.data, &g.data, &mut m.data, &mut v.data, st.step + 1, &opts.adam);
-        }
+        let gs: Vec<&[f32]> = grads.params().into_iter().map(|(_, g)| g.data.as_slice()).collect();
+        let mut ps: Vec<&mut [f32]> =
+            st.trunk.params_mut().into_iter().map(|p| p.data.as_mut_slice()).collect();
+        st.adam.step(ops, &mut ps, &gs);
         st.step += 1;
         on_event(Event::Step { net, step: st.step, loss });
         let last_step = st.step == opts.steps;
         let mut row = LogRow { step: st.step, train: loss, val: f32::NAN };
         if last_step || (opts.val_every > 0 && st.step % opts.val_every == 0) {
-            if let Some(vl) = validation_loss(ops, &st.trunk, data, u_all.as_ref(), &val_idx, opts.pos_weight)? {
+            if let Some(vl) =
+                validation_loss(ops, &st.trunk, data, u_all.as_ref(), &val_idx, opts.pos_weight)?
+            {
                 if !vl.is_finite() {
                     return Err(Error::numeric(format!(
                         "{} net, step {}: validation loss is {vl}; stopped (last good checkpoint kept at {})",
