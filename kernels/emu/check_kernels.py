@@ -1,0 +1,290 @@
+#!/usr/bin/env python3
+"""Check kernels/*.cu on the CPU (no GPU needed): builds emu.cpp with g++, runs every kernel
+with the launch geometry of src/cuda/device.rs on small odd shapes, and compares with NumPy
+references written from the CPU contracts (src/ops/*.rs). Usage: python3 kernels/emu/check_kernels.py
+Needs g++ (C++20) and numpy."""
+import ctypes, math, os, subprocess, sys, tempfile
+import numpy as np
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+SO = os.path.join(tempfile.gettempdir(), "anisocb_emu_kernels.so")
+subprocess.run(["g++", "-O1", "-std=c++20", "-shared", "-fPIC", "-pthread", "-w", "-o", SO,
+                os.path.join(HERE, "emu.cpp")], check=True)
+lib = ctypes.CDLL(SO)
+THREADS, TILE, BK, MAX_BLOCKS, WGRAD_TARGET = 256, 64, 16, 8192, 1024
+rng = np.random.default_rng(7)
+failures = []
+
+
+def launch(name, grid, block, *args):
+    keep, ptrs = [], []
+    for a in args:
+        if isinstance(a, np.ndarray):
+            assert a.flags.c_contiguous
+            v = ctypes.c_void_p(a.ctypes.data)
+        else:
+            v = a
+        keep.append(v)
+        ptrs.append(ctypes.cast(ctypes.pointer(v), ctypes.c_void_p))
+    arr = (ctypes.c_void_p * max(1, len(ptrs)))(*ptrs)
+    gx, gy, gz = grid
+    getattr(lib, "emu_" + name)(ctypes.c_uint(gx), ctypes.c_uint(gy), ctypes.c_uint(gz), ctypes.c_uint(block), arr)
+
+
+def grid1(n):
+    return (min(max(1, -(-n // THREADS)), MAX_BLOCKS), 1, 1)
+
+
+I, L, F = ctypes.c_int, ctypes.c_longlong, ctypes.c_float
+
+
+def check(what, got, want, atol=1e-5, rtol=1e-5):
+    got, want = np.asarray(got, np.float64), np.asarray(want, np.float64)
+    assert got.shape == want.shape, (what, got.shape, want.shape)
+    d = np.abs(got - want)
+    bad = d > atol + rtol * np.abs(want)
+    worst = float(d.max()) if d.size else 0.0
+    print(f"{'FAIL' if bad.any() else 'ok  '} {what}: largest diff {worst:.3g}")
+    if bad.any():
+        failures.append(what)
+
+
+def rnd(*shape):
+    return rng.uniform(-1, 1, shape).astype(np.float32)
+
+
+# ---------------- conv2d ----------------
+def gather_idx(n, k, mode):
+    """(k, n) source indices and validity of tap k at output position."""
+    p = np.arange(n)[None, :] + np.arange(k)[:, None] - k // 2
+    valid = (p >= 0) & (p < n)
+    if mode == 1:
+        valid[:] = True
+    return np.clip(p, 0, n - 1), valid
+
+
+def conv_ref(x, w, b, mode):
+    N, C, H, W = x.shape
+    O, _, KH, KW = w.shape
+    iy, vy = gather_idx(H, KH, mode)
+    ix, vx = gather_idx(W, KW, mode)
+    cols = x[:, :, iy[:, :, None, None], ix[None, None, :, :]]  # N C KH H KW W
+    cols = cols * (vy[:, :, None, None] & vx[None, None, :, :])
+    y = np.einsum("ocyx,ncyhxw->nohw", w.astype(np.float64), cols.astype(np.float64))
+    if b is not None:
+        y += b[None, :, None, None]
+    return y, cols
+
+
+def conv_bwd_ref(x, w, dy, mode):
+    N, C, H, W = x.shape
+    O, _, KH, KW = w.shape
+    _, cols = conv_ref(x, w, None, mode)
+    dw = np.einsum("nohw,ncyhxw->ocyx", dy.astype(np.float64), cols.astype(np.float64))
+    iy, vy = gather_idx(H, KH, mode)
+    ix, vx = gather_idx(W, KW, mode)
+    g = np.einsum("ocyx,nohw->ncyhxw", w.astype(np.float64), dy.astype(np.float64))
+    g = g * (vy[:, :, None, None] & vx[None, None, :, :])
+    dx = np.zeros(x.shape, np.float64)
+    Y = np.broadcast_to(iy[:, :, None, None], g.shape[2:])
+    X = np.broadcast_to(ix[None, None, :, :], g.shape[2:])
+    for n in range(N):
+        for c in range(C):
+            np.add.at(dx[n, c], (Y, X), g[n, c])
+    db = dy.astype(np.float64).sum(axis=(0, 2, 3))
+    return dx, dw, db
+
+
+def conv_fwd_dev(x, w, b, mode):
+    N, C, H, W = x.shape
+    O, _, KH, KW = w.shape
+    y = np.zeros((N, O, H, W), np.float32)
+    bias = b if b is not None else np.zeros(1, np.float32)
+    P = N * H * W
+    launch("conv2d_fwd", (-(-P // TILE), -(-O // TILE), 1), THREADS, x, w, bias, y,
+           I(N), I(C), I(H), I(W), I(O), I(KH), I(KW), I(mode), I(b is not None))
+    return y
+
+
+def conv_bwd_dev(x, w, dy, mode, dx, dw, db):
+    N, C, H, W = x.shape
+    O, _, KH, KW = w.shape
+    P, KK = N * H * W, C * KH * KW
+    tiles = -(-KK // TILE) * -(-O // TILE)
+    want_z = max(1, -(-WGRAD_TARGET // tiles))
+    chunk = max(-(-(-(-P // want_z)) // BK) * BK, 16 * BK)
+    Z = -(-P // chunk)
+    part = np.zeros(Z * O * KK, np.float32)
+    launch("conv2d_wgrad", (-(-KK // TILE), -(-O // TILE), Z), THREADS, x, dy, part,
+           I(N), I(C), I(H), I(W), I(O), I(KH), I(KW), I(mode), I(chunk))
+    launch("conv2d_wgrad_reduce", grid1(O * KK), THREADS, part, dw, I(Z), L(O * KK))
+    Hp, Wp = H + KH - 1, W + KW - 1
+    dxp = np.zeros(N * C * Hp * Wp, np.float32)
+    launch("conv2d_dgrad_padded", (-(-(N * Hp * Wp) // TILE), -(-C // TILE), 1), THREADS, w, dy, dxp,
+           I(N), I(C), I(H), I(W), I(O), I(KH), I(KW))
+    launch("conv2d_dgrad_fold", grid1(N * C * H * W), THREADS, dxp, dx, I(N * C), I(H), I(W), I(KH), I(KW), I(mode))
+    launch("conv2d_bias_grad", (O, 1, 1), THREADS, dy, db, I(N), I(O), I(H * W))
+    return Z
+
+
+for case, (N, C, H, W, O, KH, KW) in enumerate([
+        (1, 3, 5, 7, 4, 3, 3), (2, 5, 9, 6, 70, 3, 3), (1, 70, 4, 5, 3, 3, 3), (2, 3, 1, 9, 5, 5, 3),
+        (1, 2, 11, 2, 3, 1, 5), (3, 4, 13, 17, 66, 3, 3), (1, 1, 1, 1, 1, 3, 3)]):
+    for mode in (0, 1):
+        x, w, b = rnd(N, C, H, W), rnd(O, C, KH, KW), rnd(O)
+        tag = f"conv2d {N}x{C}x{H}x{W} w {O}x{C}x{KH}x{KW} {'replicate' if mode else 'zero'}"
+        yr, _ = conv_ref(x, w, b, mode)
+        check(tag + " forward", conv_fwd_dev(x, w, b, mode), yr, 1e-4, 1e-4)
+        check(tag + " forward no bias", conv_fwd_dev(x, w, None, mode), conv_ref(x, w, None, mode)[0], 1e-4, 1e-4)
+        dy = rnd(N, O, H, W)
+        dx0, dw0, db0 = rnd(N, C, H, W), rnd(O, C, KH, KW), rnd(O)
+        dx, dw, db = dx0.copy(), dw0.copy(), db0.copy()
+        Z = conv_bwd_dev(x, w, dy, mode, dx, dw, db)
+        rdx, rdw, rdb = conv_bwd_ref(x, w, dy, mode)
+        check(tag + f" dx", dx, dx0 + rdx, 1e-4, 1e-4)
+        check(tag + f" dw (Z={Z})", dw, dw0 + rdw, 1e-4, 1e-4)
+        check(tag + " db", db, db0 + rdb, 1e-4, 1e-4)
+
+# ---------------- element-wise ----------------
+for n in (1, 255, 257, 3000):
+    x = rnd(n)
+    x[0] = 0.0
+    y = np.zeros(n, np.float32)
+    launch("relu_fwd", grid1(n), THREADS, x, y, L(n))
+    check(f"relu n={n}", y, np.where(x < 0, 0, x))
+    dy, dx0 = rnd(n), rnd(n)
+    dx = dx0.copy()
+    launch("relu_bwd", grid1(n), THREADS, x, dy, dx, L(n))
+    check(f"relu_backward n={n}", dx, dx0 + np.where(x > 0, dy, 0))
+    a0, b = rnd(n), rnd(n)
+    a = a0.copy()
+    launch("add_assign", grid1(n), THREADS, a, b, L(n))
+    check(f"add_assign n={n}", a, a0 + b)
+    z = (rnd(n) * 40).astype(np.float32)
+    launch("sigmoid_fwd", grid1(n), THREADS, z, y, L(n))
+    check(f"sigmoid n={n}", y, 1 / (1 + np.exp(-z.astype(np.float64))), 1e-6, 1e-5)
+
+# ---------------- pixel shuffle ----------------
+for (N, C, H, W, r) in [(1, 3, 5, 7, 2), (2, 2, 3, 4, 3), (1, 5, 1, 1, 2), (2, 1, 4, 3, 1)]:
+    x = rnd(N, C * r * r, H, W)
+    want = x.reshape(N, C, r, r, H, W).transpose(0, 1, 4, 2, 5, 3).reshape(N, C, H * r, W * r)
+    y = np.zeros((N, C, H * r, W * r), np.float32)
+    launch("pixel_shuffle", grid1(y.size), THREADS, x, y, I(N), I(C), I(H), I(W), I(r))
+    check(f"pixel_shuffle {x.shape} r={r}", y, want, 0, 0)
+    back = np.zeros_like(x)
+    launch("pixel_unshuffle", grid1(back.size), THREADS, y, back, I(N), I(C), I(H), I(W), I(r))
+    check(f"pixel_unshuffle {y.shape} r={r}", back, x, 0, 0)
+
+
+# ---------------- resize ----------------
+def taps(in_n, out_n, mode):
+    sc = np.float32((in_n - 1) / np.float32(out_n - 1)) if out_n > 1 else np.float32(0)
+    sc = np.float32(np.float32(in_n - 1) / np.float32(out_n - 1)) if out_n > 1 else np.float32(0)
+    idx, wt = [], []
+    a = np.float32(-0.75)
+    for d in range(out_n):
+        s = np.float32(sc * np.float32(d))
+        if mode == "bilinear":
+            i0 = min(int(np.floor(s)), in_n - 1)
+            i1 = min(i0 + 1, in_n - 1)
+            t = np.float32(min(max(s - np.float32(i0), 0), 1))
+            idx += [i0, i1]
+            wt += [np.float32(1) - t, t]
+        else:
+            f = np.float32(np.floor(s))
+            t = np.float32(s - f)
+            c1 = lambda x: ((a + 2) * x - (a + 3)) * x * x + 1
+            c2 = lambda x: ((a * x - 5 * a) * x + 8 * a) * x - 4 * a
+            idx += [min(max(int(f) + o, 0), in_n - 1) for o in (-1, 0, 1, 2)]
+            wt += [c2(t + 1), c1(t), c1(1 - t), c2(2 - t)]
+    k = 2 if mode == "bilinear" else 4
+    return np.array(idx, np.int32), np.array(wt, np.float32), k
+
+
+def dense(in_n, out_n, mode):
+    idx, wt, k = taps(in_n, out_n, mode)
+    A = np.zeros((out_n, in_n))
+    for d in range(out_n):
+        for j in range(k):
+            A[d, idx[d * k + j]] += wt[d * k + j]
+    return A
+
+
+def csr(in_n, out_n, mode):
+    idx, wt, k = taps(in_n, out_n, mode)
+    cols = [[] for _ in range(in_n)]
+    for d in range(out_n):
+        for j in range(k):
+            c = cols[idx[d * k + j]]
+            if c and c[-1][0] == d:
+                c[-1][1] += wt[d * k + j]
+            else:
+                c.append([d, wt[d * k + j]])
+    ptr = np.zeros(in_n + 1, np.int32)
+    o, w = [], []
+    for i, c in enumerate(cols):
+        o += [e[0] for e in c]
+        w += [e[1] for e in c]
+        ptr[i + 1] = len(o)
+    return ptr, np.array(o + [0], np.int32), np.array(w + [0], np.float32)
+
+
+for (N, C, H, W, OH, OW) in [(1, 3, 5, 7, 10, 14), (2, 2, 1, 4, 3, 8), (1, 1, 6, 5, 1, 1), (1, 2, 9, 3, 17, 20)]:
+    for mode in ("bilinear", "bicubic"):
+        x = rnd(N, C, H, W)
+        Ah, Aw = dense(H, OH, mode), dense(W, OW, mode)
+        want = np.einsum("yi,ncij,xj->ncyx", Ah, x.astype(np.float64), Aw)
+        y = np.zeros((N, C, OH, OW), np.float32)
+        tyi, tyw, ky = taps(H, OH, mode)
+        txi, txw, kx = taps(W, OW, mode)
+        launch("resize_fwd", grid1(y.size), THREADS, x, y, L(N * C), I(H), I(W), I(OH), I(OW),
+               tyi, tyw, I(ky), txi, txw, I(kx))
+        check(f"resize {mode} {x.shape}->{OH}x{OW}", y, want)
+        dy, dx0 = rnd(N, C, OH, OW), rnd(N, C, H, W)
+        dx = dx0.copy()
+        cy, cx = csr(H, OH, mode), csr(W, OW, mode)
+        launch("resize_bwd", grid1(dx.size), THREADS, dy, dx, L(N * C), I(H), I(W), I(OH), I(OW), *cy, *cx)
+        check(f"resize_backward {mode} {x.shape}->{OH}x{OW}", dx,
+              dx0 + np.einsum("yi,ncyx,xj->ncij", Ah, dy.astype(np.float64), Aw))
+
+# ---------------- losses ----------------
+for n in (1, 300, 5000):
+    p, t = rnd(n), rnd(n)
+    g = np.zeros(n, np.float32)
+    cfg = grid1(n)
+    part = np.zeros(cfg[0], np.float64)
+    launch("mse_loss", cfg, THREADS, p, t, g, part, L(n), F(n))
+    d = p.astype(np.float64) - t
+    check(f"mse loss n={n}", part.sum() / n, (d * d).mean(), 1e-7, 1e-6)
+    check(f"mse grad n={n}", g, 2 * d / n, 1e-7, 1e-5)
+    z = (rnd(n) * 30).astype(np.float32)
+    tt = (rng.uniform(0, 1, n) > 0.7).astype(np.float32)
+    tt[: n // 3] = rng.uniform(0, 1, n // 3)
+    pw = 3.5
+    launch("bce_logits_loss", cfg, THREADS, z, tt, g, part, L(n), F(n), F(pw))
+    z64 = z.astype(np.float64)
+    sp = lambda v: np.maximum(v, 0) + np.log1p(np.exp(-np.abs(v)))
+    loss = pw * tt * sp(-z64) + (1 - tt) * sp(z64)
+    sg = 1 / (1 + np.exp(-z64))
+    check(f"bce loss n={n}", part.sum() / n, loss.mean(), 1e-6, 1e-5)
+    check(f"bce grad n={n}", g, (pw * tt * (sg - 1) + (1 - tt) * sg) / n, 1e-7, 1e-5)
+
+# ---------------- adam ----------------
+n = 1000
+p0 = rnd(n)
+p, m, v = p0.copy(), np.zeros(n, np.float32), np.zeros(n, np.float32)
+pr, mr, vr = p0.astype(np.float64), np.zeros(n), np.zeros(n)
+lr, b1, b2, eps = 1e-3, 0.9, 0.999, 1e-8
+for step in range(1, 11):
+    g = rnd(n)
+    c1, c2 = 1 - b1 ** step, 1 - b2 ** step
+    launch("adam_step", grid1(n), THREADS, p, g, m, v, L(n), F(lr), F(b1), F(b2), F(eps), F(c1), F(c2))
+    mr = b1 * mr + (1 - b1) * g
+    vr = b2 * vr + (1 - b2) * g.astype(np.float64) ** 2
+    pr = pr - lr * (mr / c1) / (np.sqrt(vr / c2) + eps)
+check("adam 10 steps p", p, pr, 1e-6, 1e-5)
+check("adam 10 steps m", m, mr, 1e-6, 1e-5)
+check("adam 10 steps v", v, vr, 1e-7, 1e-5)
+
+print(f"\n{len(failures)} failure(s)" + (": " + ", ".join(failures) if failures else ""))
+sys.exit(1 if failures else 0)
