@@ -165,13 +165,17 @@ impl Cuda {
         match dr::init() {
             Ok(()) => {}
             Err(DriverError(CUresult::CUDA_ERROR_NO_DEVICE)) => {
-                return Err(Error::device("no CUDA device: the driver is installed but finds no GPU; use --device cpu"))
+                return Err(Error::device(
+                    "no CUDA device: the driver is installed but finds no GPU; use --device cpu",
+                ))
             }
             Err(e) => return Err(driver_err("cannot initialise the CUDA driver (cuInit)", e)),
         }
         let count = dr::device::get_count().map_err(|e| driver_err("cannot count CUDA devices", e))?;
         if count <= 0 {
-            return Err(Error::device("no CUDA device: the driver is installed but finds no GPU; use --device cpu"));
+            return Err(Error::device(
+                "no CUDA device: the driver is installed but finds no GPU; use --device cpu",
+            ));
         }
         if ordinal >= count as usize {
             return Err(Error::device(format!("no CUDA device {ordinal}: this machine has {count}")));
@@ -184,7 +188,8 @@ impl Cuda {
         for (file, src) in SOURCES {
             // fmad off: the element-wise kernels then round like the CPU path (the conv kernels
             // use explicit fmaf either way).
-            let opts = CompileOptions { fmad: Some(false), name: Some(file.to_string()), ..Default::default() };
+            let opts =
+                CompileOptions { fmad: Some(false), name: Some(file.to_string()), ..Default::default() };
             let ptx = compile_ptx_with_opts(src, opts)
                 .map_err(|e| Error::device(format!("NVRTC could not compile kernels/{file}: {e}")))?;
             let module = ctx.load_module(ptx).map_err(|e| {
@@ -233,7 +238,10 @@ impl Cuda {
 
     /// Copy host values to a new device buffer of at least one element (the driver rejects
     /// empty allocations).
-    fn up<T: cudarc::driver::DeviceRepr + cudarc::driver::ValidAsZeroBits>(&self, v: &[T]) -> DResult<CudaSlice<T>> {
+    fn up<T: cudarc::driver::DeviceRepr + cudarc::driver::ValidAsZeroBits>(
+        &self,
+        v: &[T],
+    ) -> DResult<CudaSlice<T>> {
         let mut d = self.stream.alloc_zeros::<T>(v.len().max(1))?;
         if !v.is_empty() {
             self.stream.memcpy_htod(v, &mut d)?;
@@ -242,7 +250,11 @@ impl Cuda {
     }
 
     /// Copy the first `n` values of a device buffer to the host (waits for the stream).
-    fn down<T: cudarc::driver::DeviceRepr + Default + Clone>(&self, d: &CudaSlice<T>, n: usize) -> DResult<Vec<T>> {
+    fn down<T: cudarc::driver::DeviceRepr + Default + Clone>(
+        &self,
+        d: &CudaSlice<T>,
+        n: usize,
+    ) -> DResult<Vec<T>> {
         let mut v = vec![T::default(); n];
         if n > 0 {
             self.stream.memcpy_dtoh(&d.slice(0..n), &mut v)?;
@@ -292,7 +304,8 @@ impl Cuda {
                 &dummy
             }
         };
-        let (ni, ci, hi, wi, oi, khi, kwi) = (n as i32, c as i32, h as i32, wd as i32, o as i32, kh as i32, kw as i32);
+        let (ni, ci, hi, wi, oi, khi, kwi) =
+            (n as i32, c as i32, h as i32, wd as i32, o as i32, kh as i32, kw as i32);
         let (pm, hb) = (pad_mode(pad), b.is_some() as i32);
         let cfg = LaunchConfig {
             grid_dim: (p.div_ceil(TILE) as u32, o.div_ceil(TILE) as u32, 1),
@@ -336,7 +349,8 @@ impl Cuda {
         }
         let (hp, wp) = (h + kh - 1, wd + kw - 1);
         let _ = i32_of(n * c.max(o) * hp * wp, "conv2d tensor size");
-        let (ni, ci, hi, wi, oi, khi, kwi) = (n as i32, c as i32, h as i32, wd as i32, o as i32, kh as i32, kw as i32);
+        let (ni, ci, hi, wi, oi, khi, kwi) =
+            (n as i32, c as i32, h as i32, wd as i32, o as i32, kh as i32, kw as i32);
         let pm = pad_mode(pad);
         let p = n * h * wd;
         let kk = c * kh * kw;
@@ -390,7 +404,8 @@ impl Cuda {
 
         if let Some(db) = db {
             let hw = (h * wd) as i32;
-            let cfg = LaunchConfig { grid_dim: (o as u32, 1, 1), block_dim: (THREADS, 1, 1), shared_mem_bytes: 0 };
+            let cfg =
+                LaunchConfig { grid_dim: (o as u32, 1, 1), block_dim: (THREADS, 1, 1), shared_mem_bytes: 0 };
             let mut l = self.stream.launch_builder(&self.k.conv2d_bias_grad);
             l.arg(&dy.buf).arg(&mut db.buf).arg(&ni).arg(&oi).arg(&hw);
             // SAFETY: matches conv2d_bias_grad (256 threads, one block per output channel).
@@ -504,7 +519,8 @@ impl Cuda {
         }
         let _ = i32_of(h.max(out_h) * w.max(out_w), "resize plane size");
         let (ty, tx) = (axis_taps(h, out_h, mode), axis_taps(w, out_w, mode));
-        let (ty_i, ty_w, tx_i, tx_w) = (self.up(&ty.idx)?, self.up(&ty.w)?, self.up(&tx.idx)?, self.up(&tx.w)?);
+        let (ty_i, ty_w, tx_i, tx_w) =
+            (self.up(&ty.idx)?, self.up(&ty.w)?, self.up(&tx.idx)?, self.up(&tx.w)?);
         let (nc, hi, wi, ohi, owi) = ((n * c) as i64, h as i32, w as i32, out_h as i32, out_w as i32);
         let (ky, kx) = (ty.k as i32, tx.k as i32);
         let cfg = grid1(y.len());
@@ -540,7 +556,13 @@ impl Cuda {
     }
 
     /// A loss kernel `(pred, target, grad, part, n, nf, [pos_weight])`: (mean loss, gradient).
-    fn loss_dev(&self, f: &CudaFunction, p: &DevBuf, t: &DevBuf, pos_weight: Option<f32>) -> DResult<(f32, DevBuf)> {
+    fn loss_dev(
+        &self,
+        f: &CudaFunction,
+        p: &DevBuf,
+        t: &DevBuf,
+        pos_weight: Option<f32>,
+    ) -> DResult<(f32, DevBuf)> {
         let n = p.len();
         let mut g = self.zeros(&p.shape)?;
         if n == 0 {
@@ -567,8 +589,17 @@ impl Cuda {
         self.loss_dev(&self.k.mse_loss, pred, target, None)
     }
 
-    pub fn bce_with_logits_dev(&self, z: &DevBuf, target: &DevBuf, pos_weight: f32) -> DResult<(f32, DevBuf)> {
-        assert_eq!(z.shape, target.shape, "bce_with_logits: prediction {:?} vs target {:?}", z.shape, target.shape);
+    pub fn bce_with_logits_dev(
+        &self,
+        z: &DevBuf,
+        target: &DevBuf,
+        pos_weight: f32,
+    ) -> DResult<(f32, DevBuf)> {
+        assert_eq!(
+            z.shape, target.shape,
+            "bce_with_logits: prediction {:?} vs target {:?}",
+            z.shape, target.shape
+        );
         self.loss_dev(&self.k.bce_logits_loss, z, target, Some(pos_weight))
     }
 
@@ -585,7 +616,10 @@ impl Cuda {
         hp: &AdamParams,
     ) -> DResult<()> {
         assert!(step >= 1, "adam_update: step counts from 1");
-        assert!(p.len() >= n && g.len() >= n && m.len() >= n && v.len() >= n, "adam_update: buffers shorter than {n}");
+        assert!(
+            p.len() >= n && g.len() >= n && m.len() >= n && v.len() >= n,
+            "adam_update: buffers shorter than {n}"
+        );
         if n == 0 {
             return Ok(());
         }
@@ -719,12 +753,21 @@ impl Ops for Cuda {
 
     fn bce_with_logits(&self, logits: &Tensor, target: &Tensor, pos_weight: f32) -> (f32, Tensor) {
         self.run("bce_with_logits", || {
-            let (l, g) = self.bce_with_logits_dev(&self.upload(logits)?, &self.upload(target)?, pos_weight)?;
+            let (l, g) =
+                self.bce_with_logits_dev(&self.upload(logits)?, &self.upload(target)?, pos_weight)?;
             Ok((l, self.download(&g)?))
         })
     }
 
-    fn adam_update(&self, p: &mut [f32], g: &[f32], m: &mut [f32], v: &mut [f32], step: u64, hp: &AdamParams) {
+    fn adam_update(
+        &self,
+        p: &mut [f32],
+        g: &[f32],
+        m: &mut [f32],
+        v: &mut [f32],
+        step: u64,
+        hp: &AdamParams,
+    ) {
         assert!(
             p.len() == g.len() && p.len() == m.len() && p.len() == v.len(),
             "adam_update: lengths p {} g {} m {} v {}",

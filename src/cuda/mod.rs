@@ -38,7 +38,9 @@ pub fn ops_for_device(name: &str) -> Result<Box<dyn Ops>> {
     match name.trim().to_ascii_lowercase().as_str() {
         "cpu" => Ok(Box::new(Cpu)),
         "cuda" | "gpu" => Ok(Box::new(Cuda::new()?)),
-        other => Err(Error::config(format!("unknown device `{other}`: expected one of {}", DEVICES.join(", ")))),
+        other => {
+            Err(Error::config(format!("unknown device `{other}`: expected one of {}", DEVICES.join(", "))))
+        }
     }
 }
 

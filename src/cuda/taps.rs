@@ -78,7 +78,7 @@ pub fn axis_taps(in_n: usize, out_n: usize, mode: Interp) -> AxisTaps {
 
 /// Transpose forward taps over `in_n` source indices, entries ordered by output index.
 pub fn transpose(t: &AxisTaps, in_n: usize) -> AxisCsr {
-    let out_n = if t.k == 0 { 0 } else { t.idx.len() / t.k };
+    let out_n = t.idx.len().checked_div(t.k).unwrap_or(0);
     let mut cols: Vec<Vec<(i32, f32)>> = vec![Vec::new(); in_n];
     for d in 0..out_n {
         for a in 0..t.k {
@@ -177,7 +177,12 @@ mod tests {
             let (oh, ow) = if case % 3 == 0 { (rng.range(1, 20), rng.range(1, 20)) } else { (2 * h, 2 * w) };
             let x = rng.tensor(&[n, c, h, w]);
             // Same weights, same summation order as the reference: bitwise equal.
-            assert_eq!(gather_fwd(&x, oh, ow, mode), resize_ref(&x, oh, ow, mode), "{mode:?} {:?}→{oh}x{ow}", x.shape);
+            assert_eq!(
+                gather_fwd(&x, oh, ow, mode),
+                resize_ref(&x, oh, ow, mode),
+                "{mode:?} {:?}→{oh}x{ow}",
+                x.shape
+            );
             let dy = rng.tensor(&[n, c, oh, ow]);
             let mut a = rng.tensor(&[n, c, h, w]);
             let mut b = a.clone();

@@ -1,0 +1,372 @@
+//! Parity of the CUDA op table with the CPU engine: every op on random odd shapes, a small
+//! network's forward + backward, and 10 Adam steps of training. Compiled in every build; on a
+//! machine without the `cuda` feature, a driver or a GPU each test prints
+//! "skipped: no CUDA device (...)" and passes. The same checks also run with the CPU op table
+//! standing in for the device, so the harness itself (shapes, tolerances) is always exercised.
+
+use anisocb::cuda::ops_for_device;
+use anisocb::ops::conv2d::{conv2d_backward_ref, conv2d_ref};
+use anisocb::ops::{AdamParams, Cpu, Interp, Ops, Padding};
+use anisocb::{Error, Tensor};
+
+/// xorshift64*: deterministic test data without extra crates.
+struct Rng(u64);
+
+impl Rng {
+    fn next(&mut self) -> u64 {
+        self.0 ^= self.0 >> 12;
+        self.0 ^= self.0 << 25;
+        self.0 ^= self.0 >> 27;
+        self.0.wrapping_mul(0x2545_f491_4f6c_dd1d)
+    }
+    fn uniform(&mut self, lo: f32, hi: f32) -> f32 {
+        lo + (hi - lo) * ((self.next() >> 40) as f32 / (1u64 << 24) as f32)
+    }
+    fn range(&mut self, lo: usize, hi: usize) -> usize {
+        lo + (self.next() % (hi - lo + 1) as u64) as usize
+    }
+    fn tensor(&mut self, shape: &[usize], lo: f32, hi: f32) -> Tensor {
+        let n = shape.iter().product();
+        Tensor { shape: shape.to_vec(), data: (0..n).map(|_| self.uniform(lo, hi)).collect() }
+    }
+}
+
+/// The device under test, or None (and the skip line) where there is none.
+fn device() -> Option<Box<dyn Ops>> {
+    match ops_for_device("cuda") {
+        Ok(ops) => Some(ops),
+        Err(e) => {
+            println!("skipped: no CUDA device ({e})");
+            None
+        }
+    }
+}
+
+/// |got − want| ≤ atol + rtol·|want| everywhere; prints the largest difference.
+fn assert_close(what: &str, got: &Tensor, want: &Tensor, atol: f32, rtol: f32) {
+    assert_eq!(got.shape, want.shape, "{what}: shapes differ");
+    let (mut worst, mut at) = (0.0f32, 0usize);
+    let mut bad = None;
+    for (i, (&g, &w)) in got.data.iter().zip(&want.data).enumerate() {
+        let d = (g - w).abs();
+        if d > worst || d.is_nan() {
+            (worst, at) = (d, i);
+        }
+        if (d.is_nan() || d > atol + rtol * w.abs()) && bad.is_none() {
+            bad = Some(i);
+        }
+    }
+    println!("{what}: largest difference {worst:.3e} at {at}");
+    if let Some(i) = bad {
+        panic!(
+            "{what}: element {i}: got {} want {} (largest difference {worst:.3e})",
+            got.data[i], want.data[i]
+        );
+    }
+}
+
+fn assert_close_f32(what: &str, got: f32, want: f32, atol: f32, rtol: f32) {
+    println!("{what}: {got} vs {want}");
+    assert!((got - want).abs() <= atol + rtol * want.abs(), "{what}: got {got} want {want}");
+}
+
+// ---------------------------------------------------------------- the checks, device-agnostic
+
+fn check_conv2d(dev: &dyn Ops) {
+    let mut rng = Rng(0x5eed_c0de);
+    for case in 0..12 {
+        let (n, c, o) = (rng.range(1, 3), rng.range(1, 9), rng.range(1, 9));
+        let (h, w) = (rng.range(1, 13), rng.range(1, 13));
+        let (kh, kw) =
+            if case % 4 == 3 { (2 * rng.range(0, 2) + 1, 2 * rng.range(0, 2) + 1) } else { (3, 3) };
+        // One wide case crosses the 64-channel tile edge.
+        let (c, o) = if case == 5 { (67, 70) } else { (c, o) };
+        let pad = if case % 2 == 0 { Padding::Zero } else { Padding::Replicate };
+        let x = rng.tensor(&[n, c, h, w], -1.0, 1.0);
+        let wt = rng.tensor(&[o, c, kh, kw], -0.5, 0.5);
+        let b = rng.tensor(&[o], -0.5, 0.5);
+        let tag = format!("conv2d {:?} w {:?} {pad:?}", x.shape, wt.shape);
+        let bias = if case % 3 == 2 { None } else { Some(&b) };
+        assert_close(&tag, &dev.conv2d(&x, &wt, bias, pad), &conv2d_ref(&x, &wt, bias, pad), 1e-4, 1e-4);
+
+        let dy = rng.tensor(&[n, o, h, w], -1.0, 1.0);
+        let (mut dx, mut dw, mut db) =
+            (rng.tensor(&x.shape, -1.0, 1.0), rng.tensor(&wt.shape, -1.0, 1.0), rng.tensor(&[o], -1.0, 1.0));
+        let (mut rdx, mut rdw, mut rdb) = (dx.clone(), dw.clone(), db.clone());
+        dev.conv2d_backward(&x, &wt, &dy, pad, Some(&mut dx), &mut dw, Some(&mut db));
+        conv2d_backward_ref(&x, &wt, &dy, pad, Some(&mut rdx), &mut rdw, Some(&mut rdb));
+        assert_close(&format!("{tag} dx"), &dx, &rdx, 1e-4, 1e-4);
+        assert_close(&format!("{tag} dw"), &dw, &rdw, 2e-4, 1e-4);
+        assert_close(&format!("{tag} db"), &db, &rdb, 1e-4, 1e-4);
+
+        // Optional gradients left out.
+        let mut dw2 = Tensor::zeros(&wt.shape);
+        let mut rdw2 = dw2.clone();
+        dev.conv2d_backward(&x, &wt, &dy, pad, None, &mut dw2, None);
+        conv2d_backward_ref(&x, &wt, &dy, pad, None, &mut rdw2, None);
+        assert_close(&format!("{tag} dw only"), &dw2, &rdw2, 2e-4, 1e-4);
+    }
+}
+
+fn check_elementwise(dev: &dyn Ops) {
+    let mut rng = Rng(11);
+    for len in [1usize, 7, 255, 257, 4099] {
+        let shape = [1, 1, 1, len];
+        let mut x = rng.tensor(&shape, -3.0, 3.0);
+        x.data[0] = 0.0;
+        assert_close(&format!("relu {len}"), &dev.relu(&x), &Cpu.relu(&x), 0.0, 0.0);
+        let dy = rng.tensor(&shape, -1.0, 1.0);
+        let mut a = rng.tensor(&shape, -1.0, 1.0);
+        let mut b = a.clone();
+        dev.relu_backward(&x, &dy, &mut a);
+        Cpu.relu_backward(&x, &dy, &mut b);
+        assert_close(&format!("relu_backward {len}"), &a, &b, 0.0, 0.0);
+        let mut a = rng.tensor(&shape, -1.0, 1.0);
+        let mut b = a.clone();
+        dev.add_assign(&mut a, &dy);
+        Cpu.add_assign(&mut b, &dy);
+        assert_close(&format!("add_assign {len}"), &a, &b, 0.0, 0.0);
+        let z = rng.tensor(&shape, -40.0, 40.0);
+        assert_close(&format!("sigmoid {len}"), &dev.sigmoid(&z), &Cpu.sigmoid(&z), 1e-7, 1e-6);
+    }
+}
+
+fn check_pixel_shuffle(dev: &dyn Ops) {
+    let mut rng = Rng(12);
+    for _ in 0..6 {
+        let (n, c, h, w, r) =
+            (rng.range(1, 2), rng.range(1, 5), rng.range(1, 7), rng.range(1, 7), rng.range(1, 3));
+        let x = rng.tensor(&[n, c * r * r, h, w], -1.0, 1.0);
+        let y = dev.pixel_shuffle(&x, r);
+        assert_close(&format!("pixel_shuffle {:?} r={r}", x.shape), &y, &Cpu.pixel_shuffle(&x, r), 0.0, 0.0);
+        assert_close(
+            &format!("pixel_unshuffle {:?} r={r}", y.shape),
+            &dev.pixel_unshuffle(&y, r),
+            &x,
+            0.0,
+            0.0,
+        );
+    }
+}
+
+fn check_resize(dev: &dyn Ops) {
+    let mut rng = Rng(13);
+    for case in 0..12 {
+        let mode = if case % 2 == 0 { Interp::Bilinear } else { Interp::Bicubic };
+        let (n, c, h, w) = (rng.range(1, 2), rng.range(1, 3), rng.range(1, 11), rng.range(1, 11));
+        let (oh, ow) = if case % 3 == 0 { (rng.range(1, 23), rng.range(1, 23)) } else { (2 * h, 2 * w) };
+        let x = rng.tensor(&[n, c, h, w], -1.0, 1.0);
+        let tag = format!("resize {mode:?} {:?} -> {oh}x{ow}", x.shape);
+        assert_close(&tag, &dev.resize(&x, oh, ow, mode), &Cpu.resize(&x, oh, ow, mode), 1e-6, 1e-5);
+        let dy = rng.tensor(&[n, c, oh, ow], -1.0, 1.0);
+        let mut a = rng.tensor(&x.shape, -1.0, 1.0);
+        let mut b = a.clone();
+        dev.resize_backward(&dy, mode, &mut a);
+        Cpu.resize_backward(&dy, mode, &mut b);
+        assert_close(&format!("{tag} backward"), &a, &b, 1e-5, 1e-5);
+    }
+}
+
+fn check_losses(dev: &dyn Ops) {
+    let mut rng = Rng(14);
+    for len in [1usize, 300, 5001] {
+        let shape = [1, 1, 1, len];
+        let (p, t) = (rng.tensor(&shape, -1.0, 1.0), rng.tensor(&shape, -1.0, 1.0));
+        let ((lg, gg), (lc, gc)) = (dev.mse(&p, &t), Cpu.mse(&p, &t));
+        assert_close_f32(&format!("mse loss {len}"), lg, lc, 1e-7, 1e-5);
+        assert_close(&format!("mse grad {len}"), &gg, &gc, 1e-9, 1e-6);
+        let z = rng.tensor(&shape, -30.0, 30.0);
+        let mut tt = rng.tensor(&shape, 0.0, 1.0);
+        for v in tt.data.iter_mut().skip(len / 2) {
+            *v = (*v > 0.8) as u8 as f32;
+        }
+        let ((lg, gg), (lc, gc)) = (dev.bce_with_logits(&z, &tt, 3.5), Cpu.bce_with_logits(&z, &tt, 3.5));
+        assert_close_f32(&format!("bce loss {len}"), lg, lc, 1e-6, 1e-5);
+        assert_close(&format!("bce grad {len}"), &gg, &gc, 1e-8, 1e-5);
+    }
+}
+
+// ------------------------------------------------- a small network, forward and backward
+
+/// conv_in (3→C) → relu → conv (C→C) → + skip → conv (C→4·3) → pixel shuffle ×2 → + bicubic ×2
+/// of the input; MSE against a target. A miniature GeometryNet touching every op but the BCE.
+struct Net {
+    w: Vec<Tensor>,
+    b: Vec<Tensor>,
+}
+
+const WIDTH: usize = 6;
+
+impl Net {
+    fn new(rng: &mut Rng) -> Net {
+        let shapes = [[WIDTH, 3, 3, 3], [WIDTH, WIDTH, 3, 3], [12, WIDTH, 3, 3]];
+        let w = shapes.iter().map(|s| rng.tensor(s, -0.3, 0.3)).collect();
+        let b = shapes.iter().map(|s| rng.tensor(&[s[0]], -0.1, 0.1)).collect();
+        Net { w, b }
+    }
+
+    /// (loss, output, gradients of w and b).
+    fn step(&self, ops: &dyn Ops, x: &Tensor, target: &Tensor) -> (f32, Tensor, Vec<Tensor>, Vec<Tensor>) {
+        let (_, _, h, w) = x.dims4();
+        let pad = Padding::Replicate;
+        let a0 = ops.conv2d(x, &self.w[0], Some(&self.b[0]), pad);
+        let r0 = ops.relu(&a0);
+        let mut a1 = ops.conv2d(&r0, &self.w[1], Some(&self.b[1]), pad);
+        ops.add_assign(&mut a1, &r0);
+        let a2 = ops.conv2d(&a1, &self.w[2], Some(&self.b[2]), Padding::Zero);
+        let mut y = ops.pixel_shuffle(&a2, 2);
+        let u = ops.resize(x, 2 * h, 2 * w, Interp::Bicubic);
+        ops.add_assign(&mut y, &u);
+        let (loss, dy) = ops.mse(&y, target);
+
+        let mut dw: Vec<Tensor> = self.w.iter().map(|t| Tensor::zeros(&t.shape)).collect();
+        let mut db: Vec<Tensor> = self.b.iter().map(|t| Tensor::zeros(&t.shape)).collect();
+        let da2 = ops.pixel_unshuffle(&dy, 2);
+        let mut da1 = Tensor::zeros(&a1.shape);
+        ops.conv2d_backward(
+            &a1,
+            &self.w[2],
+            &da2,
+            Padding::Zero,
+            Some(&mut da1),
+            &mut dw[2],
+            Some(&mut db[2]),
+        );
+        let mut dr0 = da1.clone(); // the skip
+        ops.conv2d_backward(&r0, &self.w[1], &da1, pad, Some(&mut dr0), &mut dw[1], Some(&mut db[1]));
+        let mut da0 = Tensor::zeros(&a0.shape);
+        ops.relu_backward(&a0, &dr0, &mut da0);
+        let mut dx = Tensor::zeros(&x.shape);
+        ops.conv2d_backward(x, &self.w[0], &da0, pad, Some(&mut dx), &mut dw[0], Some(&mut db[0]));
+        ops.resize_backward(&dy, Interp::Bicubic, &mut dx); // exercised, then unused
+        (loss, y, dw, db)
+    }
+}
+
+fn check_network(dev: &dyn Ops) {
+    let mut rng = Rng(15);
+    let net = Net::new(&mut rng);
+    let x = rng.tensor(&[2, 3, 7, 9], 0.0, 1.0);
+    let target = rng.tensor(&[2, 3, 14, 18], 0.0, 1.0);
+    let (lg, yg, dwg, dbg) = net.step(dev, &x, &target);
+    let (lc, yc, dwc, dbc) = net.step(&Cpu, &x, &target);
+    assert_close_f32("network loss", lg, lc, 1e-6, 1e-4);
+    assert_close("network output", &yg, &yc, 1e-4, 1e-4);
+    for i in 0..3 {
+        assert_close(&format!("network dw{i}"), &dwg[i], &dwc[i], 1e-5, 1e-3);
+        assert_close(&format!("network db{i}"), &dbg[i], &dbc[i], 1e-5, 1e-3);
+    }
+}
+
+fn check_adam_training(dev: &dyn Ops) {
+    let mut rng = Rng(16);
+    let net0 = Net::new(&mut rng);
+    let x = rng.tensor(&[2, 3, 5, 6], 0.0, 1.0);
+    let target = rng.tensor(&[2, 3, 10, 12], 0.0, 1.0);
+    let hp = AdamParams { lr: 1e-3, ..Default::default() };
+    let train = |ops: &dyn Ops| {
+        let mut net = Net { w: net0.w.clone(), b: net0.b.clone() };
+        let mut mom: Vec<(Vec<f32>, Vec<f32>)> =
+            net.w.iter().chain(&net.b).map(|t| (vec![0.0; t.len()], vec![0.0; t.len()])).collect();
+        let mut losses = Vec::new();
+        for step in 1..=10u64 {
+            let (loss, _, dw, db) = net.step(ops, &x, &target);
+            losses.push(loss);
+            let params = net.w.iter_mut().chain(net.b.iter_mut());
+            for ((p, g), (m, v)) in params.zip(dw.iter().chain(&db)).zip(mom.iter_mut()) {
+                ops.adam_update(&mut p.data, &g.data, m, v, step, &hp);
+            }
+        }
+        (net, losses)
+    };
+    let (ng, lg) = train(dev);
+    let (nc, lc) = train(&Cpu);
+    for (i, (a, b)) in lg.iter().zip(&lc).enumerate() {
+        assert_close_f32(&format!("training loss step {}", i + 1), *a, *b, 1e-6, 1e-3);
+    }
+    assert!(lc[9] < lc[0], "10 Adam steps should lower the loss: {lc:?}");
+    for i in 0..3 {
+        assert_close(&format!("trained w{i}"), &ng.w[i], &nc.w[i], 1e-5, 1e-3);
+        assert_close(&format!("trained b{i}"), &ng.b[i], &nc.b[i], 1e-5, 1e-3);
+    }
+}
+
+// ---------------------------------------------------------------- the tests
+
+#[test]
+fn cuda_request_without_gpu_is_a_readable_error_not_a_panic() {
+    match ops_for_device("cuda") {
+        Ok(ops) => assert_eq!(ops.name(), "cuda"),
+        Err(e) => {
+            let msg = e.to_string();
+            println!("--device cuda here: {msg}");
+            assert!(matches!(e, Error::Device(_)), "expected a device error, got {msg}");
+            assert!(
+                msg.contains("cuda") || msg.contains("CUDA"),
+                "the message should say what is missing: {msg}"
+            );
+        }
+    }
+    assert_eq!(ops_for_device("cpu").expect("cpu always works").name(), "cpu");
+}
+
+#[test]
+fn parity_harness_self_check_with_cpu_as_device() {
+    // The same checks with the CPU standing in for the GPU: guards the harness itself.
+    check_conv2d(&Cpu);
+    check_elementwise(&Cpu);
+    check_pixel_shuffle(&Cpu);
+    check_resize(&Cpu);
+    check_losses(&Cpu);
+    check_network(&Cpu);
+    check_adam_training(&Cpu);
+}
+
+#[test]
+fn cuda_conv2d_matches_cpu_reference() {
+    if let Some(dev) = device() {
+        check_conv2d(dev.as_ref());
+    }
+}
+
+#[test]
+fn cuda_elementwise_ops_match_cpu() {
+    if let Some(dev) = device() {
+        check_elementwise(dev.as_ref());
+    }
+}
+
+#[test]
+fn cuda_pixel_shuffle_matches_cpu() {
+    if let Some(dev) = device() {
+        check_pixel_shuffle(dev.as_ref());
+    }
+}
+
+#[test]
+fn cuda_resize_matches_cpu() {
+    if let Some(dev) = device() {
+        check_resize(dev.as_ref());
+    }
+}
+
+#[test]
+fn cuda_losses_match_cpu() {
+    if let Some(dev) = device() {
+        check_losses(dev.as_ref());
+    }
+}
+
+#[test]
+fn cuda_network_forward_backward_matches_cpu() {
+    if let Some(dev) = device() {
+        check_network(dev.as_ref());
+    }
+}
+
+#[test]
+fn cuda_ten_adam_steps_match_cpu() {
+    if let Some(dev) = device() {
+        check_adam_training(dev.as_ref());
+    }
+}
