@@ -84,7 +84,9 @@ fn is_temp(name: &str) -> bool {
 
 fn temps(dir: &Path) -> Vec<String> {
     std::fs::read_dir(dir)
-        .map(|r| r.map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).filter(|n| is_temp(n)).collect())
+        .map(|r| {
+            r.map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).filter(|n| is_temp(n)).collect()
+        })
         .unwrap_or_default()
 }
 
@@ -132,8 +134,26 @@ fn killed_training_resumes_to_the_same_bits_and_never_leaves_a_partial_checkpoin
     let data_s = data.to_str().unwrap().to_string();
     let args = |out: &Path| -> Vec<String> {
         [
-            "train", "--data", &data_s, "--net", "geometry", "--config", "tiny", "--steps", "40", "--batch", "2",
-            "--patch", "4", "--val-every", "10", "--checkpoint-every", "4", "--seed", "7", "--out",
+            "train",
+            "--data",
+            &data_s,
+            "--net",
+            "geometry",
+            "--config",
+            "tiny",
+            "--steps",
+            "40",
+            "--batch",
+            "2",
+            "--patch",
+            "4",
+            "--val-every",
+            "10",
+            "--checkpoint-every",
+            "4",
+            "--seed",
+            "7",
+            "--out",
         ]
         .iter()
         .map(|s| s.to_string())
@@ -144,7 +164,11 @@ fn killed_training_resumes_to_the_same_bits_and_never_leaves_a_partial_checkpoin
     let a: Vec<String> = args(&reference);
     let clean = run_ok(&a.iter().map(String::as_str).collect::<Vec<_>>());
     let want = snapshot(&reference);
-    assert!(want.iter().any(|(n, _)| n == "weights.npz"), "{:?}", want.iter().map(|f| &f.0).collect::<Vec<_>>());
+    assert!(
+        want.iter().any(|(n, _)| n == "weights.npz"),
+        "{:?}",
+        want.iter().map(|f| &f.0).collect::<Vec<_>>()
+    );
 
     let out = d.join("killed");
     let mut rng = Rng(0xC0FFEE);
@@ -222,7 +246,11 @@ fn killed_upscale_reruns_to_a_complete_identical_sequence() {
         snapshot(dir).into_iter().filter(|(n, _)| n.ends_with(".obj") || n.ends_with(".npy")).collect()
     };
     let want = meshes(&reference);
-    assert!(want.len() >= 24, "expected 24 output frames, got {:?}", want.iter().map(|f| &f.0).collect::<Vec<_>>());
+    assert!(
+        want.len() >= 24,
+        "expected 24 output frames, got {:?}",
+        want.iter().map(|f| &f.0).collect::<Vec<_>>()
+    );
     let out = d.join("killed");
     let outs = out.to_str().unwrap().to_string();
     let mut rng = Rng(0xBEEF);

@@ -180,7 +180,8 @@ fn fuzz(target: &str, seeds: &[Vec<u8>], parse: impl Fn(&[u8]) -> bool) {
             }
         };
         if let Some(p) = problem {
-            let path = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("fuzz-{target}-{runs}.bin"));
+            let path =
+                std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("fuzz-{target}-{runs}.bin"));
             let _ = std::fs::write(&path, &input);
             panic!("{target}: input #{runs} {p}; saved to {}", path.display());
         }
@@ -198,7 +199,8 @@ fn ramp(shape: &[usize]) -> Tensor {
 }
 
 fn npy_seeds() -> Vec<Vec<u8>> {
-    let mut v = vec![npy_bytes(&ramp(&[2, 3, 4, 5])), npy_bytes(&ramp(&[7])), npy_bytes(&ramp(&[1, 3, 2, 2]))];
+    let mut v =
+        vec![npy_bytes(&ramp(&[2, 3, 4, 5])), npy_bytes(&ramp(&[7])), npy_bytes(&ramp(&[1, 3, 2, 2]))];
     // float64, version 2.0 header, hand-written like numpy's
     let text = "{'descr': '<f8', 'fortran_order': False, 'shape': (3,), }";
     let mut f8 = b"\x93NUMPY\x02\x00".to_vec();
@@ -221,7 +223,8 @@ fn npz_seeds() -> Vec<Vec<u8>> {
     e.push_file("config.json", b"{\"width\": 4, \"blocks\": 1}".to_vec());
     let mut one = NpzEntries::default();
     one.push_array("x", ramp(&[2, 3]));
-    let numpy = std::fs::read(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/fixtures/hostile/numpy_savez.npz")).unwrap();
+    let numpy = std::fs::read(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/fixtures/hostile/numpy_savez.npz"))
+        .unwrap();
     vec![npz_bytes(&e).unwrap(), npz_bytes(&one).unwrap(), numpy]
 }
 
