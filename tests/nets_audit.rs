@@ -139,3 +139,26 @@ fn ten_adam_steps_of_geometry_net_follow_optax() {
         assert_close(&format!("final {name}"), p, reference.array(&name).unwrap(), 2e-5, 1e-4);
     }
 }
+
+#[cfg(feature = "cli")]
+#[test]
+fn audit_command_writes_every_layer_as_npy_matching_jax() {
+    let (_, io) = load_case(NetKind::Geometry, "replicate");
+    let dir = std::env::temp_dir().join(format!("anisocb-audit-cli-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let input = dir.join("x.npy");
+    anisocb::io::write_npy(&input, io.array("input").unwrap()).unwrap();
+    let out = dir.join("acts");
+    let weights = fixture("geometry_replicate.npz");
+    let args =
+        ["anisocb", "audit", "--weights", weights.to_str().unwrap(), "--input", input.to_str().unwrap()];
+    let code = anisocb::app::main_with_args(args.into_iter().chain(["--out", out.to_str().unwrap()]));
+    assert_eq!(code, 0);
+    let want = load("geometry_replicate_acts.npz");
+    for (name, w) in &want.arrays {
+        let got = anisocb::io::read_npy(&out.join(format!("{name}.npy"))).unwrap();
+        assert_close(&format!("audit {name}"), &got, w, 1e-5, 1e-4);
+    }
+    let u = anisocb::io::read_npy(&out.join("interp.npy")).unwrap();
+    assert_close("audit interp", &u, io.array("u").unwrap(), 1e-5, 1e-5);
+}

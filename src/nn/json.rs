@@ -34,6 +34,16 @@ impl Value {
     }
 }
 
+impl std::fmt::Display for Value {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Value::Str(s) => write!(f, "\"{s}\""),
+            Value::Num(n) => f.write_str(n),
+            Value::Bool(b) => write!(f, "{b}"),
+        }
+    }
+}
+
 /// A flat JSON object, keys in insertion order.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Object(pub Vec<(String, Value)>);

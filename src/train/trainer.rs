@@ -186,7 +186,7 @@ fn check_resumable(path: &Path, saved: &Object, net: NetKind, o: &TrainOptions) 
         }
         match saved.get(k) {
             Some(s) if s == v => {}
-            Some(s) => diffs.push(format!("{k}: {s:?} in checkpoint vs {v:?} now")),
+            Some(s) => diffs.push(format!("{k}: {s} in checkpoint vs {v} now")),
             None => diffs.push(format!("{k}: missing in checkpoint")),
         }
     }
