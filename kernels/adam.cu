@@ -1,7 +1,7 @@
-// adam.cu — one Adam step with bias correction on a flat parameter buffer (optax's form, ε
+// adam.cu - one Adam step with bias correction on a flat parameter buffer (optax's form, eps
 // outside the square root). Contract: anisocb::ops::adam::adam_update_ref, same per-element
-// expression; c1 = 1 − β1^t and c2 = 1 − β2^t are computed on the host (f64, rounded once).
-//   m ← (1−β1)·g + β1·m,  v ← (1−β2)·g² + β2·v,  p ← p − lr · ((m / c1) / (√(v / c2) + ε))
+// expression; c1 = 1 - beta1^t and c2 = 1 - beta2^t are computed on the host (f64, rounded once).
+//   m <- (1-beta1)*g + beta1*m,  v <- (1-beta2)*g^2 + beta2*v,  p <- p - lr * ((m / c1) / (sqrt(v / c2) + eps))
 // 1-D grid-stride over n.
 extern "C" __global__ void adam_step(float* __restrict__ p, const float* __restrict__ g,
                                      float* __restrict__ m, float* __restrict__ v, long long n,

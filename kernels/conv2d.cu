@@ -1,11 +1,11 @@
-// conv2d.cu — 2-D convolution, stride 1, "same" output size (padding KH/2, KW/2), odd kernels,
+// conv2d.cu - 2-D convolution, stride 1, "same" output size (padding KH/2, KW/2), odd kernels,
 // zero (pad_mode 0) or replicate (pad_mode 1) padding; forward, input gradient, weight gradient,
 // bias gradient. Contract: anisocb::ops::conv2d::{conv2d_ref, conv2d_backward_ref}.
 //
 // Layouts (row-major): x (N, C, H, W), w (O, C, KH, KW) (OIHW), b (O), y / dy (N, O, H, W).
 //
-// All three products are implicit GEMMs on 64×64 output tiles: 256 threads, each owning a 4×4
-// micro-tile (rows ty + 16·i, columns tx + 16·j), reduction slices of BK = 16 staged in shared
+// All three products are implicit GEMMs on 64x64 output tiles: 256 threads, each owning a 4x4
+// micro-tile (rows ty + 16*i, columns tx + 16*j), reduction slices of BK = 16 staged in shared
 // memory. Every kernel writes each output once and reduces in a fixed order: results are
 // bit-for-bit reproducible run to run (no atomics).
 
@@ -14,15 +14,15 @@
 #define BK 16
 #define NT 256
 
-// Source index of padded coordinate p in [0, n), or −1 where zero padding reads a 0.
+// Source index of padded coordinate p in [0, n), or -1 where zero padding reads a 0.
 __device__ __forceinline__ int pad_idx(int p, int n, int mode) {
     if (p >= 0 && p < n) return p;
     if (mode == 0) return -1;
     return p < 0 ? 0 : n - 1;
 }
 
-// acc[i][j] += Σ_kk As[kk][ty + 16 i] · Bs[kk][tx + 16 j]
-__device__ __forceinline__ void mma_tile(const float (*As)[BM + 1], const float (*Bs)[BN],
+// acc[i][j] += sum_kk As[kk][ty + 16 i] * Bs[kk][tx + 16 j]
+__device__ __forceinline__ void mma_tile(float (*As)[BM + 1], float (*Bs)[BN],
                                          float acc[4][4], int tx, int ty) {
 #pragma unroll
     for (int kk = 0; kk < BK; ++kk) {
@@ -38,10 +38,10 @@ __device__ __forceinline__ void mma_tile(const float (*As)[BM + 1], const float 
     }
 }
 
-// Forward. GEMM y[o, p] = b[o] + Σ_k w[o, k] · im2col[k, p], with
-//   o < O (tile rows, blockIdx.y), p = (n, yy, xx) < N·H·W (tile columns, blockIdx.x),
-//   k = (c·KH + ky)·KW + kx < C·KH·KW, im2col[k, p] = x[n, c, pad(yy + ky − KH/2), pad(xx + kx − KW/2)].
-// grid (ceil(N·H·W / 64), ceil(O / 64)), block 256.
+// Forward. GEMM y[o, p] = b[o] + sum_k w[o, k] * im2col[k, p], with
+//   o < O (tile rows, blockIdx.y), p = (n, yy, xx) < N*H*W (tile columns, blockIdx.x),
+//   k = (c*KH + ky)*KW + kx < C*KH*KW, im2col[k, p] = x[n, c, pad(yy + ky - KH/2), pad(xx + kx - KW/2)].
+// grid (ceil(N*H*W / 64), ceil(O / 64)), block 256.
 extern "C" __global__ void conv2d_fwd(const float* __restrict__ x, const float* __restrict__ w,
                                       const float* __restrict__ bias, float* __restrict__ y,
                                       int N, int C, int H, int W, int O, int KH, int KW,
@@ -73,7 +73,7 @@ extern "C" __global__ void conv2d_fwd(const float* __restrict__ x, const float* 
         for (int j = 0; j < 4; ++j) acc[i][j] = 0.f;
 
     for (int k0 = 0; k0 < K; k0 += BK) {
-        // A tile (64 × 16): As[kk][mm] = w[m0 + mm, k0 + kk]
+        // A tile (64 x 16): As[kk][mm] = w[m0 + mm, k0 + kk]
 #pragma unroll
         for (int i = 0; i < 4; ++i) {
             const int e = tid + NT * i;
@@ -81,7 +81,7 @@ extern "C" __global__ void conv2d_fwd(const float* __restrict__ x, const float* 
             const int m = m0 + mm, k = k0 + kk;
             As[kk][mm] = (m < O && k < K) ? w[(long long)m * K + k] : 0.f;
         }
-        // B tile (16 × 64): Bs[kk][bn] = im2col[k0 + kk, p]
+        // B tile (16 x 64): Bs[kk][bn] = im2col[k0 + kk, p]
 #pragma unroll
         for (int i = 0; i < 4; ++i) {
             const int kk = tid / BN + (NT / BN) * i;
@@ -118,10 +118,10 @@ extern "C" __global__ void conv2d_fwd(const float* __restrict__ x, const float* 
     }
 }
 
-// Weight gradient, split over the reduction: for reduction chunk z (pixels [z·chunk, (z+1)·chunk)),
-//   part[z, o, k] = Σ_p dy[n, o, yy, xx] · im2col[k, p]        (p = (n, yy, xx), k as in conv2d_fwd)
-// Tile rows o < O (blockIdx.y), columns k < C·KH·KW (blockIdx.x), chunk index blockIdx.z.
-// `chunk` is a multiple of BK. part: (Z, O, C·KH·KW). Summed by conv2d_wgrad_reduce.
+// Weight gradient, split over the reduction: for reduction chunk z (pixels [z*chunk, (z+1)*chunk)),
+//   part[z, o, k] = sum_p dy[n, o, yy, xx] * im2col[k, p]        (p = (n, yy, xx), k as in conv2d_fwd)
+// Tile rows o < O (blockIdx.y), columns k < C*KH*KW (blockIdx.x), chunk index blockIdx.z.
+// `chunk` is a multiple of BK. part: (Z, O, C*KH*KW). Summed by conv2d_wgrad_reduce.
 extern "C" __global__ void conv2d_wgrad(const float* __restrict__ x, const float* __restrict__ dy,
                                         float* __restrict__ part, int N, int C, int H, int W,
                                         int O, int KH, int KW, int pad_mode, int chunk) {
@@ -132,7 +132,7 @@ extern "C" __global__ void conv2d_wgrad(const float* __restrict__ x, const float
     const int ph = KH / 2, pw = KW / 2;
     const int m0 = blockIdx.y * BM, n0 = blockIdx.x * BN;
     const int pbeg = blockIdx.z * chunk;
-    const int pend = min(P, pbeg + chunk);
+    const int pend = pbeg + chunk < P ? pbeg + chunk : P;
 
     // B loader: this thread always fills column bn (one weight index k) of the tile.
     const int bn = tid & (BN - 1);
@@ -201,7 +201,7 @@ extern "C" __global__ void conv2d_wgrad(const float* __restrict__ x, const float
     }
 }
 
-// dw[i] += Σ_{z < Z} part[z, i], i < len (= O·C·KH·KW), summed in z order. 1-D grid-stride.
+// dw[i] += sum_{z < Z} part[z, i], i < len (= O*C*KH*KW), summed in z order. 1-D grid-stride.
 extern "C" __global__ void conv2d_wgrad_reduce(const float* __restrict__ part, float* __restrict__ dw,
                                                int Z, long long len) {
     for (long long i = (long long)blockIdx.x * blockDim.x + threadIdx.x; i < len;
@@ -212,10 +212,10 @@ extern "C" __global__ void conv2d_wgrad_reduce(const float* __restrict__ part, f
     }
 }
 
-// Input gradient on the padded grid (Hp = H + KH − 1, Wp = W + KW − 1):
-//   dxp[n, c, py, px] = Σ_{o, ky, kx} w[o, c, ky, kx] · dy[n, o, py − ky, px − kx]   (dy is 0 outside)
-// GEMM rows c < C (blockIdx.y), columns q = (n, py, px) < N·Hp·Wp (blockIdx.x),
-// reduction k = (o·KH + ky)·KW + kx < O·KH·KW. conv2d_dgrad_fold folds dxp onto dx.
+// Input gradient on the padded grid (Hp = H + KH - 1, Wp = W + KW - 1):
+//   dxp[n, c, py, px] = sum_{o, ky, kx} w[o, c, ky, kx] * dy[n, o, py - ky, px - kx]   (dy is 0 outside)
+// GEMM rows c < C (blockIdx.y), columns q = (n, py, px) < N*Hp*Wp (blockIdx.x),
+// reduction k = (o*KH + ky)*KW + kx < O*KH*KW. conv2d_dgrad_fold folds dxp onto dx.
 extern "C" __global__ void conv2d_dgrad_padded(const float* __restrict__ w, const float* __restrict__ dy,
                                                float* __restrict__ dxp, int N, int C, int H, int W,
                                                int O, int KH, int KW) {
@@ -246,7 +246,7 @@ extern "C" __global__ void conv2d_dgrad_padded(const float* __restrict__ w, cons
         for (int j = 0; j < 4; ++j) acc[i][j] = 0.f;
 
     for (int k0 = 0; k0 < K; k0 += BK) {
-        // A tile: As[kk][mm] = w[o, c = m0 + mm, t] with k0 + kk = o·KK + t
+        // A tile: As[kk][mm] = w[o, c = m0 + mm, t] with k0 + kk = o*KK + t
 #pragma unroll
         for (int i = 0; i < 4; ++i) {
             const int e = tid + NT * i;
@@ -260,7 +260,7 @@ extern "C" __global__ void conv2d_dgrad_padded(const float* __restrict__ w, cons
             }
             As[kk][mm] = v;
         }
-        // B tile: Bs[kk][bn] = dy[qn, o, py − ky, px − kx]
+        // B tile: Bs[kk][bn] = dy[qn, o, py - ky, px - kx]
 #pragma unroll
         for (int i = 0; i < 4; ++i) {
             const int kk = tid / BN + (NT / BN) * i;
@@ -295,9 +295,9 @@ extern "C" __global__ void conv2d_dgrad_padded(const float* __restrict__ w, cons
     }
 }
 
-// dx[nc, sy, sx] += Σ dxp[nc, py, px] over the padded pixels that read (sy, sx):
+// dx[nc, sy, sx] += sum dxp[nc, py, px] over the padded pixels that read (sy, sx):
 // zero padding: only (sy + KH/2, sx + KW/2); replicate: border pixels also collect the halo.
-// dxp: (NC, H + KH − 1, W + KW − 1), dx: (NC, H, W). 1-D grid-stride over NC·H·W.
+// dxp: (NC, H + KH - 1, W + KW - 1), dx: (NC, H, W). 1-D grid-stride over NC*H*W.
 extern "C" __global__ void conv2d_dgrad_fold(const float* __restrict__ dxp, float* __restrict__ dx,
                                              int NC, int H, int W, int KH, int KW, int pad_mode) {
     const int ph = KH / 2, pw = KW / 2;
@@ -323,7 +323,7 @@ extern "C" __global__ void conv2d_dgrad_fold(const float* __restrict__ dxp, floa
     }
 }
 
-// db[o] += Σ_{n, yy, xx} dy[n, o, yy, xx]. grid (O), block 256 (a power of two).
+// db[o] += sum_{n, yy, xx} dy[n, o, yy, xx]. grid (O), block 256 (a power of two).
 extern "C" __global__ void conv2d_bias_grad(const float* __restrict__ dy, float* __restrict__ db,
                                             int N, int O, int HW) {
     __shared__ float red[NT];

@@ -1,4 +1,4 @@
-// elementwise.cu — ReLU (+ backward), residual add, sigmoid, on flat buffers of n floats (any
+// elementwise.cu - ReLU (+ backward), residual add, sigmoid, on flat buffers of n floats (any
 // shape). Contract: anisocb::ops::activation::{relu_ref, relu_backward_ref, add_assign_ref,
 // sigmoid_ref}; each element uses the reference's scalar expression. 1-D grid-stride loops.
 // (Bias addition lives in conv2d_fwd.)
@@ -33,7 +33,7 @@ __device__ __forceinline__ float sigmoid1(float z) {
     return e / (1.f + e);
 }
 
-// y = σ(x)
+// y = sigmoid(x)
 extern "C" __global__ void sigmoid_fwd(const float* __restrict__ x, float* __restrict__ y, long long n) {
     GRID_STRIDE(i, n) { y[i] = sigmoid1(x[i]); }
 }

@@ -1,4 +1,4 @@
-// loss.cu — mean losses with their gradients, any shape (flat, n elements). Contract:
+// loss.cu - mean losses with their gradients, any shape (flat, n elements). Contract:
 // anisocb::ops::loss::{mse_ref, bce_with_logits_ref}: per-element gradients use the reference's
 // expressions; the loss is accumulated in double per thread, reduced in a fixed tree per block
 // into part[blockIdx.x], and the host adds the block partials in order (reproducible bits).
@@ -17,7 +17,7 @@ __device__ __forceinline__ void block_sum_to(double s, double* part) {
     if (threadIdx.x == 0) part[blockIdx.x] = red[0];
 }
 
-// d = p − t;  grad = 2·d / nf;  part[block] = Σ d² (double). nf = max(n, 1) as float.
+// d = p - t;  grad = 2*d / nf;  part[block] = sum d^2 (double). nf = max(n, 1) as float.
 extern "C" __global__ void mse_loss(const float* __restrict__ pred, const float* __restrict__ target,
                                     float* __restrict__ grad, double* __restrict__ part,
                                     long long n, float nf) {
@@ -40,8 +40,8 @@ __device__ __forceinline__ float sigmoid1(float z) {
 // softplus(z) = log(1 + e^z) without overflow.
 __device__ __forceinline__ float softplus(float z) { return fmaxf(z, 0.f) + log1pf(expf(-fabsf(z))); }
 
-// loss_i = w·t·softplus(−z) + (1−t)·softplus(z);  grad_i = (w·t·(σ(z) − 1) + (1−t)·σ(z)) / nf;
-// part[block] = Σ loss_i (double). w = pos_weight.
+// loss_i = w*t*softplus(-z) + (1-t)*softplus(z);  grad_i = (w*t*(sigmoid(z) - 1) + (1-t)*sigmoid(z)) / nf;
+// part[block] = sum loss_i (double). w = pos_weight.
 extern "C" __global__ void bce_logits_loss(const float* __restrict__ z, const float* __restrict__ target,
                                            float* __restrict__ grad, double* __restrict__ part,
                                            long long n, float nf, float pos_weight) {

@@ -1,9 +1,9 @@
-// pixel_shuffle.cu — sub-pixel rearrangement, PyTorch's channel order. Both directions are
+// pixel_shuffle.cu - sub-pixel rearrangement, PyTorch's channel order. Both directions are
 // gathers (each output element read from exactly one input element). Contract:
 // anisocb::ops::pixel_shuffle::{pixel_shuffle_ref, pixel_unshuffle_ref}.
 
-// x: (N, C·r², H, W) → y: (N, C, H·r, W·r);  y[n, c, h·r + i, w·r + j] = x[n, c·r² + i·r + j, h, w].
-// C is the OUTPUT channel count. 1-D grid-stride over the N·C·H·r·W·r outputs.
+// x: (N, C*r^2, H, W) -> y: (N, C, H*r, W*r);  y[n, c, h*r + i, w*r + j] = x[n, c*r^2 + i*r + j, h, w].
+// C is the OUTPUT channel count. 1-D grid-stride over the N*C*H*r*W*r outputs.
 extern "C" __global__ void pixel_shuffle(const float* __restrict__ x, float* __restrict__ y,
                                          int N, int C, int H, int W, int r) {
     const int Ho = H * r, Wo = W * r;
@@ -12,7 +12,7 @@ extern "C" __global__ void pixel_shuffle(const float* __restrict__ x, float* __r
          e += (long long)gridDim.x * blockDim.x) {
         const int xo = (int)(e % Wo);
         const int yo = (int)((e / Wo) % Ho);
-        const long long nc = e / ((long long)Wo * Ho);  // n·C + c
+        const long long nc = e / ((long long)Wo * Ho);  // n*C + c
         const int c = (int)(nc % C);
         const long long n = nc / C;
         const int h = yo / r, i = yo - h * r;
@@ -22,7 +22,7 @@ extern "C" __global__ void pixel_shuffle(const float* __restrict__ x, float* __r
     }
 }
 
-// x: (N, C, H·r, W·r) → y: (N, C·r², H, W);  y[n, c·r² + i·r + j, h, w] = x[n, c, h·r + i, w·r + j].
+// x: (N, C, H*r, W*r) -> y: (N, C*r^2, H, W);  y[n, c*r^2 + i*r + j, h, w] = x[n, c, h*r + i, w*r + j].
 // C is the INPUT channel count, H and W the OUTPUT size. 1-D grid-stride over the outputs.
 extern "C" __global__ void pixel_unshuffle(const float* __restrict__ x, float* __restrict__ y,
                                            int N, int C, int H, int W, int r) {
@@ -32,7 +32,7 @@ extern "C" __global__ void pixel_unshuffle(const float* __restrict__ x, float* _
          e += (long long)gridDim.x * blockDim.x) {
         const int w = (int)(e % W);
         const int h = (int)((e / W) % H);
-        const long long nco = e / ((long long)W * H);  // n·C·r² + co
+        const long long nco = e / ((long long)W * H);  // n*C*r^2 + co
         const int co = (int)(nco % Cr);
         const long long n = nco / Cr;
         const int c = co / (r * r);

@@ -1,13 +1,13 @@
-// resample.cu — align-corners resize (bilinear or bicubic), forward and backward, both as
+// resample.cu - align-corners resize (bilinear or bicubic), forward and backward, both as
 // gathers: the per-axis taps (source index + weight of each output index, clamped at the
 // border) are computed on the host exactly as the CPU path computes them
 // (anisocb::cuda::taps), so the GPU only sums. Contract: anisocb::ops::resample::{resize_ref,
 // resize_backward_ref}. No atomics: results are reproducible bit for bit.
 
-// Forward. x: (NC, Hi, Wi) → y: (NC, Ho, Wo).
-//   y[p, oy, ox] = Σ_a ty_w[oy·Ky + a] · (Σ_b tx_w[ox·Kx + b] · x[p, ty_i[oy·Ky + a], tx_i[ox·Kx + b]])
+// Forward. x: (NC, Hi, Wi) -> y: (NC, Ho, Wo).
+//   y[p, oy, ox] = sum_a ty_w[oy*Ky + a] * (sum_b tx_w[ox*Kx + b] * x[p, ty_i[oy*Ky + a], tx_i[ox*Kx + b]])
 // (interpolate along x in each source row, then along y: the reference's order.)
-// Ky, Kx: taps per output index (2 bilinear, 4 bicubic). 1-D grid-stride over NC·Ho·Wo.
+// Ky, Kx: taps per output index (2 bilinear, 4 bicubic). 1-D grid-stride over NC*Ho*Wo.
 extern "C" __global__ void resize_fwd(const float* __restrict__ x, float* __restrict__ y,
                                       long long NC, int Hi, int Wi, int Ho, int Wo,
                                       const int* __restrict__ ty_i, const float* __restrict__ ty_w, int Ky,
@@ -33,8 +33,8 @@ extern "C" __global__ void resize_fwd(const float* __restrict__ x, float* __rest
 // Backward (adjoint), gather form over transposed taps in CSR layout: for source index i along
 // an axis, entries cy_ptr[i] .. cy_ptr[i + 1] of (cy_o, cy_w) list the output indices that read
 // it and the (merged) weights. dy: (NC, Ho, Wo); dx: (NC, Hi, Wi), ADDED into.
-//   dx[p, iy, ix] += Σ_{(oy, wy) ∈ col_y(iy)} wy · Σ_{(ox, wx) ∈ col_x(ix)} wx · dy[p, oy, ox]
-// 1-D grid-stride over NC·Hi·Wi.
+//   dx[p, iy, ix] += sum_{(oy, wy) in col_y(iy)} wy * sum_{(ox, wx) in col_x(ix)} wx * dy[p, oy, ox]
+// 1-D grid-stride over NC*Hi*Wi.
 extern "C" __global__ void resize_bwd(const float* __restrict__ dy, float* __restrict__ dx,
                                       long long NC, int Hi, int Wi, int Ho, int Wo,
                                       const int* __restrict__ cy_ptr, const int* __restrict__ cy_o,

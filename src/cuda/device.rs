@@ -17,6 +17,7 @@ use cudarc::driver::{
 use cudarc::nvrtc::{compile_ptx_with_opts, CompileOptions};
 
 use super::taps::{axis_taps, transpose};
+use super::KERNELS;
 use crate::error::{Error, Result};
 use crate::ops::{AdamParams, Interp, Ops, Padding};
 use crate::tensor::Tensor;
@@ -32,16 +33,6 @@ const TILE: usize = 64;
 const BK: usize = 16;
 /// Blocks the weight-gradient kernel aims for (split over the pixel reduction).
 const WGRAD_TARGET_BLOCKS: usize = 1024;
-
-/// The embedded kernel sources: (file name, source).
-const SOURCES: [(&str, &str); 6] = [
-    ("conv2d.cu", include_str!("../../kernels/conv2d.cu")),
-    ("elementwise.cu", include_str!("../../kernels/elementwise.cu")),
-    ("pixel_shuffle.cu", include_str!("../../kernels/pixel_shuffle.cu")),
-    ("resample.cu", include_str!("../../kernels/resample.cu")),
-    ("loss.cu", include_str!("../../kernels/loss.cu")),
-    ("adam.cu", include_str!("../../kernels/adam.cu")),
-];
 
 /// The loaded kernels, one field per `extern "C" __global__` function.
 struct Kernels {
@@ -184,8 +175,8 @@ impl Cuda {
         let device_name = ctx.name().unwrap_or_else(|_| format!("CUDA device {ordinal}"));
         let stream = ctx.default_stream();
 
-        let mut modules: Vec<Arc<CudaModule>> = Vec::with_capacity(SOURCES.len());
-        for (file, src) in SOURCES {
+        let mut modules: Vec<Arc<CudaModule>> = Vec::with_capacity(KERNELS.len());
+        for (file, src, _) in KERNELS {
             // fmad off: the element-wise kernels then round like the CPU path (the conv kernels
             // use explicit fmaf either way).
             let opts =
@@ -200,27 +191,31 @@ impl Cuda {
             })?;
             modules.push(module);
         }
-        let f = |m: usize, name: &str| -> Result<CudaFunction> {
+        let f = |name: &str| -> Result<CudaFunction> {
+            let m = KERNELS
+                .iter()
+                .position(|(_, _, names)| names.contains(&name))
+                .ok_or_else(|| Error::device(format!("kernel `{name}` is not listed in cuda::KERNELS")))?;
             modules[m].load_function(name).map_err(|e| driver_err(&format!("kernel `{name}` missing"), e))
         };
         let k = Kernels {
-            conv2d_fwd: f(0, "conv2d_fwd")?,
-            conv2d_wgrad: f(0, "conv2d_wgrad")?,
-            conv2d_wgrad_reduce: f(0, "conv2d_wgrad_reduce")?,
-            conv2d_dgrad_padded: f(0, "conv2d_dgrad_padded")?,
-            conv2d_dgrad_fold: f(0, "conv2d_dgrad_fold")?,
-            conv2d_bias_grad: f(0, "conv2d_bias_grad")?,
-            relu_fwd: f(1, "relu_fwd")?,
-            relu_bwd: f(1, "relu_bwd")?,
-            add_assign: f(1, "add_assign")?,
-            sigmoid_fwd: f(1, "sigmoid_fwd")?,
-            pixel_shuffle: f(2, "pixel_shuffle")?,
-            pixel_unshuffle: f(2, "pixel_unshuffle")?,
-            resize_fwd: f(3, "resize_fwd")?,
-            resize_bwd: f(3, "resize_bwd")?,
-            mse_loss: f(4, "mse_loss")?,
-            bce_logits_loss: f(4, "bce_logits_loss")?,
-            adam_step: f(5, "adam_step")?,
+            conv2d_fwd: f("conv2d_fwd")?,
+            conv2d_wgrad: f("conv2d_wgrad")?,
+            conv2d_wgrad_reduce: f("conv2d_wgrad_reduce")?,
+            conv2d_dgrad_padded: f("conv2d_dgrad_padded")?,
+            conv2d_dgrad_fold: f("conv2d_dgrad_fold")?,
+            conv2d_bias_grad: f("conv2d_bias_grad")?,
+            relu_fwd: f("relu_fwd")?,
+            relu_bwd: f("relu_bwd")?,
+            add_assign: f("add_assign")?,
+            sigmoid_fwd: f("sigmoid_fwd")?,
+            pixel_shuffle: f("pixel_shuffle")?,
+            pixel_unshuffle: f("pixel_unshuffle")?,
+            resize_fwd: f("resize_fwd")?,
+            resize_bwd: f("resize_bwd")?,
+            mse_loss: f("mse_loss")?,
+            bce_logits_loss: f("bce_logits_loss")?,
+            adam_step: f("adam_step")?,
         };
         Ok(Cuda { ctx, stream, k, device_name, lock: Mutex::new(()) })
     }

@@ -11,6 +11,11 @@
 //! inputs and downloads its outputs (≈ 2 × 4 bytes per element over PCIe, which dominates for
 //! small element-wise ops). The kernels themselves work on device buffers (`Cuda::*_dev`
 //! methods on `DevBuf`): that is the seam for a device-resident training loop.
+//!
+//! Checking without a GPU: `python3 kernels/emu/check_kernels.py` compiles the same kernel
+//! sources with g++ (a CPU emulation of blocks, threads, shared memory and barriers), launches
+//! them with this module's grid geometry and compares with NumPy references; the parity tests
+//! in `tests/cuda_parity.rs` compare against the CPU engine where a GPU is present.
 
 use crate::error::{Error, Result};
 use crate::ops::{Cpu, Ops};
@@ -26,6 +31,37 @@ pub use device::{Cuda, DevBuf};
 mod stub;
 #[cfg(not(feature = "cuda"))]
 pub use stub::Cuda;
+
+/// The embedded kernel sources, compiled by NVRTC when [`Cuda`] starts: (file under
+/// `kernels/`, source, the `extern "C" __global__` kernels it defines). Sources are kept ASCII.
+#[cfg_attr(not(feature = "cuda"), allow(dead_code))]
+pub(crate) const KERNELS: [(&str, &str, &[&str]); 6] = [
+    (
+        "conv2d.cu",
+        include_str!("../../kernels/conv2d.cu"),
+        &[
+            "conv2d_fwd",
+            "conv2d_wgrad",
+            "conv2d_wgrad_reduce",
+            "conv2d_dgrad_padded",
+            "conv2d_dgrad_fold",
+            "conv2d_bias_grad",
+        ],
+    ),
+    (
+        "elementwise.cu",
+        include_str!("../../kernels/elementwise.cu"),
+        &["relu_fwd", "relu_bwd", "add_assign", "sigmoid_fwd"],
+    ),
+    (
+        "pixel_shuffle.cu",
+        include_str!("../../kernels/pixel_shuffle.cu"),
+        &["pixel_shuffle", "pixel_unshuffle"],
+    ),
+    ("resample.cu", include_str!("../../kernels/resample.cu"), &["resize_fwd", "resize_bwd"]),
+    ("loss.cu", include_str!("../../kernels/loss.cu"), &["mse_loss", "bce_logits_loss"]),
+    ("adam.cu", include_str!("../../kernels/adam.cu"), &["adam_step"]),
+];
 
 /// The devices [`ops_for_device`] knows, for option help texts.
 pub const DEVICES: &[&str] = &["cpu", "cuda"];
@@ -57,6 +93,19 @@ mod tests {
     fn cpu_device_is_the_cpu_op_table() {
         assert_eq!(ops_for_device("cpu").unwrap().name(), Cpu.name());
         assert_eq!(ops_for_device(" CPU ").unwrap().name(), Cpu.name());
+    }
+
+    #[test]
+    fn every_listed_kernel_is_defined_in_its_ascii_source() {
+        for (file, src, names) in KERNELS {
+            assert!(src.is_ascii(), "kernels/{file}: keep kernel sources ASCII for NVRTC");
+            for name in names {
+                let sig = format!("extern \"C\" __global__ void {name}(");
+                assert_eq!(src.matches(&sig).count(), 1, "kernels/{file} should define `{name}` once");
+            }
+            let defined = src.matches("__global__ void").count();
+            assert_eq!(defined, names.len(), "kernels/{file}: every kernel is listed in KERNELS");
+        }
     }
 
     #[test]
