@@ -126,7 +126,6 @@ fn tiny_dataset(path: &Path) {
 }
 
 #[test]
-#[ignore = "needs `anisocb train` with --resume (issue 5) on main; run with --ignored once it lands"]
 fn killed_training_resumes_to_the_same_bits_and_never_leaves_a_partial_checkpoint() {
     let d = scratch("train");
     let data = d.join("data.npz");
@@ -142,7 +141,7 @@ fn killed_training_resumes_to_the_same_bits_and_never_leaves_a_partial_checkpoin
             "--config",
             "tiny",
             "--steps",
-            "40",
+            "80",
             "--batch",
             "2",
             "--patch",
@@ -171,16 +170,18 @@ fn killed_training_resumes_to_the_same_bits_and_never_leaves_a_partial_checkpoin
     );
 
     let out = d.join("killed");
-    let mut rng = Rng(0xC0FFEE);
+    let mut rng = Rng(std::env::var("ANISOCB_CRASH_SEED").ok().and_then(|s| s.parse().ok()).unwrap_or(0xC0FFEE));
     let (mut kills, mut done) = (0, false);
-    for _ in 0..12 {
+    for _ in 0..8 {
         let ckpt = out.join("checkpoint.npz");
         let mut a = args(&out);
         if ckpt.exists() {
             a.push("--resume".into());
         }
-        let after = clean.mul_f64(0.05 + 1.1 * rng.unit());
+        let after = clean.mul_f64(0.05 + 0.45 * rng.unit());
         done = run_killed(&a.iter().map(String::as_str).collect::<Vec<_>>(), after);
+        let step = std::fs::read_to_string(out.join("loss.csv")).map(|s| s.lines().count()).unwrap_or(0);
+        eprintln!("train: kill after {after:?}: finished={done}, loss.csv rows={step}");
         if ckpt.exists() {
             let e = read_npz(&ckpt).unwrap_or_else(|e| panic!("partial checkpoint after a kill: {e}"));
             assert!(e.file("trainer.json").is_some(), "checkpoint without trainer.json");

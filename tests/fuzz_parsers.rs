@@ -243,3 +243,46 @@ fn fuzz_npy_reader() {
 fn fuzz_npz_reader() {
     fuzz("npz", &npz_seeds(), |b| npz_from_bytes(b).is_ok());
 }
+
+fn weights_seeds() -> Vec<Vec<u8>> {
+    use anisocb::nn::weights::push_trunk;
+    use anisocb::nn::{NetConfig, NetKind, Trunk};
+    let mut one = NpzEntries::default();
+    push_trunk(
+        &mut one,
+        &Trunk::init(NetKind::Geometry, NetConfig { channels: 2, blocks: 1, ..NetConfig::tiny() }, 3),
+        "",
+    );
+    let mut bundle = NpzEntries::default();
+    for k in NetKind::ALL {
+        let cfg = NetConfig { channels: 2, blocks: 1, ..NetConfig::tiny() };
+        push_trunk(&mut bundle, &Trunk::init(k, cfg, 3), &format!("{}.", k.name()));
+    }
+    vec![npz_bytes(&one).unwrap(), npz_bytes(&bundle).unwrap()]
+}
+
+#[test]
+fn fuzz_weights_loader() {
+    use anisocb::nn::weights::{bundle_from_npz, trunk_from_npz};
+    let p = std::path::Path::new("fuzz.npz");
+    fuzz("weights", &weights_seeds(), |b| match npz_from_bytes(b) {
+        Ok(e) if e.file("geometry.config.json").is_some() => bundle_from_npz(&e, p).is_ok(),
+        Ok(e) => trunk_from_npz(&e, "", p, None).is_ok(),
+        Err(_) => false,
+    });
+}
+
+#[test]
+fn fuzz_config_json() {
+    use anisocb::nn::{NetConfig, NetKind};
+    let seeds: Vec<Vec<u8>> = NetKind::ALL
+        .iter()
+        .map(|&k| NetConfig::small().to_json(k).into_bytes())
+        .chain([b"{\"a\": \"x\\\"y\\u0041\", \"b\": -1.5e3, \"c\": true}".to_vec()])
+        .collect();
+    fuzz("config_json", &seeds, |b| {
+        let text = String::from_utf8_lossy(b);
+        let parsed = anisocb::nn::json::Object::parse(&text).is_ok();
+        NetConfig::from_json(&text).is_ok() || parsed
+    });
+}

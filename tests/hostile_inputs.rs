@@ -416,3 +416,105 @@ fn cli_usage_errors_exit_2() {
     let o = anisocb(&["--help"]);
     assert_eq!(o.status.code(), Some(0), "{o:?}");
 }
+
+// ---------------------------------------------------------------------------------------------
+// Weights (.npz with config.json)
+
+mod weights {
+    use super::*;
+    use anisocb::nn::weights::{load_any, load_net, push_trunk};
+    use anisocb::nn::{NetConfig, NetKind, Trunk};
+
+    fn tiny(kind: NetKind) -> NpzEntries {
+        let mut e = NpzEntries::default();
+        push_trunk(&mut e, &Trunk::init(kind, NetConfig::tiny(), 1), "");
+        e
+    }
+
+    fn set_config(e: &mut NpzEntries, json: &str) {
+        e.files.retain(|(n, _)| n != "config.json");
+        e.push_file("config.json", json.as_bytes().to_vec());
+    }
+
+    #[test]
+    fn weights_catalogue_each_bad_file_gives_its_error() {
+        let d = scratch("weights");
+        let expect = Some((NetKind::Geometry, NetConfig::tiny()));
+        let good = tiny(NetKind::Geometry);
+        let cfg = String::from_utf8(good.file("config.json").unwrap().to_vec()).unwrap();
+        let mut missing = good.clone();
+        missing.arrays.retain(|(n, _)| n != "conv_in.weight");
+        let mut wrong_shape = good.clone();
+        wrong_shape.arrays.iter_mut().find(|(n, _)| n == "conv_in.bias").unwrap().1 = ramp(&[5]);
+        let mut extra = good.clone();
+        extra.push_array("extra.weight", ramp(&[2]));
+        let mut nan = good.clone();
+        nan.arrays.iter_mut().find(|(n, _)| n == "conv_in.weight").unwrap().1.data[3] = f32::NAN;
+        let mut no_config = good.clone();
+        no_config.files.clear();
+        let mut bad_json = good.clone();
+        set_config(&mut bad_json, "{\"kind\": \"geometry\", ");
+        let mut bad_padding = good.clone();
+        set_config(&mut bad_padding, &cfg.replace("\"zero\"", "\"mirror\""));
+        let mut zero_channels = good.clone();
+        set_config(&mut zero_channels, &cfg.replace("\"channels\": 4", "\"channels\": 0"));
+        // A few bytes claiming a 4096-wide, 1000-block net (1.2 TB of weights): refused before
+        // the net is allocated.
+        let mut huge = NpzEntries::default();
+        huge.push_file(
+            "config.json",
+            cfg.replace("\"channels\": 4", "\"channels\": 4096")
+                .replace("\"blocks\": 2", "\"blocks\": 1000")
+                .into_bytes(),
+        );
+        assert!(cfg.contains("\"channels\": 4") && cfg.contains("\"blocks\": 2"), "{cfg}");
+        let cases: Vec<(&str, NpzEntries, Option<(NetKind, NetConfig)>, &[&str])> = vec![
+            (
+                "other_config.npz",
+                good.clone(),
+                Some((NetKind::Geometry, NetConfig::small())),
+                &["do not match the expected net", "channels"],
+            ),
+            (
+                "other_kind.npz",
+                tiny(NetKind::Boundary),
+                expect,
+                &["do not match the expected net", "kind: boundary vs geometry"],
+            ),
+            ("missing.npz", missing, expect, &["missing 1: conv_in.weight"]),
+            ("wrong_shape.npz", wrong_shape, expect, &["wrong shape 1: conv_in.bias is [5], expected [4]"]),
+            ("extra.npz", extra, None, &["unexpected 1: extra.weight"]),
+            ("nan.npz", nan, None, &["conv_in.weight: non-finite value NaN at index 3"]),
+            ("no_config.npz", no_config, None, &["not an anisocb weights file"]),
+            ("bad_json.npz", bad_json, None, &["config.json"]),
+            ("bad_padding.npz", bad_padding, None, &["unknown padding 'mirror'"]),
+            ("zero_channels.npz", zero_channels, None, &["unreasonable net config"]),
+            ("huge.npz", huge, None, &["missing"]),
+        ];
+        for (name, e, exp, want) in cases {
+            let p = d.join(name);
+            anisocb::io::write_npz(&p, &e).unwrap();
+            let len = std::fs::metadata(&p).unwrap().len() as usize;
+            let (r, big) = largest_alloc(|| load_net(&p, exp));
+            expect_err(r, &p, want);
+            assert!(big <= (1 << 20) + 4 * len, "{name}: allocated {big} bytes for a {len}-byte file");
+        }
+        let p = write(&d, "empty.npz", &[]);
+        expect_err(load_net(&p, expect), &p, &["empty file"]);
+        let p = d.join("ok.npz");
+        anisocb::io::write_npz(&p, &good).unwrap();
+        load_net(&p, expect).unwrap();
+    }
+
+    #[test]
+    fn bundle_missing_a_net_names_it() {
+        let d = scratch("bundle");
+        let mut e = NpzEntries::default();
+        for k in [NetKind::Geometry, NetKind::Boundary] {
+            push_trunk(&mut e, &Trunk::init(k, NetConfig::tiny(), 1), &format!("{}.", k.name()));
+        }
+        let p = d.join("two_of_three.npz");
+        anisocb::io::write_npz(&p, &e).unwrap();
+        expect_err(load_any(&p).map(|_| ()), &p, &["enhance.config.json"]);
+    }
+}

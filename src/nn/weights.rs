@@ -69,8 +69,9 @@ pub fn trunk_from_npz(
     let want = param_shapes(kind, config);
     let mut missing = Vec::new();
     let mut wrong = Vec::new();
-    let mut trunk = Trunk::zeros(kind, config);
-    for ((name, shape), dst) in want.iter().zip(trunk.params_mut()) {
+    // Check every array before allocating the trunk: a tiny file whose config.json claims a
+    // huge net must not allocate that net (sizes are then bounded by the arrays present).
+    for (name, shape) in want.iter() {
         match entries.array(&format!("{prefix}{name}")) {
             None => missing.push(format!("{prefix}{name}")),
             Some(t) if &t.shape != shape => {
@@ -83,7 +84,6 @@ pub fn trunk_from_npz(
                         format!("{prefix}{name}: non-finite value {v} at index {i}"),
                     ));
                 }
-                dst.data.copy_from_slice(&t.data);
             }
         }
     }
@@ -118,6 +118,12 @@ pub fn trunk_from_npz(
                 parts.join("; ")
             ),
         ));
+    }
+    let mut trunk = Trunk::zeros(kind, config);
+    for ((name, _), dst) in want.iter().zip(trunk.params_mut()) {
+        if let Some(t) = entries.array(&format!("{prefix}{name}")) {
+            dst.data.copy_from_slice(&t.data);
+        }
     }
     Ok(trunk)
 }

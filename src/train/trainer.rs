@@ -279,6 +279,10 @@ pub fn train(
     }
     crate::io::atomic::ensure_dir(&opts.out)?;
     let ckpt = opts.out.join("checkpoint.npz");
+    // Temporaries of atomic writes that a killed run left behind (never a partial file).
+    for f in ["checkpoint.npz", "loss.csv", "loss.png", "weights.npz"] {
+        crate::io::atomic::remove_stale_temps(&opts.out.join(f))?;
+    }
     let mut st = if opts.resume {
         if !ckpt.exists() {
             return Err(Error::format(&ckpt, "--resume given but there is no checkpoint to resume from"));
