@@ -170,7 +170,8 @@ fn killed_training_resumes_to_the_same_bits_and_never_leaves_a_partial_checkpoin
     );
 
     let out = d.join("killed");
-    let mut rng = Rng(std::env::var("ANISOCB_CRASH_SEED").ok().and_then(|s| s.parse().ok()).unwrap_or(0xC0FFEE));
+    let mut rng =
+        Rng(std::env::var("ANISOCB_CRASH_SEED").ok().and_then(|s| s.parse().ok()).unwrap_or(0xC0FFEE));
     let (mut kills, mut done) = (0, false);
     for _ in 0..8 {
         let ckpt = out.join("checkpoint.npz");

@@ -468,7 +468,8 @@ mod weights {
                 .into_bytes(),
         );
         assert!(cfg.contains("\"channels\": 4") && cfg.contains("\"blocks\": 2"), "{cfg}");
-        let cases: Vec<(&str, NpzEntries, Option<(NetKind, NetConfig)>, &[&str])> = vec![
+        type Case = (&'static str, NpzEntries, Option<(NetKind, NetConfig)>, &'static [&'static str]);
+        let cases: Vec<Case> = vec![
             (
                 "other_config.npz",
                 good.clone(),
