@@ -519,3 +519,89 @@ mod weights {
         expect_err(load_any(&p).map(|_| ()), &p, &["enhance.config.json"]);
     }
 }
+
+/// `anisocb train` on bad input: exit 1, the file and the problem on stderr, no output left.
+#[test]
+fn cli_train_refuses_bad_inputs_and_writes_nothing() {
+    let d = scratch("cli_train");
+    let garbage = write(&d, "garbage.npz", b"definitely not a zip file, just some words here");
+    let empty = write(&d, "empty.npz", &[]);
+    let mut e = NpzEntries::default();
+    e.push_array("lr", ramp(&[2, 3, 4, 4]));
+    let partial = d.join("partial.npz");
+    anisocb::io::write_npz(&partial, &e).unwrap();
+    let blocker = write(&d, "a_file", b"x");
+    let missing = d.join("missing.npz");
+    let cases: Vec<(&Path, PathBuf, &[&str])> = vec![
+        (&garbage, d.join("out1"), &["garbage.npz", "not an .npz (zip) file"]),
+        (&empty, d.join("out2"), &["empty.npz", "empty file"]),
+        (&partial, d.join("out3"), &["partial.npz", "missing array 'hr'"]),
+        (&missing, d.join("out4"), &["missing.npz", "No such file"]),
+    ];
+    for (data, out, want) in cases {
+        let o = anisocb(&[
+            "train",
+            "--data",
+            data.to_str().unwrap(),
+            "--config",
+            "tiny",
+            "--steps",
+            "2",
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{err}");
+        for w in want {
+            assert!(err.contains(w), "stderr lacks {w:?}: {err}");
+        }
+        assert!(!out.exists() || file_names(&out).is_empty(), "{:?} left {:?}", out, file_names(&out));
+    }
+    // A good data set but an --out below a regular file.
+    let mut good = NpzEntries::default();
+    good.push_array("lr", ramp(&[2, 3, 4, 4]));
+    good.push_array("hr", ramp(&[2, 3, 8, 8]));
+    good.push_array("boundary", ramp(&[2, 1, 8, 8]));
+    good.push_array("edges", ramp(&[2, 1, 8, 8]));
+    let data = d.join("data.npz");
+    anisocb::io::write_npz(&data, &good).unwrap();
+    let out = blocker.join("run");
+    let o = anisocb(&[
+        "train",
+        "--data",
+        data.to_str().unwrap(),
+        "--config",
+        "tiny",
+        "--steps",
+        "2",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains(&out.display().to_string()) && err.contains("cannot create output directory"),
+        "{err}"
+    );
+    assert_eq!(std::fs::read(&blocker).unwrap(), b"x");
+    // --resume from a corrupt checkpoint names it and keeps it.
+    let out = d.join("resume");
+    std::fs::create_dir_all(&out).unwrap();
+    let ckpt = write(&out, "checkpoint.npz", b"PK\x03\x04 truncated checkpoint");
+    let o = anisocb(&[
+        "train",
+        "--data",
+        data.to_str().unwrap(),
+        "--config",
+        "tiny",
+        "--steps",
+        "2",
+        "--resume",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(err.contains(&ckpt.display().to_string()), "{err}");
+    assert_eq!(file_names(&out), ["checkpoint.npz"]);
+}
