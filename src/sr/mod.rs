@@ -1,1 +1,6 @@
-//! TODO: filled by its issue.
+//! Super-resolution: the composition of the three networks' outputs (our Eq 12) and the
+//! upscale pipeline around it.
+
+pub mod compose;
+
+pub use compose::{compose, DEFAULT_ETA};

@@ -1,0 +1,368 @@
+//! Metrics of a predicted HR mesh sequence against the HR ground truth, per frame and
+//! averaged. Both sides must be grids of the same size (the HR grid); vertex `v` of one is
+//! compared with vertex `v` of the other. Lengths are in the meshes' units (metres); sums run
+//! in f64. Notation: `p_v` predicted, `g_v` ground-truth position, `N` vertices, `T` frames.
+
+use crate::error::{Error, Result};
+use crate::geom::GridMesh;
+use crate::tensor::Tensor;
+use rayon::prelude::*;
+
+fn same_grid(a: &GridMesh, b: &GridMesh) -> Result<()> {
+    if a.w != b.w || a.h != b.h || a.pos.len() != b.pos.len() {
+        return Err(Error::shape(format!("metrics: grid {}x{} vs ground truth {}x{}", a.w, a.h, b.w, b.h)));
+    }
+    if a.w < 2 || a.h < 2 {
+        return Err(Error::shape(format!("metrics: grid {}x{} has no triangles", a.w, a.h)));
+    }
+    Ok(())
+}
+
+#[inline]
+fn d2(a: [f32; 3], b: [f32; 3]) -> f64 {
+    (0..3).map(|k| (a[k] as f64 - b[k] as f64).powi(2)).sum()
+}
+
+/// Per-vertex error `e_v = |p_v − g_v|` (for heat maps).
+pub fn vertex_errors(pred: &GridMesh, gt: &GridMesh) -> Result<Vec<f32>> {
+    same_grid(pred, gt)?;
+    Ok(pred.pos.iter().zip(&gt.pos).map(|(&p, &g)| d2(p, g).sqrt() as f32).collect())
+}
+
+/// Vertex RMSE: `√( (1/N) Σ_v |p_v − g_v|² )`.
+pub fn vertex_rmse(pred: &GridMesh, gt: &GridMesh) -> Result<f32> {
+    same_grid(pred, gt)?;
+    let s: f64 = pred.pos.iter().zip(&gt.pos).map(|(&p, &g)| d2(p, g)).sum();
+    Ok((s / pred.pos.len() as f64).sqrt() as f32)
+}
+
+/// The topological border of a `w × h` grid as a vertex mask (index `j·w + i`).
+pub fn border_mask(w: usize, h: usize) -> Vec<bool> {
+    (0..w * h).map(|v| v % w == 0 || v / w == 0 || v % w + 1 == w || v / w + 1 == h).collect()
+}
+
+/// A boundary map ((H, W), (1, H, W) or (1, 1, H, W), pixel (j, i) = vertex (i, j), e.g. the
+/// anisotropic ground-truth map of Eq 4–9) → vertex mask `map > threshold`.
+pub fn mask_from_map(map: &Tensor, w: usize, h: usize, threshold: f32) -> Result<Vec<bool>> {
+    let s = &map.shape;
+    let ok = s.len() >= 2 && s[s.len() - 2] == h && s[s.len() - 1] == w && map.len() == w * h;
+    if !ok {
+        return Err(Error::shape(format!("boundary map {s:?} does not fit a {w}x{h} grid")));
+    }
+    Ok(map.data.iter().map(|&v| v > threshold).collect())
+}
+
+/// Boundary-vertex RMSE: `√( Σ_{v∈B} |p_v − g_v|² / |B| )` over the masked vertices `B`
+/// (0 if `B` is empty).
+pub fn masked_rmse(pred: &GridMesh, gt: &GridMesh, mask: &[bool]) -> Result<f32> {
+    same_grid(pred, gt)?;
+    if mask.len() != pred.pos.len() {
+        return Err(Error::shape(format!("mask of {} for {} vertices", mask.len(), pred.pos.len())));
+    }
+    let (mut s, mut n) = (0.0f64, 0usize);
+    for ((&m, &p), &g) in mask.iter().zip(&pred.pos).zip(&gt.pos) {
+        if m {
+            s += d2(p, g);
+            n += 1;
+        }
+    }
+    Ok(if n == 0 { 0.0 } else { (s / n as f64).sqrt() as f32 })
+}
+
+/// Directed vertex-to-vertex distance `max_{a∈A} min_{b∈B} |a − b|` (early-break search that
+/// starts at the same grid index and walks outwards; exact).
+fn directed_hausdorff(a: &[[f32; 3]], b: &[[f32; 3]]) -> f64 {
+    let n = b.len();
+    a.par_chunks(256)
+        .enumerate()
+        .map(|(ci, chunk)| {
+            let mut cmax = 0.0f64;
+            for (k, &p) in chunk.iter().enumerate() {
+                let i = (ci * 256 + k).min(n - 1);
+                let mut cmin = f64::INFINITY;
+                'search: for off in 0..n {
+                    let mut any = false;
+                    for j in [Some(i + off), i.checked_sub(off)].into_iter().flatten() {
+                        if j >= n {
+                            continue;
+                        }
+                        any = true;
+                        let d = d2(p, b[j]);
+                        if d < cmin {
+                            cmin = d;
+                            // `p` cannot raise the maximum any more.
+                            if cmin <= cmax {
+                                break 'search;
+                            }
+                        }
+                    }
+                    if !any {
+                        break;
+                    }
+                }
+                cmax = cmax.max(cmin);
+            }
+            cmax
+        })
+        .reduce(|| 0.0, f64::max)
+}
+
+/// Symmetric Hausdorff distance between the two vertex sets (vertex-to-vertex, so it
+/// over-estimates the surface distance by at most about half an edge):
+/// `max( max_a min_b |a − b|, max_b min_a |a − b| )`.
+pub fn hausdorff(pred: &GridMesh, gt: &GridMesh) -> Result<f32> {
+    same_grid(pred, gt)?;
+    Ok(directed_hausdorff(&pred.pos, &gt.pos).max(directed_hausdorff(&gt.pos, &pred.pos)).sqrt() as f32)
+}
+
+/// Vertices of the grid border in order, as a closed loop: row 0 left→right, last column
+/// top→bottom, last row right→left, column 0 bottom→top.
+pub fn border_loop(w: usize, h: usize) -> Vec<usize> {
+    let mut v = Vec::with_capacity(2 * (w + h));
+    v.extend(0..w);
+    v.extend((1..h).map(|j| j * w + w - 1));
+    if h > 1 {
+        v.extend((0..w - 1).rev().map(|i| (h - 1) * w + i));
+    }
+    if w > 1 {
+        v.extend((1..h - 1).rev().map(|j| j * w));
+    }
+    v
+}
+
+/// Perimeter of the grid border: `Σ_k |b_{k+1} − b_k|` over the closed [`border_loop`].
+pub fn border_length(mesh: &GridMesh) -> f32 {
+    let l = border_loop(mesh.w, mesh.h);
+    (0..l.len()).map(|k| d2(mesh.pos[l[k]], mesh.pos[l[(k + 1) % l.len()]]).sqrt()).sum::<f64>() as f32
+}
+
+/// Surface area: `Σ_t ½ |(b − a) × (c − a)|` over the grid's triangles.
+pub fn surface_area(mesh: &GridMesh) -> f32 {
+    let p = |v: usize| mesh.pos[v].map(|x| x as f64);
+    let mut s = 0.0f64;
+    for t in mesh.triangles() {
+        let (a, b, c) = (p(t[0]), p(t[1]), p(t[2]));
+        let u = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
+        let w = [c[0] - a[0], c[1] - a[1], c[2] - a[2]];
+        let x = [u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2], u[0] * w[1] - u[1] * w[0]];
+        s += 0.5 * (x[0] * x[0] + x[1] * x[1] + x[2] * x[2]).sqrt();
+    }
+    s as f32
+}
+
+/// Wrinkle fidelity: mean angle (degrees) between area-weighted vertex normals,
+/// `(1/N) Σ_v ∠(n_v(p), n_v(g))`, the angle computed as `atan2(|a × b|, a · b)`.
+pub fn normal_angle_deg(pred: &GridMesh, gt: &GridMesh) -> Result<f32> {
+    same_grid(pred, gt)?;
+    let (a, b) = (super::render::vertex_normals(pred), super::render::vertex_normals(gt));
+    let s: f64 = a
+        .iter()
+        .zip(&b)
+        .map(|(x, y)| {
+            // atan2(|x × y|, x · y) = acos(x · y), accurate near 0° where acos is not.
+            let (x, y) = (x.map(f64::from), y.map(f64::from));
+            let c = [x[1] * y[2] - x[2] * y[1], x[2] * y[0] - x[0] * y[2], x[0] * y[1] - x[1] * y[0]];
+            let s = (c[0] * c[0] + c[1] * c[1] + c[2] * c[2]).sqrt();
+            s.atan2(x[0] * y[0] + x[1] * y[1] + x[2] * y[2]).to_degrees()
+        })
+        .sum();
+    Ok((s / a.len() as f64) as f32)
+}
+
+/// Temporal flicker (STED-like velocity error). With per-frame velocities
+/// `u_{t,v} = p_{t+1,v} − p_{t,v}` and `γ_{t,v} = g_{t+1,v} − g_{t,v}` (metres per frame):
+/// per step `f_t = √( (1/N) Σ_v |u_{t,v} − γ_{t,v}|² )`, overall `√( (1/(T−1)) Σ_t f_t² )`.
+/// A constant offset between prediction and truth flickers 0. Returns (per step, overall);
+/// fewer than 2 frames give (empty, 0).
+pub fn flicker(pred: &[GridMesh], gt: &[GridMesh]) -> Result<(Vec<f32>, f32)> {
+    if pred.len() != gt.len() {
+        return Err(Error::shape(format!(
+            "flicker: {} predicted frames vs {} ground truth",
+            pred.len(),
+            gt.len()
+        )));
+    }
+    for (p, g) in pred.iter().zip(gt) {
+        same_grid(p, g)?;
+    }
+    let mut steps = Vec::with_capacity(pred.len().saturating_sub(1));
+    let mut total = 0.0f64;
+    for t in 0..pred.len().saturating_sub(1) {
+        let mut s = 0.0f64;
+        for v in 0..pred[t].pos.len() {
+            for k in 0..3 {
+                let u = pred[t + 1].pos[v][k] as f64 - pred[t].pos[v][k] as f64;
+                let g = gt[t + 1].pos[v][k] as f64 - gt[t].pos[v][k] as f64;
+                s += (u - g).powi(2);
+            }
+        }
+        let ms = s / pred[t].pos.len() as f64;
+        total += ms;
+        steps.push(ms.sqrt() as f32);
+    }
+    let overall = if steps.is_empty() { 0.0 } else { (total / steps.len() as f64).sqrt() as f32 };
+    Ok((steps, overall))
+}
+
+/// The per-frame metrics of one predicted frame against its ground truth.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct FrameMetrics {
+    /// [`vertex_rmse`], metres.
+    pub rmse: f32,
+    /// [`masked_rmse`] over the boundary vertices, metres.
+    pub boundary_rmse: f32,
+    /// [`hausdorff`], metres.
+    pub hausdorff: f32,
+    /// `border_length(pred) / border_length(gt)` (1 = no shrinkage).
+    pub boundary_length_ratio: f32,
+    /// `surface_area(pred) / surface_area(gt)`.
+    pub area_ratio: f32,
+    /// [`normal_angle_deg`], degrees.
+    pub normal_angle_deg: f32,
+}
+
+impl FrameMetrics {
+    /// Field names in the order of [`FrameMetrics::values`] (table headers, JSON keys).
+    pub const NAMES: [&'static str; 6] =
+        ["rmse", "boundary_rmse", "hausdorff", "boundary_length_ratio", "area_ratio", "normal_angle_deg"];
+
+    pub fn values(&self) -> [f32; 6] {
+        [
+            self.rmse,
+            self.boundary_rmse,
+            self.hausdorff,
+            self.boundary_length_ratio,
+            self.area_ratio,
+            self.normal_angle_deg,
+        ]
+    }
+
+    fn from_values(v: [f32; 6]) -> FrameMetrics {
+        FrameMetrics {
+            rmse: v[0],
+            boundary_rmse: v[1],
+            hausdorff: v[2],
+            boundary_length_ratio: v[3],
+            area_ratio: v[4],
+            normal_angle_deg: v[5],
+        }
+    }
+
+    /// A JSON object with the [`FrameMetrics::NAMES`] keys.
+    pub fn to_json(&self) -> String {
+        let body: Vec<String> =
+            Self::NAMES.iter().zip(self.values()).map(|(k, v)| format!("\"{k}\": {}", json_num(v))).collect();
+        format!("{{{}}}", body.join(", "))
+    }
+}
+
+fn json_num(v: f32) -> String {
+    if v.is_finite() {
+        format!("{v}")
+    } else {
+        "null".into()
+    }
+}
+
+/// Metrics of one frame; `boundary` is the vertex mask of [`masked_rmse`].
+pub fn frame_metrics(pred: &GridMesh, gt: &GridMesh, boundary: &[bool]) -> Result<FrameMetrics> {
+    same_grid(pred, gt)?;
+    Ok(FrameMetrics {
+        rmse: vertex_rmse(pred, gt)?,
+        boundary_rmse: masked_rmse(pred, gt, boundary)?,
+        hausdorff: hausdorff(pred, gt)?,
+        boundary_length_ratio: border_length(pred) / border_length(gt).max(f32::MIN_POSITIVE),
+        area_ratio: surface_area(pred) / surface_area(gt).max(f32::MIN_POSITIVE),
+        normal_angle_deg: normal_angle_deg(pred, gt)?,
+    })
+}
+
+/// Metrics of a whole sequence.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct SequenceMetrics {
+    pub per_frame: Vec<FrameMetrics>,
+    /// Arithmetic mean over frames of each per-frame metric.
+    pub mean: FrameMetrics,
+    /// Per-frame maximum of each metric (for ratios: the value farthest from 1).
+    pub worst: FrameMetrics,
+    /// [`flicker`] per step (T − 1 values) and overall, metres per frame.
+    pub flicker_per_step: Vec<f32>,
+    pub flicker: f32,
+}
+
+impl SequenceMetrics {
+    /// Indices of the `k` frames with the largest vertex RMSE, worst first (ties: earlier frame).
+    pub fn worst_frames(&self, k: usize) -> Vec<usize> {
+        let mut idx: Vec<usize> = (0..self.per_frame.len()).collect();
+        idx.sort_by(|&a, &b| self.per_frame[b].rmse.total_cmp(&self.per_frame[a].rmse).then(a.cmp(&b)));
+        idx.truncate(k);
+        idx
+    }
+
+    /// JSON: `{"mean": {...}, "worst": {...}, "flicker": x, "per_frame": [{...}, ...],
+    /// "flicker_per_step": [...]}`.
+    pub fn to_json(&self) -> String {
+        let frames: Vec<String> = self.per_frame.iter().map(|f| f.to_json()).collect();
+        let steps: Vec<String> = self.flicker_per_step.iter().map(|&v| json_num(v)).collect();
+        format!(
+            "{{\"mean\": {}, \"worst\": {}, \"flicker\": {}, \"per_frame\": [{}], \"flicker_per_step\": [{}]}}",
+            self.mean.to_json(),
+            self.worst.to_json(),
+            json_num(self.flicker),
+            frames.join(", "),
+            steps.join(", ")
+        )
+    }
+}
+
+/// Metrics of a predicted sequence against the ground truth. `boundary` defaults to the
+/// grid's topological border ([`border_mask`]); pass e.g. [`mask_from_map`] of the
+/// anisotropic map for folded regions too.
+pub fn sequence_metrics(
+    pred: &[GridMesh],
+    gt: &[GridMesh],
+    boundary: Option<&[bool]>,
+) -> Result<SequenceMetrics> {
+    if pred.is_empty() || pred.len() != gt.len() {
+        return Err(Error::shape(format!(
+            "metrics: {} predicted frames vs {} ground truth",
+            pred.len(),
+            gt.len()
+        )));
+    }
+    let default_mask;
+    let mask = match boundary {
+        Some(m) => m,
+        None => {
+            default_mask = border_mask(gt[0].w, gt[0].h);
+            &default_mask
+        }
+    };
+    let per_frame =
+        pred.iter().zip(gt).map(|(p, g)| frame_metrics(p, g, mask)).collect::<Result<Vec<_>>>()?;
+    let n = per_frame.len() as f64;
+    let mut mean = [0.0f64; 6];
+    let mut worst = [0.0f32; 6];
+    for f in &per_frame {
+        for (k, v) in f.values().into_iter().enumerate() {
+            mean[k] += v as f64 / n;
+            let is_ratio = k == 3 || k == 4;
+            let far = if is_ratio {
+                (v - 1.0).abs() > (worst[k] - 1.0).abs() || worst[k] == 0.0
+            } else {
+                v > worst[k]
+            };
+            if far {
+                worst[k] = v;
+            }
+        }
+    }
+    let (flicker_per_step, flicker) = flicker(pred, gt)?;
+    Ok(SequenceMetrics {
+        per_frame,
+        mean: FrameMetrics::from_values(mean.map(|v| v as f32)),
+        worst: FrameMetrics::from_values(worst),
+        flicker_per_step,
+        flicker,
+    })
+}

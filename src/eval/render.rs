@@ -1,0 +1,440 @@
+//! A small software rasterizer for grid cloth meshes: fixed camera fitted to a bounding box
+//! (orthographic or perspective), z-buffer, smooth per-vertex normals, two-sided Lambert
+//! shading with ambient + key light + headlight, optional per-vertex scalar colouring (heat
+//! map, e.g. per-vertex error), supersampled edges. Deterministic, single-threaded, no crates.
+//!
+//! World up is +y (the simulator's gravity is −y); the default view is a 3/4 view from the
+//! front (+z) right and slightly above, which shows wrinkles as bands of light and shade.
+//! Tiles meant to be compared (LR / bicubic / anisocb / HR) share one [`Camera`], fitted to
+//! the union of their bounding boxes: see [`Camera::fit_meshes`] and [`render_row`].
+
+use super::image::{hstack, Rgb8, BLACK, WHITE};
+use super::plot::format_number;
+use crate::error::{Error, Result};
+use crate::geom::GridMesh;
+
+/// Where the camera looks from. Angles in degrees.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct View {
+    /// Rotation about world +y of the direction towards the camera; 0 = camera on the +z side.
+    pub azimuth_deg: f32,
+    /// Height of the camera above the horizontal plane; 90 = looking straight down.
+    pub elevation_deg: f32,
+    /// Vertical field of view; 0 = orthographic (sizes comparable across depth).
+    pub fov_deg: f32,
+    /// Fraction of the picture left empty on each side (0..0.45).
+    pub margin: f32,
+}
+
+impl Default for View {
+    /// 3/4 view: 35° to the right, 20° above, orthographic, 6% margin.
+    fn default() -> Self {
+        View { azimuth_deg: 35.0, elevation_deg: 20.0, fov_deg: 0.0, margin: 0.06 }
+    }
+}
+
+type V3 = [f32; 3];
+
+#[inline]
+fn sub(a: V3, b: V3) -> V3 {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+#[inline]
+fn dot(a: V3, b: V3) -> f32 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+#[inline]
+fn cross(a: V3, b: V3) -> V3 {
+    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+}
+#[inline]
+fn normalize(a: V3) -> V3 {
+    let n = dot(a, a).sqrt();
+    if n > 0.0 {
+        [a[0] / n, a[1] / n, a[2] / n]
+    } else {
+        [0.0, 0.0, 1.0]
+    }
+}
+
+/// A camera fitted to a box: orthonormal basis (right, up, back = towards the camera), the
+/// box centre, and the screen mapping `screen = offset + scale · (x, −y)` for a `w × h` picture.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Camera {
+    pub right: V3,
+    pub up: V3,
+    /// Unit vector from the target towards the camera.
+    pub back: V3,
+    pub center: V3,
+    /// Camera distance from `center` (metres) for perspective; `None` = orthographic.
+    pub dist: Option<f32>,
+    /// Pixels per projected unit.
+    pub scale: f32,
+    pub offset: [f32; 2],
+    pub w: usize,
+    pub h: usize,
+}
+
+impl Camera {
+    /// Fits `view` to the box `lo..hi` (metres) so that the whole box shows in a `w × h` picture.
+    pub fn fit(view: &View, lo: V3, hi: V3, w: usize, h: usize) -> Result<Camera> {
+        if w == 0 || h == 0 {
+            return Err(Error::config(format!("render size must be positive, got {w}x{h}")));
+        }
+        if !(0.0..0.45).contains(&view.margin) || !(0.0..170.0).contains(&view.fov_deg) {
+            return Err(Error::config(format!("bad view {view:?}: margin in [0, 0.45), fov in [0, 170)")));
+        }
+        if (0..3).any(|k| !(lo[k].is_finite() && hi[k].is_finite() && hi[k] >= lo[k])) {
+            return Err(Error::config(format!("render: empty or non-finite box {lo:?}..{hi:?}")));
+        }
+        let (az, el) = (view.azimuth_deg.to_radians(), view.elevation_deg.to_radians());
+        let back = normalize([el.cos() * az.sin(), el.sin(), el.cos() * az.cos()]);
+        // Looking straight down/up: pick a world "up" that is not parallel to the view.
+        let world_up = if back[1].abs() > 0.999 { [0.0, 0.0, -back[1].signum()] } else { [0.0, 1.0, 0.0] };
+        let right = normalize(cross(world_up, back));
+        let up = cross(back, right);
+        let center = [0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1]), 0.5 * (lo[2] + hi[2])];
+        let radius = 0.5 * dot(sub(hi, lo), sub(hi, lo)).sqrt();
+        let dist = if view.fov_deg > 0.0 {
+            Some(radius.max(1e-6) / (0.5 * view.fov_deg.to_radians()).sin())
+        } else {
+            None
+        };
+        let mut cam = Camera { right, up, back, center, dist, scale: 1.0, offset: [0.0, 0.0], w, h };
+        let (mut x0, mut x1, mut y0, mut y1) = (f32::MAX, f32::MIN, f32::MAX, f32::MIN);
+        for c in 0..8 {
+            let p = [
+                if c & 1 == 0 { lo[0] } else { hi[0] },
+                if c & 2 == 0 { lo[1] } else { hi[1] },
+                if c & 4 == 0 { lo[2] } else { hi[2] },
+            ];
+            let (x, y, _) = cam.project_unit(p);
+            x0 = x0.min(x);
+            x1 = x1.max(x);
+            y0 = y0.min(y);
+            y1 = y1.max(y);
+        }
+        let usable = 1.0 - 2.0 * view.margin;
+        let sx = usable * w as f32 / (x1 - x0).max(1e-9);
+        let sy = usable * h as f32 / (y1 - y0).max(1e-9);
+        cam.scale = sx.min(sy);
+        cam.offset =
+            [0.5 * w as f32 - cam.scale * 0.5 * (x0 + x1), 0.5 * h as f32 + cam.scale * 0.5 * (y0 + y1)];
+        Ok(cam)
+    }
+
+    /// One camera for several meshes (the union of their bounding boxes), so tiles compare.
+    pub fn fit_meshes(view: &View, meshes: &[&GridMesh], w: usize, h: usize) -> Result<Camera> {
+        let mut lo = [f32::INFINITY; 3];
+        let mut hi = [f32::NEG_INFINITY; 3];
+        for m in meshes {
+            let (a, b) = m.bounds();
+            for k in 0..3 {
+                lo[k] = lo[k].min(a[k]);
+                hi[k] = hi[k].max(b[k]);
+            }
+        }
+        Camera::fit(view, lo, hi, w, h)
+    }
+
+    /// The same view for a picture `factor` times larger (supersampling).
+    fn scaled(&self, factor: usize) -> Camera {
+        let f = factor as f32;
+        Camera {
+            scale: self.scale * f,
+            offset: [self.offset[0] * f, self.offset[1] * f],
+            w: self.w * factor,
+            h: self.h * factor,
+            ..*self
+        }
+    }
+
+    /// Projected coordinates before the screen mapping, and "nearness" (larger = closer).
+    #[inline]
+    fn project_unit(&self, p: V3) -> (f32, f32, f32) {
+        let d = sub(p, self.center);
+        let (x, y, z) = (dot(d, self.right), dot(d, self.up), dot(d, self.back));
+        match self.dist {
+            None => (x, y, z),
+            Some(dd) => {
+                let inv = 1.0 / (dd - z).max(1e-6);
+                (x * inv, y * inv, inv)
+            }
+        }
+    }
+
+    /// Screen position (pixels, y down) and nearness of a world point.
+    #[inline]
+    pub fn project(&self, p: V3) -> (f32, f32, f32) {
+        let (x, y, z) = self.project_unit(p);
+        (self.offset[0] + self.scale * x, self.offset[1] - self.scale * y, z)
+    }
+
+    /// Unit vector from `p` towards the camera.
+    #[inline]
+    fn toward_eye(&self, p: V3) -> V3 {
+        match self.dist {
+            None => self.back,
+            Some(d) => {
+                let eye = [
+                    self.center[0] + d * self.back[0],
+                    self.center[1] + d * self.back[1],
+                    self.center[2] + d * self.back[2],
+                ];
+                normalize(sub(eye, p))
+            }
+        }
+    }
+}
+
+/// Material, lights and background. Colours are sRGB in [0,1]; shading runs in linear light.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Shading {
+    /// Cloth colour on the side the vertex normals point to.
+    pub front: V3,
+    /// Cloth colour on the other side (two-sided cloth; a slightly different tint helps read folds).
+    pub back: V3,
+    /// Ambient light (fraction of the base colour).
+    pub ambient: f32,
+    /// Key light strength and direction in camera space (x right, y up, z towards the viewer).
+    pub key: f32,
+    pub key_dir: V3,
+    /// Headlight (light from the camera) strength.
+    pub head: f32,
+    /// Small Blinn–Phong highlight of the key light (cloth sheen), strength and exponent.
+    pub spec: f32,
+    pub shininess: f32,
+    /// Background gradient, top and bottom.
+    pub bg_top: V3,
+    pub bg_bottom: V3,
+    /// Supersampling factor per axis (1 = off, 2 = 4 samples per pixel).
+    pub ssaa: usize,
+}
+
+impl Default for Shading {
+    fn default() -> Self {
+        Shading {
+            front: [0.85, 0.62, 0.45],
+            back: [0.62, 0.70, 0.85],
+            ambient: 0.10,
+            key: 0.85,
+            // Raking light from the upper left: wrinkles turn into light/shade bands.
+            key_dir: [-0.75, 0.45, 0.45],
+            head: 0.20,
+            spec: 0.08,
+            shininess: 24.0,
+            bg_top: [0.96, 0.96, 0.97],
+            bg_bottom: [0.80, 0.82, 0.85],
+            ssaa: 2,
+        }
+    }
+}
+
+/// Per-vertex scalars shown with [`heat_color`]: `lo` maps to blue, `hi` to red.
+#[derive(Clone, Copy, Debug)]
+pub struct ScalarColors<'a> {
+    pub values: &'a [f32],
+    pub lo: f32,
+    pub hi: f32,
+}
+
+/// Heat-map colour scale (sRGB, blue → cyan → green → yellow → red) for t ∈ [0,1] (clamped).
+pub fn heat_color(t: f32) -> V3 {
+    const STOPS: [V3; 5] =
+        [[0.10, 0.20, 0.70], [0.10, 0.65, 0.90], [0.35, 0.80, 0.35], [1.00, 0.85, 0.15], [0.85, 0.12, 0.08]];
+    let t = if t.is_finite() { t.clamp(0.0, 1.0) } else { 0.0 };
+    let x = t * (STOPS.len() - 1) as f32;
+    let i = (x as usize).min(STOPS.len() - 2);
+    let f = x - i as f32;
+    std::array::from_fn(|k| STOPS[i][k] + f * (STOPS[i + 1][k] - STOPS[i][k]))
+}
+
+#[inline]
+fn to_linear(c: f32) -> f32 {
+    c.max(0.0).powf(2.2)
+}
+#[inline]
+fn to_srgb8(c: f32) -> u8 {
+    (c.clamp(0.0, 1.0).powf(1.0 / 2.2) * 255.0 + 0.5) as u8
+}
+
+/// Area-weighted vertex normals of the grid's triangulation (unit length; (0,0,1) if isolated).
+pub fn vertex_normals(mesh: &GridMesh) -> Vec<V3> {
+    let mut n = vec![[0.0f32; 3]; mesh.pos.len()];
+    for t in mesh.triangles() {
+        let (a, b, c) = (mesh.pos[t[0]], mesh.pos[t[1]], mesh.pos[t[2]]);
+        let f = cross(sub(b, a), sub(c, a));
+        for &v in &t {
+            for k in 0..3 {
+                n[v][k] += f[k];
+            }
+        }
+    }
+    n.into_iter().map(normalize).collect()
+}
+
+/// Renders `mesh` as seen by `cam` into a `cam.w × cam.h` picture.
+pub fn render_mesh(
+    mesh: &GridMesh,
+    cam: &Camera,
+    shade: &Shading,
+    colors: Option<ScalarColors<'_>>,
+) -> Result<Rgb8> {
+    if let Some(c) = &colors {
+        if c.values.len() != mesh.pos.len() {
+            return Err(Error::shape(format!(
+                "render: {} per-vertex values for a mesh of {} vertices",
+                c.values.len(),
+                mesh.pos.len()
+            )));
+        }
+    }
+    let ss = shade.ssaa.clamp(1, 4);
+    let cam_s = cam.scaled(ss);
+    let (w, h) = (cam_s.w, cam_s.h);
+    let mut depth = vec![f32::NEG_INFINITY; w * h];
+    let mut color = vec![[0.0f32; 3]; w * h];
+    for y in 0..h {
+        let t = y as f32 / (h.max(2) - 1) as f32;
+        let bg: V3 =
+            std::array::from_fn(|k| to_linear(shade.bg_top[k] + t * (shade.bg_bottom[k] - shade.bg_top[k])));
+        for x in 0..w {
+            color[y * w + x] = bg;
+        }
+    }
+    let normals = vertex_normals(mesh);
+    let scr: Vec<(f32, f32, f32)> = mesh.pos.iter().map(|&p| cam_s.project(p)).collect();
+    // Vertex normals in camera space.
+    let ncam: Vec<V3> =
+        normals.iter().map(|&n| [dot(n, cam.right), dot(n, cam.up), dot(n, cam.back)]).collect();
+    let base_lin = |side: V3, v: usize| -> V3 {
+        match &colors {
+            Some(c) => {
+                let span = (c.hi - c.lo).abs().max(1e-30);
+                let col = heat_color((c.values[v] - c.lo) / span);
+                col.map(to_linear)
+            }
+            None => side.map(to_linear),
+        }
+    };
+    let key = normalize(shade.key_dir);
+    let half = normalize([key[0], key[1], key[2] + 1.0]);
+    for t in mesh.triangles() {
+        let [a, b, c] = t;
+        let (p0, p1, p2) = (scr[a], scr[b], scr[c]);
+        let area = (p1.0 - p0.0) * (p2.1 - p0.1) - (p2.0 - p0.0) * (p1.1 - p0.1);
+        if area.abs() < 1e-12 || !area.is_finite() {
+            continue;
+        }
+        // Which side of the cloth faces the camera.
+        let (wa, wb, wc) = (mesh.pos[a], mesh.pos[b], mesh.pos[c]);
+        let fnorm = cross(sub(wb, wa), sub(wc, wa));
+        let centroid: V3 = std::array::from_fn(|k| (wa[k] + wb[k] + wc[k]) / 3.0);
+        let front = dot(fnorm, cam.toward_eye(centroid)) >= 0.0;
+        let sgn = if front { 1.0 } else { -1.0 };
+        let side = if front { shade.front } else { shade.back };
+        let (c0, c1, c2) = (base_lin(side, a), base_lin(side, b), base_lin(side, c));
+        let xmin = p0.0.min(p1.0).min(p2.0).floor().max(0.0) as usize;
+        let ymin = p0.1.min(p1.1).min(p2.1).floor().max(0.0) as usize;
+        let xmax = (p0.0.max(p1.0).max(p2.0).ceil().max(0.0) as usize).min(w);
+        let ymax = (p0.1.max(p1.1).max(p2.1).ceil().max(0.0) as usize).min(h);
+        let inv = 1.0 / area;
+        for y in ymin..ymax {
+            let py = y as f32 + 0.5;
+            for x in xmin..xmax {
+                let px = x as f32 + 0.5;
+                // Barycentric weights from edge functions, normalised by the signed area.
+                let l0 = ((p1.0 - px) * (p2.1 - py) - (p2.0 - px) * (p1.1 - py)) * inv;
+                let l1 = ((p2.0 - px) * (p0.1 - py) - (p0.0 - px) * (p2.1 - py)) * inv;
+                let l2 = 1.0 - l0 - l1;
+                if l0 < 0.0 || l1 < 0.0 || l2 < 0.0 {
+                    continue;
+                }
+                let z = l0 * p0.2 + l1 * p1.2 + l2 * p2.2;
+                let i = y * w + x;
+                if z <= depth[i] {
+                    continue;
+                }
+                depth[i] = z;
+                let n: V3 =
+                    std::array::from_fn(|k| sgn * (l0 * ncam[a][k] + l1 * ncam[b][k] + l2 * ncam[c][k]));
+                let n = normalize(n);
+                let diff = shade.ambient + shade.key * dot(n, key).max(0.0) + shade.head * n[2].max(0.0);
+                let spec = shade.spec * dot(n, half).max(0.0).powf(shade.shininess);
+                color[i] = std::array::from_fn(|k| (l0 * c0[k] + l1 * c1[k] + l2 * c2[k]) * diff + spec);
+            }
+        }
+    }
+    // Box filter down to the output size.
+    let mut out = Rgb8::new(cam.w, cam.h, BLACK);
+    let norm = 1.0 / (ss * ss) as f32;
+    for y in 0..cam.h {
+        for x in 0..cam.w {
+            let mut acc = [0.0f32; 3];
+            for sy in 0..ss {
+                for sx in 0..ss {
+                    let c = color[(y * ss + sy) * w + x * ss + sx];
+                    for k in 0..3 {
+                        acc[k] += c[k];
+                    }
+                }
+            }
+            out.set(x, y, acc.map(|v| to_srgb8(v * norm)));
+        }
+    }
+    Ok(out)
+}
+
+/// One tile of a comparison row: a mesh, its label, optional per-vertex scalars.
+pub struct Tile<'a> {
+    pub mesh: &'a GridMesh,
+    pub label: &'a str,
+    pub colors: Option<ScalarColors<'a>>,
+}
+
+/// Renders the tiles side by side with ONE camera fitted to all of them (so LR, bicubic,
+/// anisocb and HR are comparable), each `tile_w × tile_h` px, labelled, `gap` px apart.
+pub fn render_row(
+    tiles: &[Tile<'_>],
+    view: &View,
+    shade: &Shading,
+    tile_w: usize,
+    tile_h: usize,
+    gap: usize,
+) -> Result<Rgb8> {
+    let meshes: Vec<&GridMesh> = tiles.iter().map(|t| t.mesh).collect();
+    let cam = Camera::fit_meshes(view, &meshes, tile_w, tile_h)?;
+    let scale = if tile_h >= 256 { 2 } else { 1 };
+    let mut pics = Vec::with_capacity(tiles.len());
+    for t in tiles {
+        let mut p = render_mesh(t.mesh, &cam, shade, t.colors)?;
+        if !t.label.is_empty() {
+            p.label(t.label, scale);
+        }
+        pics.push(p);
+    }
+    Ok(hstack(&pics, gap, WHITE))
+}
+
+/// A vertical colour bar for [`heat_color`], `h` px tall, with `lo`, middle and `hi` values
+/// written beside it (and an optional `title` above, e.g. "err mm").
+pub fn colorbar(h: usize, lo: f32, hi: f32, title: &str) -> Rgb8 {
+    let labels = [format_number(hi), format_number(0.5 * (lo + hi)), format_number(lo)];
+    let text_w =
+        labels.iter().chain(std::iter::once(&title.to_string())).map(|s| s.len() * 6).max().unwrap_or(0);
+    let (bar_w, top) = (14usize, if title.is_empty() { 4 } else { 14 });
+    let w = bar_w + 6 + text_w + 4;
+    let mut img = Rgb8::new(w, h, WHITE);
+    let bar_h = h.saturating_sub(top + 4).max(2);
+    for y in 0..bar_h {
+        let t = 1.0 - y as f32 / (bar_h - 1) as f32;
+        let c = heat_color(t).map(|v| (v * 255.0 + 0.5) as u8);
+        img.fill_rect(2, (top + y) as i64, bar_w, 1, c);
+    }
+    img.text(2, 2, title, 1, BLACK);
+    let tx = (bar_w + 6) as i64;
+    img.text(tx, top as i64, &labels[0], 1, BLACK);
+    img.text(tx, (top + bar_h / 2) as i64 - 3, &labels[1], 1, BLACK);
+    img.text(tx, (top + bar_h) as i64 - 7, &labels[2], 1, BLACK);
+    img
+}

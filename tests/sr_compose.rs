@@ -1,0 +1,82 @@
+//! Our Eq 12: Γfinal = U + (1 − Γb) ⊙ (1 + η·Γe) ⊙ R.
+
+use anisocb::sr::compose;
+use anisocb::Tensor;
+
+/// Tiny deterministic PRNG (xorshift64*), uniform in [0, 1).
+struct Rng(u64);
+impl Rng {
+    fn next(&mut self) -> f32 {
+        self.0 ^= self.0 >> 12;
+        self.0 ^= self.0 << 25;
+        self.0 ^= self.0 >> 27;
+        ((self.0.wrapping_mul(0x2545F4914F6CDD1D) >> 40) as f32) / (1u64 << 24) as f32
+    }
+    fn tensor(&mut self, shape: &[usize]) -> Tensor {
+        let n = shape.iter().product();
+        Tensor::from_vec(shape, (0..n).map(|_| self.next()).collect()).unwrap()
+    }
+}
+
+#[test]
+fn composition_matches_scalar_formula_with_broadcast_maps() {
+    let mut rng = Rng(0x9E3779B97F4A7C15);
+    let (n, h, w) = (2, 5, 7);
+    let u = rng.tensor(&[n, 3, h, w]);
+    let r = rng.tensor(&[n, 3, h, w]);
+    let gb = rng.tensor(&[n, 1, h, w]);
+    let ge = rng.tensor(&[n, 1, h, w]);
+    let eta = 0.75;
+    let out = compose(&u, &r, Some(&gb), Some(&ge), eta).unwrap();
+    let mut worst = 0.0f32;
+    for b in 0..n {
+        for c in 0..3 {
+            for y in 0..h {
+                for x in 0..w {
+                    let i = u.idx4(b, c, y, x);
+                    let m = gb.idx4(b, 0, y, x);
+                    let want = u.data[i] + (1.0 - gb.data[m]) * (1.0 + eta * ge.data[m]) * r.data[i];
+                    worst = worst.max((out.data[i] - want).abs());
+                }
+            }
+        }
+    }
+    assert!(worst <= 1e-6, "largest difference {worst}");
+}
+
+#[test]
+fn composition_known_values() {
+    // U = 0.5, R = 0.1, Γb = 0.25, Γe = 1, η = 2  →  0.5 + 0.75 · 3 · 0.1 = 0.725
+    let u = Tensor::full(&[1, 3, 1, 1], 0.5);
+    let r = Tensor::full(&[1, 3, 1, 1], 0.1);
+    let gb = Tensor::full(&[1, 1, 1, 1], 0.25);
+    let ge = Tensor::full(&[1, 1, 1, 1], 1.0);
+    let out = compose(&u, &r, Some(&gb), Some(&ge), 2.0).unwrap();
+    for v in &out.data {
+        assert!((v - 0.725).abs() < 1e-6, "{v}");
+    }
+}
+
+#[test]
+fn boundary_pixels_keep_interpolated_input_and_eta_zero_is_plain_residual() {
+    let mut rng = Rng(7);
+    let u = rng.tensor(&[1, 3, 4, 4]);
+    let r = rng.tensor(&[1, 3, 4, 4]);
+    let ones = Tensor::full(&[1, 1, 4, 4], 1.0);
+    let out = compose(&u, &r, Some(&ones), Some(&ones), 3.0).unwrap();
+    assert_eq!(out, u);
+    let out = compose(&u, &r, None, Some(&ones), 0.0).unwrap();
+    for i in 0..u.len() {
+        assert_eq!(out.data[i], u.data[i] + r.data[i]);
+    }
+}
+
+#[test]
+fn composition_rejects_negative_eta_and_bad_shapes() {
+    let u = Tensor::zeros(&[1, 3, 2, 2]);
+    assert!(compose(&u, &u, None, None, -0.1).is_err());
+    assert!(compose(&u, &u, None, None, f32::NAN).is_err());
+    let bad = Tensor::zeros(&[1, 3, 2, 2]);
+    assert!(compose(&u, &u, Some(&bad), None, 0.5).is_err());
+    assert!(compose(&u, &Tensor::zeros(&[1, 3, 2, 3]), None, None, 0.5).is_err());
+}
