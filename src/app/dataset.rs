@@ -1,10 +1,142 @@
-//! `anisocb dataset`. TODO: filled by its issue.
+//! `anisocb dataset`: LR/HR geometry images of simulated run pairs plus the HR ground-truth
+//! boundary and edge maps, in one `.npz` (layout: [`crate::train::dataset`]), and a PNG
+//! contact sheet to check the maps by eye.
 
 use crate::error::{Error, Result};
+use crate::geom::anisotropy::BoundaryParams;
+use crate::imgproc::CannyParams;
+use crate::tensor::Tensor;
+use crate::train::dataset::{build, is_held_out, load_run, Dataset, MapParams};
+use std::path::{Path, PathBuf};
 
 #[derive(clap::Args, Debug)]
-pub struct Args {}
+pub struct Args {
+    /// Run pairs from `anisocb simulate --pair --out DIR` (DIR, or its lr/ or hr/ subdirectory).
+    #[arg(long, num_args = 1.., required = true, value_name = "DIR")]
+    pub runs: Vec<PathBuf>,
+    /// Output .npz (arrays lr, hr, boundary, edges, domain; frames.json, params.json).
+    #[arg(long, value_name = "FILE")]
+    pub out: PathBuf,
+    /// Boundary threshold γ on σ3/σ1 [default: 0.05].
+    #[arg(long)]
+    pub gamma: Option<f64>,
+    /// Laplacian smoothing step λ (0..1) [default: 0.5].
+    #[arg(long)]
+    pub lambda: Option<f64>,
+    /// Canny Gaussian σ in pixels [default: 1.0].
+    #[arg(long)]
+    pub canny_sigma: Option<f32>,
+    /// Canny low threshold on the gradient magnitude [default: 0.15].
+    #[arg(long)]
+    pub canny_low: Option<f32>,
+    /// Canny high threshold on the gradient magnitude [default: 0.3].
+    #[arg(long)]
+    pub canny_high: Option<f32>,
+    /// Leave out runs whose scenario, directory name or `seed=N` matches (for evaluation).
+    #[arg(long, num_args = 1.., value_name = "NAME")]
+    pub holdout: Vec<String>,
+    /// Contact sheet PNG [default: --out with extension .png].
+    #[arg(long, value_name = "FILE")]
+    pub png: Option<PathBuf>,
+    /// Frames shown in the contact sheet.
+    #[arg(long, default_value_t = 4)]
+    pub sheet_frames: usize,
+}
 
-pub fn run(_args: Args) -> Result<()> {
-    Err(Error::config("`dataset` is not implemented yet"))
+pub fn run(a: Args) -> Result<()> {
+    let bd = BoundaryParams::default();
+    let cd = CannyParams::default();
+    let params = MapParams {
+        boundary: BoundaryParams {
+            gamma: a.gamma.unwrap_or(bd.gamma),
+            lambda: a.lambda.unwrap_or(bd.lambda),
+            ..bd
+        },
+        canny: CannyParams {
+            sigma: a.canny_sigma.unwrap_or(cd.sigma),
+            low: a.canny_low.unwrap_or(cd.low),
+            high: a.canny_high.unwrap_or(cd.high),
+        },
+    };
+    params.boundary.validate()?;
+    params.canny.validate()?;
+    let mut runs = Vec::new();
+    let mut seen = Vec::new();
+    for dir in &a.runs {
+        let pd = crate::train::dataset::pair_dir(dir)?;
+        if seen.contains(&pd) {
+            continue; // `DIR/lr` and `DIR/hr` both given: one run
+        }
+        seen.push(pd.clone());
+        let r = load_run(&pd)?;
+        if is_held_out(&r, &a.holdout) {
+            eprintln!("held out: {} ({})", r.name, r.scenario);
+            continue;
+        }
+        runs.push(r);
+    }
+    let total: u64 = runs.iter().map(|r| r.hr.shape[0] as u64).sum();
+    let pb = super::ui::progress(total, "maps");
+    let ds = build(&runs, &params, &a.holdout, &|| pb.inc(1))?;
+    pb.finish_and_clear();
+    crate::io::write_npz(&a.out, &ds.to_npz())?;
+    let png = a.png.clone().unwrap_or_else(|| a.out.with_extension("png"));
+    write_contact_sheet(&png, &ds, a.sheet_frames)?;
+    let pos = |t: &Tensor| t.data.iter().filter(|&&v| v > 0.5).count() as f64 / t.data.len().max(1) as f64;
+    eprintln!(
+        "wrote {} ({} frames from {} runs, LR {}×{} → HR {}×{}; boundary {:.1}% / edges {:.1}% of pixels), {}",
+        a.out.display(),
+        ds.len(),
+        runs.len(),
+        ds.lr.shape[2],
+        ds.lr.shape[3],
+        ds.hr.shape[2],
+        ds.hr.shape[3],
+        100.0 * pos(&ds.boundary),
+        100.0 * pos(&ds.edges),
+        png.display()
+    );
+    Ok(())
+}
+
+/// Rows of (LR, HR, boundary map, edge map) for up to `count` evenly spaced frames; geometry
+/// images as 8-bit RGB clamped to [0,1], maps white on black, nearest upscaling.
+pub fn write_contact_sheet(path: &Path, ds: &Dataset, count: usize) -> Result<()> {
+    if ds.is_empty() || count == 0 {
+        return Err(Error::config("contact sheet needs at least one frame"));
+    }
+    let n = ds.len();
+    let rows = count.min(n);
+    let picks: Vec<usize> = (0..rows).map(|k| if rows == 1 { 0 } else { k * (n - 1) / (rows - 1) }).collect();
+    let (hh, wh) = (ds.hr.shape[2], ds.hr.shape[3]);
+    let (hl, wl) = (ds.lr.shape[2], ds.lr.shape[3]);
+    let zoom = (128 / wh.max(hh)).max(1);
+    let (th, tw) = (hh * zoom, wh * zoom);
+    let gap = 4;
+    let (w, h) = (4 * tw + 5 * gap, rows * th + (rows + 1) * gap);
+    let mut rgb = vec![40u8; w * h * 3];
+    let to8 = |v: f32| (v.clamp(0.0, 1.0) * 255.0).round() as u8;
+    for (row, &f) in picks.iter().enumerate() {
+        let y0 = gap + row * (th + gap);
+        for col in 0..4 {
+            let x0 = gap + col * (tw + gap);
+            for y in 0..th {
+                for x in 0..tw {
+                    let (yh, xh) = (y / zoom, x / zoom);
+                    let px: [u8; 3] = match col {
+                        0 => {
+                            let (yl, xl) = (yh * hl / hh, xh * wl / wh);
+                            std::array::from_fn(|c| to8(ds.lr.data[ds.lr.idx4(f, c, yl, xl)]))
+                        }
+                        1 => std::array::from_fn(|c| to8(ds.hr.data[ds.hr.idx4(f, c, yh, xh)])),
+                        2 => [to8(ds.boundary.data[ds.boundary.idx4(f, 0, yh, xh)]); 3],
+                        _ => [to8(ds.edges.data[ds.edges.idx4(f, 0, yh, xh)]); 3],
+                    };
+                    let o = ((y0 + y) * w + x0 + x) * 3;
+                    rgb[o..o + 3].copy_from_slice(&px);
+                }
+            }
+        }
+    }
+    super::ui::save_png_rgb(path, w, h, &rgb)
 }

@@ -2,5 +2,6 @@
 
 pub mod adam;
 pub mod data;
+pub mod dataset;
 pub mod plot;
 pub mod trainer;
