@@ -1,1 +1,440 @@
-//! TODO(maps/sim issue): see issue text.
+//! Wavefront OBJ for grid meshes: write a [`GridMesh`] as quads or triangles, and read a
+//! regular grid exported by any tool (any vertex order, quads or triangulated quads),
+//! recovering its `W × H` structure from connectivity alone.
+//!
+//! Orientation of a recovered grid is deterministic and follows the file's vertex numbering:
+//! vertex (0, 0) is the grid corner with the smallest index, and the row runs from it toward
+//! its lower-numbered neighbour. A file written by [`write_obj_grid`] therefore reads back as
+//! exactly the same grid, and every frame of a sequence with the same faces gets the same
+//! orientation.
+//!
+//! Triangulated input: each triangle's quad diagonal is taken to be the edge opposite its
+//! largest angle (≈ 90° in a grid cell, so this holds for any mildly sheared cloth); both
+//! triangles of a cell must agree, otherwise the file is rejected with a message that asks
+//! for quads.
+
+use super::mesh::GridMesh;
+use crate::error::{Error, Result};
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+
+/// Whether a mesh file had quads or triangles (an upscaled result is written the same way).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FaceStyle {
+    Quads,
+    Triangles,
+}
+
+/// Vertices and faces of an OBJ file (0-based indices); faces have 3 or 4 vertices.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ObjMesh {
+    pub pos: Vec<[f32; 3]>,
+    pub faces: Vec<Vec<u32>>,
+}
+
+/// Parse OBJ text (`path` only names the file in errors).
+pub fn parse_obj(text: &str, path: &Path) -> Result<ObjMesh> {
+    let mut pos = Vec::new();
+    let mut raw_faces: Vec<(usize, Vec<i64>)> = Vec::new();
+    for (ln, line) in text.lines().enumerate() {
+        let ln = ln + 1;
+        let line = line.split('#').next().unwrap_or("").trim();
+        let mut it = line.split_whitespace();
+        match it.next() {
+            Some("v") => {
+                let c: Vec<&str> = it.collect();
+                if c.len() < 3 {
+                    return Err(Error::format(path, format!("line {ln}: vertex needs 3 coordinates")));
+                }
+                let mut p = [0.0f32; 3];
+                for k in 0..3 {
+                    p[k] = c[k]
+                        .parse::<f32>()
+                        .map_err(|_| Error::format(path, format!("line {ln}: bad coordinate '{}'", c[k])))?;
+                    if !p[k].is_finite() {
+                        return Err(Error::format(
+                            path,
+                            format!("line {ln}: non-finite coordinate '{}'", c[k]),
+                        ));
+                    }
+                }
+                pos.push(p);
+            }
+            Some("f") => {
+                let mut f = Vec::new();
+                for tok in it {
+                    let first = tok.split('/').next().unwrap_or("");
+                    let i: i64 = first
+                        .parse()
+                        .map_err(|_| Error::format(path, format!("line {ln}: bad face index '{tok}'")))?;
+                    f.push(i);
+                }
+                raw_faces.push((ln, f));
+            }
+            _ => {}
+        }
+    }
+    let nv = pos.len() as i64;
+    let mut faces = Vec::with_capacity(raw_faces.len());
+    for (ln, f) in raw_faces {
+        let mut g = Vec::with_capacity(f.len());
+        for i in f {
+            // OBJ indices are 1-based; negative ones count back from the last vertex so far.
+            let k = if i > 0 { i - 1 } else { nv + i };
+            if i == 0 || k < 0 || k >= nv {
+                return Err(Error::format(
+                    path,
+                    format!("line {ln}: face references vertex {i}, but the file has {nv} vertices"),
+                ));
+            }
+            g.push(k as u32);
+        }
+        faces.push(g);
+    }
+    Ok(ObjMesh { pos, faces })
+}
+
+fn not_grid(path: &Path, why: impl std::fmt::Display) -> Error {
+    Error::format(path, format!("not a regular grid mesh: {why}"))
+}
+
+fn ekey(a: u32, b: u32) -> (u32, u32) {
+    (a.min(b), a.max(b))
+}
+
+/// Pair triangles into quads (vertex cycles), the diagonal of each cell being the edge
+/// opposite the larger angle of both its triangles.
+fn pair_triangles(m: &ObjMesh, path: &Path) -> Result<Vec<[u32; 4]>> {
+    let mut edge_tris: HashMap<(u32, u32), Vec<usize>> = HashMap::new();
+    for (t, f) in m.faces.iter().enumerate() {
+        for k in 0..3 {
+            edge_tris.entry(ekey(f[k], f[(k + 1) % 3])).or_default().push(t);
+        }
+    }
+    let angle = |a: u32, b: u32, c: u32| -> f64 {
+        // Angle at a between b and c.
+        let (pa, pb, pc) = (m.pos[a as usize], m.pos[b as usize], m.pos[c as usize]);
+        let u: [f64; 3] = std::array::from_fn(|k| (pb[k] - pa[k]) as f64);
+        let v: [f64; 3] = std::array::from_fn(|k| (pc[k] - pa[k]) as f64);
+        let d = u[0] * v[0] + u[1] * v[1] + u[2] * v[2];
+        let cr = [u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]];
+        (cr[0] * cr[0] + cr[1] * cr[1] + cr[2] * cr[2]).sqrt().atan2(d)
+    };
+    // For each triangle, the edge (as index k: edge f[k]–f[k+1]) it proposes as the diagonal.
+    let mut choice = Vec::with_capacity(m.faces.len());
+    for (t, f) in m.faces.iter().enumerate() {
+        let mut best: Option<(f64, usize)> = None;
+        for k in 0..3 {
+            let (a, b, c) = (f[k], f[(k + 1) % 3], f[(k + 2) % 3]);
+            let shared = edge_tris[&ekey(a, b)].len();
+            if shared > 2 {
+                return Err(not_grid(path, format!("edge {}–{} is shared by {shared} faces", a + 1, b + 1)));
+            }
+            if shared < 2 {
+                continue; // a border edge is never a cell diagonal
+            }
+            let ang = angle(c, a, b);
+            if best.is_none_or(|(bang, _)| ang > bang) {
+                best = Some((ang, k));
+            }
+        }
+        let Some((_, k)) = best else {
+            return Err(not_grid(path, format!("triangle {} has no interior edge", t + 1)));
+        };
+        choice.push(k);
+    }
+    let mut quads = Vec::with_capacity(m.faces.len() / 2);
+    for (t, f) in m.faces.iter().enumerate() {
+        let k = choice[t];
+        let (a, b, c) = (f[k], f[(k + 1) % 3], f[(k + 2) % 3]);
+        let other = edge_tris[&ekey(a, b)].iter().copied().find(|&o| o != t).unwrap_or(t);
+        let g = &m.faces[other];
+        let ok = ekey(g[choice[other]], g[(choice[other] + 1) % 3]) == ekey(a, b);
+        if !ok {
+            return Err(not_grid(
+                path,
+                "could not pair the triangles into grid cells (diagonals are ambiguous); export quads instead",
+            ));
+        }
+        if t < other {
+            let d = g.iter().copied().find(|&v| v != a && v != b).unwrap_or(a);
+            quads.push([a, d, b, c]);
+        }
+    }
+    Ok(quads)
+}
+
+/// Recover the grid of a quad mesh: `grid[j*w + i]` = file vertex at (i, j).
+fn recover_grid(nv: usize, quads: &[[u32; 4]], path: &Path) -> Result<(usize, usize, Vec<u32>)> {
+    let mut edge_faces: HashMap<(u32, u32), Vec<usize>> = HashMap::new();
+    let mut faces_of = vec![0u32; nv];
+    for (q, f) in quads.iter().enumerate() {
+        for k in 0..4 {
+            if f[k] == f[(k + 1) % 4] || f[k] == f[(k + 2) % 4] {
+                return Err(not_grid(path, format!("face {} repeats a vertex", q + 1)));
+            }
+            edge_faces.entry(ekey(f[k], f[(k + 1) % 4])).or_default().push(q);
+            faces_of[f[k] as usize] += 1;
+        }
+    }
+    if let Some(v) = faces_of.iter().position(|&c| c == 0) {
+        return Err(not_grid(path, format!("vertex {} is not used by any face", v + 1)));
+    }
+    if let Some((e, fs)) = edge_faces.iter().find(|(_, fs)| fs.len() > 2) {
+        return Err(not_grid(path, format!("edge {}–{} is shared by {} faces", e.0 + 1, e.1 + 1, fs.len())));
+    }
+    let corners: Vec<u32> = (0..nv as u32).filter(|&v| faces_of[v as usize] == 1).collect();
+    if corners.len() != 4 {
+        return Err(not_grid(
+            path,
+            format!("found {} corner vertices (in exactly one face), expected 4", corners.len()),
+        ));
+    }
+    let c0 = corners[0];
+    let q0 = quads.iter().find(|f| f.contains(&c0)).expect("corner has a face");
+    let p = q0.iter().position(|&v| v == c0).unwrap_or(0);
+    let (na, nb) = (q0[(p + 1) % 4], q0[(p + 3) % 4]);
+    let (right, down) = if na < nb { (na, nb) } else { (nb, na) };
+    let is_border = |a: u32, b: u32| edge_faces.get(&ekey(a, b)).is_some_and(|f| f.len() == 1);
+    // Border neighbours of each vertex.
+    let mut border_nb: Vec<Vec<u32>> = vec![Vec::new(); nv];
+    for (&(a, b), fs) in &edge_faces {
+        if fs.len() == 1 {
+            border_nb[a as usize].push(b);
+            border_nb[b as usize].push(a);
+        }
+    }
+    let walk = |first: u32| -> Result<Vec<u32>> {
+        let mut line = vec![c0, first];
+        if !is_border(c0, first) {
+            return Err(not_grid(path, "the border around a corner is not made of single-face edges"));
+        }
+        while faces_of[*line.last().unwrap() as usize] != 1 {
+            let cur = *line.last().unwrap();
+            let prev = line[line.len() - 2];
+            let nexts: Vec<u32> = border_nb[cur as usize].iter().copied().filter(|&v| v != prev).collect();
+            if nexts.len() != 1 || line.len() > nv {
+                return Err(not_grid(path, format!("the border is not a simple loop at vertex {}", cur + 1)));
+            }
+            line.push(nexts[0]);
+        }
+        Ok(line)
+    };
+    let row0 = walk(right)?;
+    let col0 = walk(down)?;
+    let (w, h) = (row0.len(), col0.len());
+    if w * h != nv || (w - 1) * (h - 1) != quads.len() {
+        return Err(not_grid(
+            path,
+            format!(
+                "the border says {w}x{h} vertices, but the mesh has {nv} vertices and {} cells",
+                quads.len()
+            ),
+        ));
+    }
+    const NONE: u32 = u32::MAX;
+    let mut g = vec![NONE; nv];
+    g[..w].copy_from_slice(&row0);
+    for j in 0..h {
+        g[j * w] = col0[j];
+    }
+    let mut used_face = vec![false; quads.len()];
+    for j in 0..h - 1 {
+        for i in 0..w - 1 {
+            let (a, b, d) = (g[j * w + i], g[j * w + i + 1], g[(j + 1) * w + i]);
+            let fs = edge_faces.get(&ekey(a, b)).map(|v| v.as_slice()).unwrap_or(&[]);
+            let found = fs.iter().copied().find(|&q| !used_face[q] && quads[q].contains(&d));
+            let Some(q) = found else {
+                return Err(not_grid(
+                    path,
+                    format!("no cell at ({i}, {j}) next to vertices {} and {}", a + 1, b + 1),
+                ));
+            };
+            used_face[q] = true;
+            let f = quads[q];
+            let c = f.iter().copied().find(|&v| v != a && v != b && v != d).unwrap_or(NONE);
+            // The cell's cycle must be a–b–c–d (either direction).
+            let pa = f.iter().position(|&v| v == a).unwrap_or(0);
+            let cyc_ok = (f[(pa + 1) % 4] == b && f[(pa + 2) % 4] == c && f[(pa + 3) % 4] == d)
+                || (f[(pa + 3) % 4] == b && f[(pa + 2) % 4] == c && f[(pa + 1) % 4] == d);
+            let slot = &mut g[(j + 1) * w + i + 1];
+            if !cyc_ok || (*slot != NONE && *slot != c) {
+                return Err(not_grid(path, format!("cell at ({i}, {j}) does not fit a grid")));
+            }
+            *slot = c;
+        }
+    }
+    let mut seen = vec![false; nv];
+    for &v in &g {
+        if v == NONE || std::mem::replace(&mut seen[v as usize], true) {
+            return Err(not_grid(path, "a vertex appears twice in the recovered grid"));
+        }
+    }
+    Ok((w, h, g))
+}
+
+/// A parsed OBJ turned into a grid: the mesh, the face style, and the file index of each grid
+/// vertex (`order[j*w + i]`), so other frames with the same faces can reuse it.
+#[derive(Clone, Debug)]
+pub struct ObjGrid {
+    pub mesh: GridMesh,
+    pub style: FaceStyle,
+    pub order: Vec<u32>,
+}
+
+/// Turn parsed OBJ data into a grid (see the module docs).
+pub fn obj_to_grid(m: &ObjMesh, path: &Path) -> Result<ObjGrid> {
+    if m.faces.is_empty() {
+        return Err(not_grid(path, "the file has no faces"));
+    }
+    let n3 = m.faces.iter().filter(|f| f.len() == 3).count();
+    let n4 = m.faces.iter().filter(|f| f.len() == 4).count();
+    if n3 + n4 != m.faces.len() {
+        let bad = m.faces.iter().position(|f| f.len() != 3 && f.len() != 4).unwrap_or(0);
+        return Err(not_grid(
+            path,
+            format!("face {} has {} vertices (need 3 or 4)", bad + 1, m.faces[bad].len()),
+        ));
+    }
+    if n3 > 0 && n4 > 0 {
+        return Err(not_grid(path, format!("it mixes {n4} quads and {n3} triangles")));
+    }
+    let (quads, style) = if n4 > 0 {
+        (m.faces.iter().map(|f| [f[0], f[1], f[2], f[3]]).collect(), FaceStyle::Quads)
+    } else {
+        if n3 % 2 != 0 {
+            return Err(not_grid(path, format!("{n3} triangles cannot pair into grid cells")));
+        }
+        (pair_triangles(m, path)?, FaceStyle::Triangles)
+    };
+    let (w, h, order) = recover_grid(m.pos.len(), &quads, path)?;
+    let pos = order.iter().map(|&v| m.pos[v as usize]).collect();
+    Ok(ObjGrid { mesh: GridMesh::new(w, h, pos), style, order })
+}
+
+/// Read an OBJ grid and its face style.
+pub fn read_obj_grid_styled(path: &Path) -> Result<ObjGrid> {
+    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    obj_to_grid(&parse_obj(&text, path)?, path)
+}
+
+/// Read an OBJ grid (any vertex order, quads or triangulated quads).
+pub fn read_obj_grid(path: &Path) -> Result<GridMesh> {
+    Ok(read_obj_grid_styled(path)?.mesh)
+}
+
+/// OBJ text of a grid, quads or (with `quads = false`) the triangles of [`GridMesh::triangles`].
+pub fn obj_text(mesh: &GridMesh, quads: bool) -> String {
+    use std::fmt::Write;
+    let mut s = String::with_capacity(mesh.pos.len() * 40);
+    let _ = writeln!(s, "# anisocb grid {} x {} vertices (columns x rows), metres", mesh.w, mesh.h);
+    for p in &mesh.pos {
+        // `{}` prints the shortest decimal that reads back to the same f32.
+        let _ = writeln!(s, "v {} {} {}", p[0], p[1], p[2]);
+    }
+    if quads {
+        for q in mesh.quads() {
+            let _ = writeln!(s, "f {} {} {} {}", q[0] + 1, q[1] + 1, q[2] + 1, q[3] + 1);
+        }
+    } else {
+        for t in mesh.triangles() {
+            let _ = writeln!(s, "f {} {} {}", t[0] + 1, t[1] + 1, t[2] + 1);
+        }
+    }
+    s
+}
+
+/// Write a grid as OBJ (atomically).
+pub fn write_obj_grid(path: &Path, mesh: &GridMesh, quads: bool) -> Result<()> {
+    crate::io::write_atomic_bytes(path, obj_text(mesh, quads).as_bytes())
+}
+
+/// Natural order of file names: digit runs compare as numbers (`frame_2` before `frame_10`).
+pub fn natural_cmp(a: &str, b: &str) -> std::cmp::Ordering {
+    use std::cmp::Ordering;
+    let (a, b) = (a.as_bytes(), b.as_bytes());
+    let (mut i, mut j) = (0, 0);
+    while i < a.len() && j < b.len() {
+        if a[i].is_ascii_digit() && b[j].is_ascii_digit() {
+            let (si, sj) = (i, j);
+            while i < a.len() && a[i].is_ascii_digit() {
+                i += 1;
+            }
+            while j < b.len() && b[j].is_ascii_digit() {
+                j += 1;
+            }
+            let na = std::str::from_utf8(&a[si..i]).unwrap_or("0").trim_start_matches('0');
+            let nb = std::str::from_utf8(&b[sj..j]).unwrap_or("0").trim_start_matches('0');
+            let o = na.len().cmp(&nb.len()).then_with(|| na.cmp(nb));
+            if o != Ordering::Equal {
+                return o;
+            }
+        } else {
+            if a[i] != b[j] {
+                return a[i].cmp(&b[j]);
+            }
+            i += 1;
+            j += 1;
+        }
+    }
+    (a.len() - i).cmp(&(b.len() - j)).then_with(|| a.cmp(b))
+}
+
+/// The `.obj` files of a directory in natural order.
+pub fn list_obj_files(dir: &Path) -> Result<Vec<PathBuf>> {
+    let rd = std::fs::read_dir(dir).map_err(|e| Error::io(dir, e))?;
+    let mut files: Vec<PathBuf> = Vec::new();
+    for e in rd {
+        let p = e.map_err(|e| Error::io(dir, e))?.path();
+        if p.is_file() && p.extension().is_some_and(|x| x.eq_ignore_ascii_case("obj")) {
+            files.push(p);
+        }
+    }
+    files.sort_by(|a, b| natural_cmp(&a.to_string_lossy(), &b.to_string_lossy()));
+    if files.is_empty() {
+        return Err(Error::format(dir, "no .obj files in this directory"));
+    }
+    Ok(files)
+}
+
+/// Read a sequence of OBJ grids (one per file, in the given order). Frames whose faces equal
+/// the first frame's reuse its vertex order, so the whole sequence has one orientation; all
+/// frames must have the same `W × H`.
+pub fn read_obj_sequence(paths: &[PathBuf]) -> Result<(Vec<GridMesh>, FaceStyle)> {
+    let mut out = Vec::with_capacity(paths.len());
+    let mut first: Option<(ObjMesh, ObjGrid)> = None;
+    for p in paths {
+        let text = std::fs::read_to_string(p).map_err(|e| Error::io(p, e))?;
+        let m = parse_obj(&text, p)?;
+        let mesh = match &first {
+            Some((m0, g0)) if m0.faces == m.faces && m0.pos.len() == m.pos.len() => {
+                GridMesh::new(g0.mesh.w, g0.mesh.h, g0.order.iter().map(|&v| m.pos[v as usize]).collect())
+            }
+            _ => {
+                let g = obj_to_grid(&m, p)?;
+                if let Some((_, g0)) = &first {
+                    if (g.mesh.w, g.mesh.h) != (g0.mesh.w, g0.mesh.h) {
+                        return Err(Error::format(
+                            p,
+                            format!(
+                                "grid is {}x{}, but the first frame is {}x{}",
+                                g.mesh.w, g.mesh.h, g0.mesh.w, g0.mesh.h
+                            ),
+                        ));
+                    }
+                }
+                let mesh = g.mesh.clone();
+                if first.is_none() {
+                    first = Some((m, g));
+                }
+                mesh
+            }
+        };
+        out.push(mesh);
+    }
+    let style = first.as_ref().map_or(FaceStyle::Quads, |(_, g)| g.style);
+    if out.is_empty() {
+        return Err(Error::config("no OBJ files given"));
+    }
+    Ok((out, style))
+}

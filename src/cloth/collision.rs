@@ -1,0 +1,67 @@
+//! Sphere and ground contacts, projected after the constraints of every substep, with a
+//! margin and position-based Coulomb friction (Macklin et al. 2014, "Unified particle physics").
+
+/// A static sphere: centre (m), radius (m).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Sphere {
+    pub center: [f32; 3],
+    pub radius: f32,
+}
+
+/// Colliders of a scene.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Colliders {
+    pub sphere: Option<Sphere>,
+    /// Height (m) of a horizontal ground plane y = ground.
+    pub ground: Option<f32>,
+}
+
+/// Push `x` out along unit normal `n` by `pen` (m) and remove tangential motion since `prev`
+/// up to `mu · pen` (static friction below that, kinetic above).
+#[inline]
+fn resolve(x: &mut [f32; 3], prev: [f32; 3], n: [f32; 3], pen: f32, mu: f32) {
+    for k in 0..3 {
+        x[k] += n[k] * pen;
+    }
+    let dx = [x[0] - prev[0], x[1] - prev[1], x[2] - prev[2]];
+    let dn = dx[0] * n[0] + dx[1] * n[1] + dx[2] * n[2];
+    let t = [dx[0] - dn * n[0], dx[1] - dn * n[1], dx[2] - dn * n[2]];
+    let lt = (t[0] * t[0] + t[1] * t[1] + t[2] * t[2]).sqrt();
+    if lt <= 0.0 {
+        return;
+    }
+    let f = if lt < mu * pen { 1.0 } else { mu * pen / lt };
+    for k in 0..3 {
+        x[k] -= f * t[k];
+    }
+}
+
+impl Colliders {
+    /// Project every free vertex (inv_mass > 0) out of the colliders, `margin` (m) away.
+    pub fn project(&self, x: &mut [[f32; 3]], prev: &[[f32; 3]], inv_mass: &[f32], margin: f32, mu: f32) {
+        if let Some(s) = self.sphere {
+            let r = s.radius + margin;
+            for v in 0..x.len() {
+                if inv_mass[v] == 0.0 {
+                    continue;
+                }
+                let d = [x[v][0] - s.center[0], x[v][1] - s.center[1], x[v][2] - s.center[2]];
+                let l2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+                if l2 < r * r {
+                    let l = l2.sqrt();
+                    let n = if l > 1e-9 { [d[0] / l, d[1] / l, d[2] / l] } else { [0.0, 1.0, 0.0] };
+                    resolve(&mut x[v], prev[v], n, r - l, mu);
+                }
+            }
+        }
+        if let Some(g) = self.ground {
+            let y0 = g + margin;
+            for v in 0..x.len() {
+                if inv_mass[v] != 0.0 && x[v][1] < y0 {
+                    let pen = y0 - x[v][1];
+                    resolve(&mut x[v], prev[v], [0.0, 1.0, 0.0], pen, mu);
+                }
+            }
+        }
+    }
+}

@@ -1,0 +1,315 @@
+//! The paper's scenarios (figures 8–13) as named presets, and the functions that run them at
+//! one resolution ([`run_single`]) or as a low/high-resolution pair ([`paired_run`]).
+//!
+//! The rest rectangle of a scenario is fixed by the spec's (low) resolution: width from the
+//! scenario, height = width · (h − 1)/(w − 1) so LR cells are square. The HR run uses the same
+//! rectangle with `scale·w × scale·h` vertices (corners aligned).
+
+use super::collision::{Colliders, Sphere};
+use super::kinematics::{Kinematics, Pin};
+use super::params::{Material, SimParams};
+use super::solver::{Cloth, Scene};
+use super::tracking::{bilinear_targets, TrackTargets};
+use super::wind::Wind;
+use crate::error::{Error, Result};
+use crate::geom::mesh::{rest_uv, GridMesh};
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum Scenario {
+    Flag,
+    FlagSphere,
+    Drape,
+    Twist,
+    TwistMaterials,
+    TwistZeroG,
+}
+
+/// `--help` text listing the scenarios.
+pub const SCENARIO_HELP: &str = "Scenarios (paper figures):
+  flag             flag, top edge pinned and flapping back and forth in gusty wind (Fig 8)
+  flag-sphere      the same flag swinging into a sphere behind it (Fig 9)
+  drape            square sheet held at 4 corners, lowered and pulled in over a sphere (Fig 10)
+  twist            horizontal strip twisted from both ends in opposite directions (Fig 11)
+  twist-materials  the same strip made of three bands: silk, rubber, denim (Fig 12)
+  twist-zero-g     the twist without gravity (Fig 13)";
+
+impl Scenario {
+    pub const ALL: [Scenario; 6] = [
+        Scenario::Flag,
+        Scenario::FlagSphere,
+        Scenario::Drape,
+        Scenario::Twist,
+        Scenario::TwistMaterials,
+        Scenario::TwistZeroG,
+    ];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Scenario::Flag => "flag",
+            Scenario::FlagSphere => "flag-sphere",
+            Scenario::Drape => "drape",
+            Scenario::Twist => "twist",
+            Scenario::TwistMaterials => "twist-materials",
+            Scenario::TwistZeroG => "twist-zero-g",
+        }
+    }
+
+    pub fn from_name(name: &str) -> Result<Scenario> {
+        Scenario::ALL.iter().copied().find(|s| s.name() == name).ok_or_else(|| {
+            let names: Vec<&str> = Scenario::ALL.iter().map(|s| s.name()).collect();
+            Error::config(format!("unknown scenario '{name}'; choose one of: {}", names.join(", ")))
+        })
+    }
+
+    pub fn description(self) -> &'static str {
+        SCENARIO_HELP
+            .lines()
+            .find(|l| l.split_whitespace().next() == Some(self.name()))
+            .map(|l| l.trim_start()[self.name().len()..].trim())
+            .unwrap_or("")
+    }
+
+    /// Default LR resolution (vertices, columns × rows), as in the paper.
+    pub fn default_resolution(self) -> (usize, usize) {
+        match self {
+            Scenario::Flag | Scenario::FlagSphere | Scenario::Drape => (32, 32),
+            _ => (32, 10),
+        }
+    }
+
+    /// Width of the rest rectangle (m).
+    fn width(self) -> f32 {
+        match self {
+            Scenario::Flag | Scenario::FlagSphere => 1.0,
+            Scenario::Drape => 1.4,
+            _ => 2.0,
+        }
+    }
+}
+
+impl std::fmt::Display for Scenario {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// One run (or pair of runs) to simulate.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ScenarioSpec {
+    pub scenario: Scenario,
+    /// Low-resolution grid (vertices: columns × rows).
+    pub w: usize,
+    pub h: usize,
+    /// Number of output frames; frame 0 is the rest state, frame k is at time k·dt.
+    pub frames: usize,
+    /// Seeds the wind gusts.
+    pub seed: u64,
+    /// Cloth material (`twist-materials` ignores it and uses its bands).
+    pub material: Material,
+    /// HR → LR attachment strength (1/s²) in paired runs; 0 = off.
+    pub tracking: f32,
+    /// Upscale factor of the HR run (vertices per side).
+    pub scale: usize,
+    pub params: SimParams,
+}
+
+/// Default tracking strength (1/s²): attachment natural frequency ≈ 1.6 Hz, soft enough for
+/// wrinkles to form, strong enough to keep the HR run on its LR twin.
+pub const DEFAULT_TRACKING: f32 = 100.0;
+
+impl ScenarioSpec {
+    /// The scenario's defaults: paper resolution, 200 frames, seed 0, cotton, default tracking.
+    pub fn new(scenario: Scenario) -> ScenarioSpec {
+        let (w, h) = scenario.default_resolution();
+        let mut params = SimParams::default();
+        if scenario == Scenario::TwistZeroG {
+            params.gravity = [0.0; 3];
+        }
+        ScenarioSpec {
+            scenario,
+            w,
+            h,
+            frames: 200,
+            seed: 0,
+            material: Material::COTTON,
+            tracking: DEFAULT_TRACKING,
+            scale: 2,
+            params,
+        }
+    }
+
+    pub fn validate(&self) -> Result<()> {
+        self.params.validate()?;
+        if self.w < 2 || self.h < 2 || self.w > 4096 || self.h > 4096 {
+            return Err(Error::config(format!(
+                "resolution must be between 2x2 and 4096x4096, got {}x{}",
+                self.w, self.h
+            )));
+        }
+        if self.frames == 0 {
+            return Err(Error::config("frames must be at least 1"));
+        }
+        if self.scale == 0 || self.scale > 8 {
+            return Err(Error::config(format!("scale must be in 1..=8, got {}", self.scale)));
+        }
+        if !(self.tracking.is_finite() && self.tracking >= 0.0) {
+            return Err(Error::config(format!(
+                "tracking must be finite and ≥ 0 (1/s²), got {}",
+                self.tracking
+            )));
+        }
+        Ok(())
+    }
+
+    /// Rest rectangle (width, height) in metres, fixed by the LR resolution.
+    pub fn size(&self) -> (f32, f32) {
+        let wd = self.scenario.width();
+        (wd, wd * (self.h - 1) as f32 / (self.w - 1) as f32)
+    }
+
+    /// Build the cloth and its scene at a `w × h` resolution over this spec's rest rectangle.
+    pub fn setup(&self, w: usize, h: usize) -> (Cloth, Scene) {
+        let (sx, sy) = self.size();
+        let uv: Vec<(f32, f32)> = (0..h).flat_map(|j| (0..w).map(move |i| rest_uv(i, j, w, h))).collect();
+        let corner = |i: usize, j: usize| (i == 0 || i + 1 == w) && (j == 0 || j + 1 == h);
+        let calm = Wind::none();
+        let (pos, pins_of, kinematics, wind, colliders): (Vec<[f32; 3]>, Vec<(usize, f32)>, _, _, _) =
+            match self.scenario {
+                Scenario::Flag | Scenario::FlagSphere => {
+                    // Vertical in the xy plane, top row pinned at y = 1.5 m; wind blows +z.
+                    let pos = uv.iter().map(|&(u, v)| [(u - 0.5) * sx, 1.5 - v * sy, 0.0]).collect();
+                    let pins = (0..w).map(|i| (i, 0.0)).collect();
+                    let kin = Kinematics::Flap { amplitude: 0.25, freq: 0.6, dir: [0.0, 0.0, 1.0] };
+                    let wind = Wind::gusty([0.5, 0.0, 2.5], 1.2, 4, self.seed);
+                    let col = if self.scenario == Scenario::FlagSphere {
+                        Colliders {
+                            sphere: Some(Sphere { center: [0.1, 1.5 - 0.75 * sy, 0.45], radius: 0.25 }),
+                            ground: None,
+                        }
+                    } else {
+                        Colliders::default()
+                    };
+                    (pos, pins, kin, wind, col)
+                }
+                Scenario::Drape => {
+                    // Horizontal (xz) at y = 1.0 m, centred over a sphere; corners lowered and
+                    // pulled in over the first 2 s.
+                    let pos = uv.iter().map(|&(u, v)| [(u - 0.5) * sx, 1.0, (v - 0.5) * sy]).collect();
+                    let pins =
+                        (0..h).flat_map(|j| (0..w).map(move |i| (i, j))).filter(|&(i, j)| corner(i, j));
+                    let pins = pins.map(|(i, j)| (j * w + i, 0.0)).collect();
+                    let kin = Kinematics::Drape { squeeze: 0.3, drop: 0.45, ramp: 2.0 };
+                    let col = Colliders {
+                        sphere: Some(Sphere { center: [0.0, 0.45, 0.0], radius: 0.3 }),
+                        ground: Some(0.0),
+                    };
+                    (pos, pins, kin, calm, col)
+                }
+                Scenario::Twist | Scenario::TwistMaterials | Scenario::TwistZeroG => {
+                    // Horizontal strip along x at y = 1.0 m; both end columns pinned and turned
+                    // about the strip's axis in opposite directions, moving slowly inward.
+                    let pos = uv.iter().map(|&(u, v)| [(u - 0.5) * sx, 1.0, (v - 0.5) * sy]).collect();
+                    let pins = (0..h).flat_map(|j| [(j * w, -1.0), (j * w + w - 1, 1.0)]).collect();
+                    let kin = Kinematics::Twist {
+                        center_y: 1.0,
+                        center_z: 0.0,
+                        omega: 0.5,
+                        inward_speed: 0.06,
+                        max_inward: 0.15 * sx,
+                    };
+                    (pos, pins, kin, calm, Colliders::default())
+                }
+            };
+        let rest = GridMesh::new(w, h, pos);
+        let pins: Vec<Pin> =
+            pins_of.iter().map(|&(v, side)| Pin { vertex: v, anchor: rest.pos[v], side }).collect();
+        let base = self.material;
+        let banded = self.scenario == Scenario::TwistMaterials;
+        let material = move |v: usize| {
+            if banded {
+                // Three bands along the strip: silk | rubber | denim.
+                let u = rest_uv(v % w, v / w, w, h).0;
+                if u < 1.0 / 3.0 {
+                    Material::SILK
+                } else if u < 2.0 / 3.0 {
+                    Material::RUBBER
+                } else {
+                    Material::DENIM
+                }
+            } else {
+                base
+            }
+        };
+        let cloth = Cloth::new(&rest, &material, pins);
+        (cloth, Scene { kinematics, wind, colliders })
+    }
+}
+
+fn check_finite(frame: &GridMesh, k: usize) -> Result<()> {
+    if frame.pos.iter().any(|p| p.iter().any(|c| !c.is_finite())) {
+        return Err(Error::numeric(format!(
+            "the simulation blew up (non-finite position) at frame {k}; try more substeps"
+        )));
+    }
+    Ok(())
+}
+
+/// Simulate `spec` at a `w × h` resolution; with `track = Some((lr_frames, strength))` the run
+/// is attached to the LR run (see [`super::tracking`]). `progress(k)` is called after frame k.
+pub fn run_at(
+    spec: &ScenarioSpec,
+    w: usize,
+    h: usize,
+    track: Option<(&[GridMesh], f32)>,
+    progress: &mut dyn FnMut(usize),
+) -> Result<Vec<GridMesh>> {
+    spec.validate()?;
+    if let Some((lr, _)) = track {
+        if lr.len() < spec.frames {
+            return Err(Error::shape(format!("tracking needs {} LR frames, got {}", spec.frames, lr.len())));
+        }
+    }
+    let (mut cloth, scene) = spec.setup(w, h);
+    let mut out = Vec::with_capacity(spec.frames);
+    out.push(cloth.mesh());
+    progress(0);
+    let mut targets = track.map(|(lr, _)| bilinear_targets(&lr[0], w, h));
+    for k in 1..spec.frames {
+        match (track, &targets) {
+            (Some((lr, strength)), Some(from)) => {
+                let to = bilinear_targets(&lr[k], w, h);
+                cloth.step(&spec.params, &scene, Some(&TrackTargets { from, to: &to, strength }));
+                targets = Some(to);
+            }
+            _ => cloth.step(&spec.params, &scene, None),
+        }
+        let m = cloth.mesh();
+        check_finite(&m, k)?;
+        out.push(m);
+        progress(k);
+    }
+    Ok(out)
+}
+
+/// Simulate `spec` at its own (LR) resolution.
+pub fn run_single(spec: &ScenarioSpec) -> Result<Vec<GridMesh>> {
+    run_at(spec, spec.w, spec.h, None, &mut |_| {})
+}
+
+/// The same scenario at `w × h` (LR) and `scale·w × scale·h` (HR), the HR run tracking the LR
+/// one with `spec.tracking` (0 = independent runs).
+pub fn paired_run(spec: &ScenarioSpec) -> Result<(Vec<GridMesh>, Vec<GridMesh>)> {
+    paired_run_with_progress(spec, &mut |_| {})
+}
+
+/// [`paired_run`] with a progress callback counting frames over both runs (0 .. 2·frames).
+pub fn paired_run_with_progress(
+    spec: &ScenarioSpec,
+    progress: &mut dyn FnMut(usize),
+) -> Result<(Vec<GridMesh>, Vec<GridMesh>)> {
+    let lr = run_at(spec, spec.w, spec.h, None, &mut |k| progress(k))?;
+    let track = if spec.tracking > 0.0 { Some((lr.as_slice(), spec.tracking)) } else { None };
+    let (hw, hh) = (spec.scale * spec.w, spec.scale * spec.h);
+    let hr = run_at(spec, hw, hh, track, &mut |k| progress(spec.frames + k))?;
+    Ok((lr, hr))
+}

@@ -1,0 +1,242 @@
+//! The XPBD substep loop (Macklin, Müller, Chentanez 2016; "small steps", Macklin et al. 2019).
+//!
+//! Per frame: external forces (gravity, wind drag on vertex normals) are evaluated once; then
+//! for each of `substeps` substeps of length h:
+//! predict `x ← x + h·v` (free) or move pins to their kinematic positions; project stretch,
+//! shear, bending and tracking constraints (Gauss–Seidel by colour, λ reset per substep);
+//! project contacts with friction; `v ← (x − x_prev)/h`.
+
+use super::collision::Colliders;
+use super::constraints::{bend_constraints, cross, distance_constraints, sub, Bend, Coloured, Distance};
+use super::kinematics::{Kinematics, Pin};
+use super::params::{Material, SimParams};
+use super::tracking::TrackTargets;
+use super::wind::Wind;
+use crate::geom::mesh::GridMesh;
+
+/// Everything outside the cloth: how pins move, the wind, the colliders.
+#[derive(Clone, Debug)]
+pub struct Scene {
+    pub kinematics: Kinematics,
+    pub wind: Wind,
+    pub colliders: Colliders,
+}
+
+/// A grid cloth and its simulation state.
+#[derive(Clone, Debug)]
+pub struct Cloth {
+    pub w: usize,
+    pub h: usize,
+    /// Positions (m) and velocities (m/s), vertex (i, j) at `j*w + i`.
+    pub x: Vec<[f32; 3]>,
+    pub v: Vec<[f32; 3]>,
+    prev: Vec<[f32; 3]>,
+    /// Inverse vertex masses (1/kg); 0 for pinned vertices.
+    pub inv_mass: Vec<f32>,
+    /// Lumped vertex area (m²), a third of the adjacent rest triangle areas.
+    pub area: Vec<f32>,
+    pub dist: Coloured<Distance>,
+    pub bend: Coloured<Bend>,
+    pub pins: Vec<Pin>,
+    /// Simulated time (s).
+    pub time: f32,
+    lambda_d: Vec<f32>,
+    lambda_b: Vec<[f32; 3]>,
+    accel: Vec<[f32; 3]>,
+}
+
+impl Cloth {
+    /// A cloth at rest in `rest` (flat), with per-vertex material and pinned vertices.
+    pub fn new(rest: &GridMesh, material: &dyn Fn(usize) -> Material, pins: Vec<Pin>) -> Cloth {
+        let n = rest.pos.len();
+        let mut area = vec![0.0f32; n];
+        for t in rest.triangles() {
+            let a = 0.5
+                * super::constraints::norm(cross(
+                    sub(rest.pos[t[1]], rest.pos[t[0]]),
+                    sub(rest.pos[t[2]], rest.pos[t[0]]),
+                ));
+            for &v in &t {
+                area[v] += a / 3.0;
+            }
+        }
+        let mut inv_mass: Vec<f32> = (0..n)
+            .map(|v| {
+                let m = material(v).density * area[v];
+                if m > 0.0 {
+                    1.0 / m
+                } else {
+                    0.0
+                }
+            })
+            .collect();
+        for p in &pins {
+            inv_mass[p.vertex] = 0.0;
+        }
+        let dist = distance_constraints(rest, material);
+        let bend = bend_constraints(rest, material);
+        Cloth {
+            w: rest.w,
+            h: rest.h,
+            x: rest.pos.clone(),
+            v: vec![[0.0; 3]; n],
+            prev: rest.pos.clone(),
+            inv_mass,
+            area,
+            lambda_d: vec![0.0; dist.items.len()],
+            lambda_b: vec![[0.0; 3]; bend.items.len()],
+            dist,
+            bend,
+            pins,
+            time: 0.0,
+            accel: vec![[0.0; 3]; n],
+        }
+    }
+
+    pub fn mesh(&self) -> GridMesh {
+        GridMesh::new(self.w, self.h, self.x.clone())
+    }
+
+    /// Area-weighted vertex normals (unit; zero for degenerate neighbourhoods).
+    pub fn normals(&self) -> Vec<[f32; 3]> {
+        let (w, h) = (self.w, self.h);
+        let mut nrm = vec![[0.0f32; 3]; w * h];
+        for j in 0..h.saturating_sub(1) {
+            for i in 0..w.saturating_sub(1) {
+                let a = j * w + i;
+                let (b, c, d) = (a + 1, a + w + 1, a + w);
+                let n = cross(sub(self.x[c], self.x[a]), sub(self.x[d], self.x[b]));
+                for v in [a, b, c, d] {
+                    for k in 0..3 {
+                        nrm[v][k] += n[k];
+                    }
+                }
+            }
+        }
+        for n in &mut nrm {
+            let l = super::constraints::norm(*n);
+            if l > 0.0 {
+                *n = [n[0] / l, n[1] / l, n[2] / l];
+            }
+        }
+        nrm
+    }
+
+    /// Advance one frame of `p.dt` seconds.
+    pub fn step(&mut self, p: &SimParams, scene: &Scene, track: Option<&TrackTargets>) {
+        let n = self.x.len();
+        let h = p.h();
+        // External accelerations, constant over the frame.
+        if scene.wind.is_calm() || p.drag == 0.0 {
+            self.accel.iter_mut().for_each(|a| *a = p.gravity);
+        } else {
+            let nrm = self.normals();
+            for (v, nv) in nrm.iter().enumerate() {
+                let wv = scene.wind.velocity(self.time, self.x[v]);
+                let rel = sub(wv, self.v[v]);
+                let rn = rel[0] * nv[0] + rel[1] * nv[1] + rel[2] * nv[2];
+                let f = p.drag * self.area[v] * rn * self.inv_mass[v];
+                self.accel[v] = std::array::from_fn(|k| p.gravity[k] + f * nv[k]);
+            }
+        }
+        let damp = (1.0 - p.damping * h).max(0.0);
+        let track_frac = track.filter(|t| t.strength > 0.0).map(|t| {
+            let s = t.strength * h * h;
+            s / (1.0 + s)
+        });
+        for s in 0..p.substeps {
+            let t = self.time + h * (s + 1) as f32;
+            self.prev.copy_from_slice(&self.x);
+            for v in 0..n {
+                if self.inv_mass[v] > 0.0 {
+                    let (x, vel, a) = (&mut self.x[v], &mut self.v[v], self.accel[v]);
+                    for k in 0..3 {
+                        vel[k] = (vel[k] + h * a[k]) * damp;
+                        x[k] += h * vel[k];
+                    }
+                }
+            }
+            for pin in &self.pins {
+                self.x[pin.vertex] = scene.kinematics.position(pin.anchor, pin.side, t);
+            }
+            self.lambda_d.iter_mut().for_each(|l| *l = 0.0);
+            self.lambda_b.iter_mut().for_each(|l| *l = [0.0; 3]);
+            let inv_h2 = 1.0 / (h * h);
+            for _ in 0..p.iterations {
+                solve_distance(&mut self.x, &self.inv_mass, &self.dist.items, &mut self.lambda_d, inv_h2);
+                solve_bend(&mut self.x, &self.inv_mass, &self.bend.items, &mut self.lambda_b, inv_h2);
+                if let (Some(frac), Some(tt)) = (track_frac, track) {
+                    let blend = (s + 1) as f32 / p.substeps as f32;
+                    for v in 0..n {
+                        if self.inv_mass[v] > 0.0 {
+                            for k in 0..3 {
+                                let target = tt.from[v][k] + blend * (tt.to[v][k] - tt.from[v][k]);
+                                self.x[v][k] += frac * (target - self.x[v][k]);
+                            }
+                        }
+                    }
+                }
+            }
+            scene.colliders.project(&mut self.x, &self.prev, &self.inv_mass, p.collision_margin, p.friction);
+            let inv_h = 1.0 / h;
+            for v in 0..n {
+                self.v[v] = std::array::from_fn(|k| (self.x[v][k] - self.prev[v][k]) * inv_h);
+            }
+        }
+        self.time += p.dt;
+    }
+}
+
+/// Gauss–Seidel projection of distance constraints (in colour order).
+fn solve_distance(x: &mut [[f32; 3]], w: &[f32], cs: &[Distance], lambda: &mut [f32], inv_h2: f32) {
+    for (c, l) in cs.iter().zip(lambda.iter_mut()) {
+        let (a, b) = (c.a as usize, c.b as usize);
+        let (wa, wb) = (w[a], w[b]);
+        let ws = wa + wb;
+        if ws == 0.0 {
+            continue;
+        }
+        let d = sub(x[a], x[b]);
+        let len = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+        if len < 1e-12 {
+            continue;
+        }
+        let at = c.alpha * inv_h2;
+        let dl = (-(len - c.rest) - at * *l) / (ws + at);
+        *l += dl;
+        let s = dl / len;
+        for k in 0..3 {
+            x[a][k] += wa * s * d[k];
+            x[b][k] -= wb * s * d[k];
+        }
+    }
+}
+
+/// Projection of the linear isometric-bending constraints `Σ k_j x_j = 0` (3 components).
+fn solve_bend(x: &mut [[f32; 3]], w: &[f32], cs: &[Bend], lambda: &mut [[f32; 3]], inv_h2: f32) {
+    for (c, l) in cs.iter().zip(lambda.iter_mut()) {
+        let vi = c.v.map(|v| v as usize);
+        let ws: f32 = (0..4).map(|j| w[vi[j]] * c.k[j] * c.k[j]).sum();
+        if ws == 0.0 {
+            continue;
+        }
+        let at = c.alpha * inv_h2;
+        let mut cv = [0.0f32; 3];
+        for j in 0..4 {
+            for k in 0..3 {
+                cv[k] += c.k[j] * x[vi[j]][k];
+            }
+        }
+        let denom = 1.0 / (ws + at);
+        let dl: [f32; 3] = std::array::from_fn(|k| (-cv[k] - at * l[k]) * denom);
+        for k in 0..3 {
+            l[k] += dl[k];
+        }
+        for j in 0..4 {
+            let f = w[vi[j]] * c.k[j];
+            for k in 0..3 {
+                x[vi[j]][k] += f * dl[k];
+            }
+        }
+    }
+}

@@ -1,0 +1,195 @@
+//! Checks of the XPBD cloth simulator and its scenarios.
+
+use anisocb::cloth::collision::Sphere;
+use anisocb::cloth::run_io::{read_run, write_pair, write_single};
+use anisocb::cloth::scenarios::run_at;
+use anisocb::cloth::tracking::bilinear_targets;
+use anisocb::cloth::{paired_run, run_single, Material, Scenario, ScenarioSpec};
+use anisocb::geom::geometry_image::{image_to_mesh, sequence_to_images};
+use anisocb::geom::mesh::dist;
+use anisocb::geom::{Domain, GridMesh};
+
+fn spec(s: Scenario, w: usize, h: usize, frames: usize) -> ScenarioSpec {
+    let mut sp = ScenarioSpec::new(s);
+    sp.w = w;
+    sp.h = h;
+    sp.frames = frames;
+    sp
+}
+
+fn bits(frames: &[GridMesh]) -> Vec<u32> {
+    frames.iter().flat_map(|f| f.pos.iter().flat_map(|p| p.map(f32::to_bits))).collect()
+}
+
+#[test]
+fn scenario_names_round_trip() {
+    for s in Scenario::ALL {
+        assert_eq!(Scenario::from_name(s.name()).unwrap(), s);
+        assert!(!s.description().is_empty(), "{s} has no description");
+    }
+    assert!(Scenario::from_name("cape").is_err());
+}
+
+#[test]
+fn pinned_vertices_do_not_move() {
+    // The drape's corners follow their kinematic path; the flag's pinned edge too. With a
+    // static pin set (kinematics evaluated at the anchor) check that free cloth never drags a
+    // pin away from where the kinematics put it.
+    for s in [Scenario::Flag, Scenario::Drape, Scenario::Twist] {
+        let sp = spec(s, 12, 10, 40);
+        let (cloth, scene) = sp.setup(sp.w, sp.h);
+        let frames = run_single(&sp).unwrap();
+        for (k, f) in frames.iter().enumerate() {
+            let t = k as f32 * sp.params.dt;
+            for pin in &cloth.pins {
+                let want = scene.kinematics.position(pin.anchor, pin.side, t);
+                let got = f.pos[pin.vertex];
+                assert!(
+                    dist(want, got) < 1e-5,
+                    "{s}: frame {k} pin {} at {got:?}, want {want:?}",
+                    pin.vertex
+                );
+            }
+        }
+    }
+    // A flag whose edge does not flap: the pinned row stays exactly at rest.
+    let mut sp = spec(Scenario::Flag, 10, 10, 30);
+    sp.params.gravity = [0.0, -9.81, 0.0];
+    let frames = run_single(&sp).unwrap();
+    let rest = &frames[0];
+    let (cloth, _) = sp.setup(10, 10);
+    assert_eq!(cloth.pins.len(), 10);
+    for p in &cloth.pins {
+        assert_eq!(rest.pos[p.vertex], p.anchor);
+    }
+}
+
+#[test]
+fn stretch_stays_within_a_few_percent_for_stiff_cloth() {
+    // Denim flag hanging under gravity and wind: mean edge strain of the last frames is small
+    // and no edge stretches more than 10 %.
+    let mut sp = spec(Scenario::Flag, 24, 24, 90);
+    sp.material = Material::DENIM;
+    let frames = run_single(&sp).unwrap();
+    let rest = &frames[0];
+    let mut worst = 0.0f32;
+    let mut mean = 0.0f32;
+    let mut n = 0;
+    for f in &frames[60..] {
+        for j in 0..f.h {
+            for i in 0..f.w - 1 {
+                let (a, b) = (f.idx(i, j), f.idx(i + 1, j));
+                let s = dist(f.pos[a], f.pos[b]) / dist(rest.pos[a], rest.pos[b]) - 1.0;
+                worst = worst.max(s);
+                mean += s.abs();
+                n += 1;
+            }
+        }
+    }
+    mean /= n as f32;
+    println!("row-edge strain: mean |s| {mean:.4}, max {worst:.4}");
+    assert!(mean < 0.03, "mean strain {mean}");
+    assert!(worst < 0.10, "max strain {worst}");
+}
+
+#[test]
+fn nothing_penetrates_the_sphere_beyond_the_margin() {
+    for s in [Scenario::FlagSphere, Scenario::Drape] {
+        let sp = spec(s, 20, 20, 120);
+        let (_, scene) = sp.setup(sp.w, sp.h);
+        let Sphere { center, radius } = scene.colliders.sphere.unwrap();
+        let frames = run_single(&sp).unwrap();
+        let mut closest = f32::INFINITY;
+        for f in &frames {
+            for p in &f.pos {
+                closest = closest.min(dist(*p, center));
+            }
+        }
+        println!("{s}: closest vertex {closest:.4} m from the centre, radius {radius}");
+        assert!(closest >= radius - 1e-4, "{s}: a vertex is {closest} from the centre (radius {radius})");
+        assert!(closest < radius + 0.05, "{s}: the cloth never reached the sphere (closest {closest})");
+    }
+}
+
+#[test]
+fn same_seed_gives_bit_identical_runs() {
+    let mut sp = spec(Scenario::FlagSphere, 10, 10, 25);
+    sp.seed = 7;
+    let (a_lr, a_hr) = paired_run(&sp).unwrap();
+    let (b_lr, b_hr) = paired_run(&sp).unwrap();
+    assert_eq!(bits(&a_lr), bits(&b_lr));
+    assert_eq!(bits(&a_hr), bits(&b_hr));
+    sp.seed = 8;
+    let c = run_single(&sp).unwrap();
+    assert_ne!(bits(&a_lr), bits(&c), "the seed should change the wind");
+}
+
+#[test]
+fn geometry_images_of_a_run_round_trip() {
+    let frames = run_single(&spec(Scenario::Twist, 16, 6, 30)).unwrap();
+    let d = Domain::enclosing(&frames, 0.05);
+    let img = sequence_to_images(&frames, &d);
+    assert_eq!(img.shape, vec![30, 3, 6, 16]);
+    assert!(img.data.iter().all(|&c| (0.0..=1.0).contains(&c)));
+    for (k, f) in frames.iter().enumerate() {
+        let back = image_to_mesh(&img, k, &d);
+        for (a, b) in f.pos.iter().zip(&back.pos) {
+            for c in 0..3 {
+                assert!((a[c] - b[c]).abs() <= 4.0 * f32::EPSILON * (1.0 + a[c].abs()), "{a:?} vs {b:?}");
+            }
+        }
+    }
+}
+
+/// Mean distance (m) between HR vertices and the LR run sampled at their rest (u, v).
+fn lr_hr_gap(lr: &[GridMesh], hr: &[GridMesh]) -> f32 {
+    let mut s = 0.0;
+    let mut n = 0;
+    for (l, h) in lr.iter().zip(hr) {
+        let t = bilinear_targets(l, h.w, h.h);
+        for (a, b) in t.iter().zip(&h.pos) {
+            s += dist(*a, *b);
+            n += 1;
+        }
+    }
+    s / n as f32
+}
+
+#[test]
+fn tracking_reduces_the_low_frequency_lr_hr_difference() {
+    let mut sp = spec(Scenario::FlagSphere, 12, 12, 150);
+    sp.tracking = 0.0;
+    let (lr, hr_free) = paired_run(&sp).unwrap();
+    sp.tracking = anisocb::cloth::scenarios::DEFAULT_TRACKING;
+    let (lr2, hr_tracked) = paired_run(&sp).unwrap();
+    assert_eq!(bits(&lr), bits(&lr2), "the LR run must not depend on tracking");
+    let (free, tracked) = (lr_hr_gap(&lr, &hr_free), lr_hr_gap(&lr, &hr_tracked));
+    println!("mean LR/HR gap: free {free:.4} m, tracked {tracked:.4} m");
+    assert!(tracked < 0.8 * free, "tracking should pull HR toward LR: free {free}, tracked {tracked}");
+}
+
+#[test]
+fn run_directory_round_trips() {
+    let dir = std::env::temp_dir().join(format!("anisocb-sim-test-{}", std::process::id()));
+    let sp = spec(Scenario::TwistZeroG, 8, 4, 5);
+    let frames = run_at(&sp, 8, 4, None, &mut |_| {}).unwrap();
+    let img = write_single(&dir.join("one"), &sp, &frames, true).unwrap();
+    let (img2, d, meta) = read_run(&dir.join("one")).unwrap();
+    assert_eq!(img, img2);
+    assert!(meta.contains("\"scenario\": \"twist-zero-g\""), "{meta}");
+    let back = anisocb::geom::obj::read_obj_grid(&dir.join("one/obj/frame_0004.obj")).unwrap();
+    assert_eq!(back, frames[4]);
+    let dm = image_to_mesh(&img2, 4, &d);
+    assert!(dm.pos.iter().zip(&frames[4].pos).all(|(a, b)| dist(*a, *b) < 1e-5));
+
+    let (lr, hr) = paired_run(&sp).unwrap();
+    write_pair(&dir.join("pair"), &sp, &lr, &hr, false).unwrap();
+    let (li, ld, _) = read_run(&dir.join("pair/lr")).unwrap();
+    let (hi, hd, hmeta) = read_run(&dir.join("pair/hr")).unwrap();
+    assert_eq!(ld, hd, "LR and HR must share one domain");
+    assert_eq!(li.shape, vec![5, 3, 4, 8]);
+    assert_eq!(hi.shape, vec![5, 3, 8, 16]);
+    assert!(hmeta.contains("\"role\": \"hr\""));
+    assert!(read_run(&dir.join("missing")).is_err());
+    let _ = std::fs::remove_dir_all(&dir);
+}
