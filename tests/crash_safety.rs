@@ -48,9 +48,14 @@ fn run_ok(args: &[&str]) -> Duration {
 
 /// Start, then SIGKILL after `after` unless it finished first. Returns true if it finished.
 fn run_killed(args: &[&str], after: Duration) -> bool {
+    run_killed_when(args, |t| t >= after)
+}
+
+/// Start, then SIGKILL as soon as `kill_now(elapsed)` says so, unless it finished first.
+fn run_killed_when(args: &[&str], mut kill_now: impl FnMut(Duration) -> bool) -> bool {
     let mut child = bin().args(args).spawn().unwrap();
     let t = Instant::now();
-    while t.elapsed() < after {
+    while !kill_now(t.elapsed()) {
         if let Some(status) = child.try_wait().unwrap() {
             let mut err = String::new();
             use std::io::Read;
@@ -179,10 +184,36 @@ fn killed_training_resumes_to_the_same_bits_and_never_leaves_a_partial_checkpoin
         if ckpt.exists() {
             a.push("--resume".into());
         }
-        let after = clean.mul_f64(0.05 + 0.45 * rng.unit());
-        done = run_killed(&a.iter().map(String::as_str).collect::<Vec<_>>(), after);
+        // The first kill comes early (before any checkpoint, on any machine speed); later
+        // ones after 1–4 new checkpoint versions plus 0–15 ms, so they fall before, during
+        // and after checkpoint writes whatever the load on the machine.
+        let argv: Vec<&str> = a.iter().map(String::as_str).collect();
+        let what;
+        if kills == 0 {
+            let after = clean.mul_f64(0.03);
+            what = format!("after {after:?}");
+            done = run_killed(&argv, after);
+        } else {
+            let (target, jitter) = (1 + rng.next() % 4, Duration::from_micros(rng.next() % 15_000));
+            what = format!("after {target} checkpoints + {jitter:?}");
+            let stamp = || std::fs::metadata(&ckpt).and_then(|m| m.modified()).ok();
+            let (mut last, mut seen, mut since) = (stamp(), 0, None::<Duration>);
+            done = run_killed_when(&argv, |t| {
+                if let Some(s) = since {
+                    return t >= s + jitter;
+                }
+                let now = stamp();
+                if now != last {
+                    (last, seen) = (now, seen + 1);
+                    if seen >= target {
+                        since = Some(t);
+                    }
+                }
+                false
+            });
+        }
         let step = std::fs::read_to_string(out.join("loss.csv")).map(|s| s.lines().count()).unwrap_or(0);
-        eprintln!("train: kill after {after:?}: finished={done}, loss.csv rows={step}");
+        eprintln!("train: kill {what}: finished={done}, loss.csv rows={step}");
         if ckpt.exists() {
             let e = read_npz(&ckpt).unwrap_or_else(|e| panic!("partial checkpoint after a kill: {e}"));
             assert!(e.file("trainer.json").is_some(), "checkpoint without trainer.json");
@@ -200,6 +231,7 @@ fn killed_training_resumes_to_the_same_bits_and_never_leaves_a_partial_checkpoin
         run_ok(&a.iter().map(String::as_str).collect::<Vec<_>>());
     }
     assert!(kills > 0, "no run was interrupted (clean run took {clean:?})");
+    let _ = Rng::unit; // used by the upscale test
     let got = snapshot(&out);
     let names = |s: &[(String, Vec<u8>)]| s.iter().map(|f| f.0.clone()).collect::<Vec<_>>();
     assert_eq!(names(&got), names(&want));
