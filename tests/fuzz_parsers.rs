@@ -286,3 +286,17 @@ fn fuzz_config_json() {
         NetConfig::from_json(&text).is_ok() || parsed
     });
 }
+
+#[test]
+fn fuzz_obj_reader() {
+    use anisocb::geom::obj::{obj_text, obj_to_grid, parse_obj};
+    use anisocb::geom::GridMesh;
+    let mut m = GridMesh::flat(4, 3, 1.0, 0.5);
+    m.pos[5][2] = 0.1;
+    let seeds = vec![obj_text(&m, true).into_bytes(), obj_text(&m, false).into_bytes()];
+    let p = std::path::Path::new("fuzz.obj");
+    fuzz("obj", &seeds, |b| {
+        let text = String::from_utf8_lossy(b);
+        parse_obj(&text, p).and_then(|o| obj_to_grid(&o, p)).is_ok()
+    });
+}

@@ -605,3 +605,132 @@ fn cli_train_refuses_bad_inputs_and_writes_nothing() {
     assert!(err.contains(&ckpt.display().to_string()), "{err}");
     assert_eq!(file_names(&out), ["checkpoint.npz"]);
 }
+
+// ---------------------------------------------------------------------------------------------
+// OBJ grids (geom::obj)
+
+/// OBJ text of a w×h grid of quads (vertex (i, j) at j*w+i, 1-based in faces).
+fn grid_obj(w: usize, h: usize) -> String {
+    let mut s = String::new();
+    for j in 0..h {
+        for i in 0..w {
+            s +=
+                &format!("v {} {} {}\n", i as f32 * 0.1, j as f32 * 0.1, ((i + j) as f32 * 0.3).sin() * 0.05);
+        }
+    }
+    for j in 0..h - 1 {
+        for i in 0..w - 1 {
+            let v = j * w + i + 1;
+            s += &format!("f {} {} {} {}\n", v, v + 1, v + 1 + w, v + w);
+        }
+    }
+    s
+}
+
+#[test]
+fn obj_catalogue_each_bad_file_gives_its_error() {
+    use anisocb::geom::obj::read_obj_grid;
+    let d = scratch("obj");
+    let good = grid_obj(3, 3);
+    let lines: Vec<&str> = good.lines().collect();
+    let without_vertex_5: String =
+        lines.iter().enumerate().filter(|(k, _)| *k != 4).map(|(_, l)| format!("{l}\n")).collect();
+    let cases: Vec<(&str, Vec<u8>, &[&str])> = vec![
+        ("empty.obj", vec![], &["no faces"]),
+        ("only_comments.obj", b"# nothing here\n\n".to_vec(), &["no faces"]),
+        ("binary.obj", vec![0xFF, 0xFE, 0x00, 0x80, 0x81], &["UTF-8"]),
+        (
+            "nan.obj",
+            good.replacen("v 0.1 0 0", "v nan 0 0", 1).into_bytes(),
+            &["line 2", "non-finite coordinate 'nan'"],
+        ),
+        ("inf.obj", good.replacen("v 0.1 0 0", "v 0.1 inf 0", 1).into_bytes(), &["line 2", "non-finite"]),
+        ("overflow.obj", good.replacen("v 0.1 0 0", "v 1e39 0 0", 1).into_bytes(), &["line 2", "non-finite"]),
+        (
+            "bad_number.obj",
+            good.replacen("v 0.1 0 0", "v 0.1 zero 0", 1).into_bytes(),
+            &["line 2", "bad coordinate 'zero'"],
+        ),
+        (
+            "two_coords.obj",
+            good.replacen("v 0.1 0 0", "v 0.1 0", 1).into_bytes(),
+            &["line 2", "3 coordinates"],
+        ),
+        ("absent_vertex.obj", format!("{good}f 1 2 99 4\n").into_bytes(), &["vertex 99", "9 vertices"]),
+        ("index_zero.obj", good.replacen("f 1 2", "f 0 2", 1).into_bytes(), &["vertex 0"]),
+        ("missing_vertex.obj", without_vertex_5.into_bytes(), &["vertex 9", "8 vertices"]),
+        ("bad_index.obj", good.replacen("f 1 2", "f one 2", 1).into_bytes(), &["bad face index 'one'"]),
+        (
+            "duplicate_vertex.obj",
+            format!("v 0 0 0\n{good}").replace("f ", "f_").replace("f_", "f ").into_bytes(),
+            &["not a regular grid"],
+        ),
+        (
+            "unused_vertex.obj",
+            format!("{good}v 5 5 5\n").into_bytes(),
+            &["not a regular grid", "vertex 10 is not used"],
+        ),
+        ("pentagon.obj", format!("{good}f 1 2 3 6 5\n").into_bytes(), &["not a regular grid", "5 vertices"]),
+        ("mixed.obj", format!("{good}f 1 2 5\n").into_bytes(), &["not a regular grid", "mixes"]),
+        (
+            "odd_triangles.obj",
+            "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n".into(),
+            &["not a regular grid", "cannot pair"],
+        ),
+        (
+            "cube.obj",
+            "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0 0 1\nv 1 0 1\nv 1 1 1\nv 0 1 1\n\
+             f 1 2 3 4\nf 5 6 7 8\nf 1 2 6 5\nf 2 3 7 6\nf 3 4 8 7\nf 4 1 5 8\n"
+                .into(),
+            &["not a regular grid", "corner"],
+        ),
+        (
+            // an L shape: a 3×3 grid of cells missing one corner cell
+            "l_shape.obj",
+            {
+                let g = grid_obj(4, 4);
+                g.lines()
+                    .filter(|l| *l != "f 11 12 16 15")
+                    .map(|l| format!("{l}\n"))
+                    .collect::<String>()
+                    .into_bytes()
+            },
+            &["not a regular grid"],
+        ),
+        (
+            "shared_edge.obj",
+            format!("{good}v 0 0 1\nv 0.1 0 1\nf 1 2 11 10\n").into_bytes(),
+            &["not a regular grid"],
+        ),
+        (
+            "repeated_vertex.obj",
+            good.replacen("f 1 2 5 4", "f 1 2 2 4", 1).into_bytes(),
+            &["not a regular grid"],
+        ),
+    ];
+    for (name, bytes, want) in cases {
+        let p = write(&d, name, &bytes);
+        let (r, big) = largest_alloc(|| read_obj_grid(&p));
+        expect_err(r, &p, want);
+        assert!(big <= 64 * 1024 + 64 * bytes.len(), "{name}: allocated {big} bytes");
+    }
+    let p = write(&d, "ok.obj", good.as_bytes());
+    let m = read_obj_grid(&p).unwrap();
+    assert_eq!((m.w, m.h), (3, 3));
+}
+
+#[test]
+fn obj_sequences_with_differing_grids_or_no_files_are_refused() {
+    use anisocb::geom::obj::{list_obj_files, read_obj_sequence};
+    let d = scratch("obj_seq");
+    let a = write(&d, "frame_1.obj", grid_obj(3, 3).as_bytes());
+    let b = write(&d, "frame_2.obj", grid_obj(4, 3).as_bytes());
+    expect_err(read_obj_sequence(&[a.clone(), b.clone()]).map(|_| ()), &b, &["4x3", "first frame is 3x3"]);
+    let c = write(&d, "frame_3.obj", grid_obj(3, 3).replacen("v 0.1 0 0", "v nan 0 0", 1).as_bytes());
+    expect_err(read_obj_sequence(&[a.clone(), c.clone()]).map(|_| ()), &c, &["non-finite"]);
+    let empty = d.join("empty_dir");
+    std::fs::create_dir_all(&empty).unwrap();
+    expect_err(list_obj_files(&empty), &empty, &["no .obj files"]);
+    let missing = d.join("nope.obj");
+    expect_err(read_obj_sequence(&[a, missing.clone()]).map(|_| ()), &missing, &["No such file"]);
+}
