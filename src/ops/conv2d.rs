@@ -114,9 +114,285 @@ pub fn conv2d_backward_ref(
     }
 }
 
+// ---------------------------------------------------------------------------------------------
+// Fast path.
+//
+// Layout: activations are repacked at the op boundary into a padded, channels-last ("NHWC")
+// buffer, so one input pixel's channels are contiguous and the padding (zero or replicate) is
+// materialised once. Weights are packed per block of up to 64 output channels as
+// [tap][c_in][64]. The micro-kernel keeps P pixels × OV·16 output channels of one output row in
+// f32x16 accumulators (P·OV ≤ 24 registers), and for every (tap, c_in) loads OV weight vectors
+// and broadcasts P input values: P·OV FMAs per P+OV loads. Each output row is one rayon task;
+// the row is accumulated in a small NHWC scratch and scattered to NCHW at the end (no extra
+// pass over memory). The input gradient is the same kernel with flipped, transposed weights on
+// the padded dy ("full" correlation + fold of the border for replicate padding). The weight
+// gradient is one GEMM per tap (dW_tap += dY · X_shift) through faer, on the padded pixel grid
+// so that X_shift is a plain strided view; the K axis is cut into fixed chunks (independent of
+// the thread count) whose partial sums are added in a fixed order, so results are
+// deterministic.
+// ---------------------------------------------------------------------------------------------
+
+use rayon::prelude::*;
+use wide::f32x16;
+
+const L: usize = 16; // f32 lanes per vector
+const OB: usize = 64; // output channels per weight block (4 vectors)
+const PMAX: usize = 6; // pixels per micro-tile at OV = 4
+
+/// Raw pointer that rayon tasks may share; every task writes a disjoint set of elements.
+#[derive(Clone, Copy)]
+struct SyncPtr(*mut f32);
+unsafe impl Send for SyncPtr {}
+unsafe impl Sync for SyncPtr {}
+impl SyncPtr {
+    /// The pointer (a method, so closures capture the whole Sync wrapper).
+    #[inline]
+    fn get(self) -> *mut f32 {
+        self.0
+    }
+}
+
+/// Padded channels-last copy of `x` (N, C, H, W): returns (N·Hp·Wp + extra) pixels × C floats,
+/// pixel (n, Y, X) at ((n·Hp + Y)·Wp + X)·C, holding x[n, :, Y−ph, X−pw] with `pad` applied.
+/// The `extra` trailing pixels are zero (slack for strided views that run past the end).
+fn pad_nhwc(x: &Tensor, ph: usize, pw: usize, pad: Padding, extra: usize) -> (Vec<f32>, usize, usize) {
+    let (n, c, h, w) = x.dims4();
+    let (hp, wp) = (h + 2 * ph, w + 2 * pw);
+    let mut out = vec![0.0f32; (n * hp * wp + extra) * c];
+    let row_len = wp * c;
+    out[..n * hp * row_len].par_chunks_mut(row_len).enumerate().for_each(|(r, dst)| {
+        let (ni, yy) = (r / hp, r % hp);
+        let Some(sy) = pad_index(yy as isize - ph as isize, h, pad) else {
+            return;
+        };
+        for ci in 0..c {
+            let src = &x.data[((ni * c + ci) * h + sy) * w..][..w];
+            for xx in 0..wp {
+                if let Some(sx) = pad_index(xx as isize - pw as isize, w, pad) {
+                    dst[xx * c + ci] = src[sx];
+                }
+            }
+        }
+    });
+    (out, hp, wp)
+}
+
+/// Weights packed for the micro-kernel: for each block of ≤ 64 output channels (rounded up to
+/// whole vectors, zero-filled), [ky][kx][c_in][ov·16]. `get(o, c, ky, kx)` reads the logical
+/// weight of output channel o, input channel c.
+struct Packed {
+    data: Vec<f32>,
+    /// (offset, vectors) per block.
+    blocks: Vec<(usize, usize)>,
+    /// Output channels rounded up to a multiple of 16.
+    opad: usize,
+}
+
+fn pack_weights(
+    o: usize,
+    c: usize,
+    kh: usize,
+    kw: usize,
+    get: impl Fn(usize, usize, usize, usize) -> f32,
+) -> Packed {
+    let opad = o.div_ceil(L) * L;
+    let mut data = vec![0.0f32; opad * c * kh * kw];
+    let mut blocks = Vec::new();
+    let mut off = 0;
+    for ob in (0..opad).step_by(OB) {
+        let ov = ((opad - ob) / L).min(OB / L);
+        let wdt = ov * L;
+        for ky in 0..kh {
+            for kx in 0..kw {
+                for ci in 0..c {
+                    let base = off + ((ky * kw + kx) * c + ci) * wdt;
+                    for j in 0..wdt {
+                        if ob + j < o {
+                            data[base + j] = get(ob + j, ci, ky, kx);
+                        }
+                    }
+                }
+            }
+        }
+        blocks.push((off, ov));
+        off += kh * kw * c * wdt;
+    }
+    Packed { data, blocks, opad }
+}
+
+/// Micro-kernel: P pixels × OV vectors of output channels of one output row.
+/// `xp` points at input pixel (Y = y, X = x0) of the padded NHWC buffer (row stride `wp`
+/// pixels, `c` channels); `wk` at the block's packed weights; `acc_out` at the row scratch
+/// (pixel stride `opad`), already holding the initial value (bias or 0), and receives the sum.
+///
+/// # Safety
+/// All reads/writes must be in bounds: rows y..y+kh, columns x0..x0+P+kw−1 of `xp`.
+#[inline(always)]
+#[allow(clippy::too_many_arguments, clippy::needless_range_loop)]
+unsafe fn micro<const OV: usize, const P: usize>(
+    xp: *const f32,
+    wp: usize,
+    c: usize,
+    kh: usize,
+    kw: usize,
+    wk: *const f32,
+    acc_out: *mut f32,
+    opad: usize,
+) {
+    let mut acc = [[f32x16::ZERO; OV]; P];
+    for p in 0..P {
+        for j in 0..OV {
+            acc[p][j] = (acc_out.add(p * opad + j * L) as *const f32x16).read_unaligned();
+        }
+    }
+    let wstride = OV * L;
+    for ky in 0..kh {
+        for kx in 0..kw {
+            let xb = xp.add((ky * wp + kx) * c);
+            let wb = wk.add((ky * kw + kx) * c * wstride);
+            for ci in 0..c {
+                let mut wv = [f32x16::ZERO; OV];
+                for j in 0..OV {
+                    wv[j] = (wb.add(ci * wstride + j * L) as *const f32x16).read_unaligned();
+                }
+                for p in 0..P {
+                    let xv = f32x16::splat(*xb.add(p * c + ci));
+                    for j in 0..OV {
+                        acc[p][j] = xv.mul_add(wv[j], acc[p][j]);
+                    }
+                }
+            }
+        }
+    }
+    for p in 0..P {
+        for j in 0..OV {
+            (acc_out.add(p * opad + j * L) as *mut f32x16).write_unaligned(acc[p][j]);
+        }
+    }
+}
+
+macro_rules! dispatch_p {
+    ($ov:literal, $np:expr, $($args:expr),*) => {
+        match $np {
+            1 => micro::<$ov, 1>($($args),*),
+            2 => micro::<$ov, 2>($($args),*),
+            3 => micro::<$ov, 3>($($args),*),
+            4 => micro::<$ov, 4>($($args),*),
+            5 => micro::<$ov, 5>($($args),*),
+            6 => micro::<$ov, 6>($($args),*),
+            7 => micro::<$ov, 7>($($args),*),
+            8 => micro::<$ov, 8>($($args),*),
+            9 => micro::<$ov, 9>($($args),*),
+            10 => micro::<$ov, 10>($($args),*),
+            11 => micro::<$ov, 11>($($args),*),
+            12 => micro::<$ov, 12>($($args),*),
+            _ => unreachable!(),
+        }
+    };
+}
+
+/// Max pixels per tile for OV vectors (keeps P·OV + OV + 1 ≤ 32 registers).
+fn pmax(ov: usize) -> usize {
+    match ov {
+        4 => PMAX,
+        3 => 7,
+        2 => 10,
+        _ => 12,
+    }
+}
+
+/// Correlate a padded NHWC input (n images of hp×wp pixels, c channels) with packed weights
+/// into out_h × out_w outputs per image: out[y][x] = init + Σ_taps,c w · xp[y+ky][x+kx].
+/// For each output row, `sink(n, y, row)` gets the row as NHWC scratch (out_w × opad floats).
+#[allow(clippy::too_many_arguments)]
+fn correlate_rows(
+    xp: &[f32],
+    n: usize,
+    hp: usize,
+    wp: usize,
+    c: usize,
+    kh: usize,
+    kw: usize,
+    pk: &Packed,
+    init: Option<&[f32]>,
+    out_h: usize,
+    out_w: usize,
+    sink: &(dyn Fn(usize, usize, &[f32]) + Sync),
+) {
+    assert!(out_h + kh - 1 <= hp && out_w + kw - 1 <= wp);
+    assert!(xp.len() >= n * hp * wp * c);
+    let opad = pk.opad;
+    (0..n * out_h).into_par_iter().for_each_init(
+        || vec![0.0f32; out_w * opad],
+        |row, r| {
+            let (ni, y) = (r / out_h, r % out_h);
+            for x in 0..out_w {
+                let dst = &mut row[x * opad..][..opad];
+                match init {
+                    Some(b) => dst.copy_from_slice(b),
+                    None => dst.fill(0.0),
+                }
+            }
+            let xrow = ((ni * hp + y) * wp) * c;
+            for (bi, &(off, ov)) in pk.blocks.iter().enumerate() {
+                let pm = pmax(ov);
+                // Near-equal tiles of ≤ pm pixels.
+                let tiles = out_w.div_ceil(pm);
+                let mut x0 = 0;
+                for t in 0..tiles {
+                    let np = (out_w - x0) / (tiles - t) + usize::from((out_w - x0) % (tiles - t) != 0);
+                    let np = np.min(pm);
+                    // SAFETY: rows y..y+kh < hp and columns x0..x0+np+kw−1 ≤ wp of image ni
+                    // (asserted above); the scratch has out_w × opad floats.
+                    unsafe {
+                        let xptr = xp.as_ptr().add(xrow + x0 * c);
+                        let wptr = pk.data.as_ptr().add(off);
+                        let aptr = row.as_mut_ptr().add(x0 * opad + bi * OB);
+                        match ov {
+                            4 => dispatch_p!(4, np, xptr, wp, c, kh, kw, wptr, aptr, opad),
+                            3 => dispatch_p!(3, np, xptr, wp, c, kh, kw, wptr, aptr, opad),
+                            2 => dispatch_p!(2, np, xptr, wp, c, kh, kw, wptr, aptr, opad),
+                            _ => dispatch_p!(1, np, xptr, wp, c, kh, kw, wptr, aptr, opad),
+                        }
+                    }
+                    x0 += np;
+                }
+                debug_assert_eq!(x0, out_w);
+            }
+            sink(ni, y, row);
+        },
+    );
+}
+
 /// Fast forward (same contract as [`conv2d_ref`]).
 pub fn conv2d(x: &Tensor, w: &Tensor, b: Option<&Tensor>, pad: Padding) -> Tensor {
-    conv2d_ref(x, w, b, pad) // TODO(engine issue): SIMD + rayon path
+    let (n, c, h, wd) = x.dims4();
+    let (o, c2, kh, kw) = w.dims4();
+    assert_eq!(c, c2, "conv2d: x has {c} channels, weight expects {c2}");
+    assert!(kh % 2 == 1 && kw % 2 == 1, "conv2d: odd kernels only, got {kh}x{kw}");
+    let (ph, pw) = (kh / 2, kw / 2);
+    let (xp, hp, wp) = pad_nhwc(x, ph, pw, pad, 0);
+    let pk = pack_weights(o, c, kh, kw, |oi, ci, ky, kx| w.data[w.idx4(oi, ci, ky, kx)]);
+    let bias: Option<Vec<f32>> = b.map(|b| {
+        let mut v = vec![0.0; pk.opad];
+        v[..o].copy_from_slice(&b.data[..o]);
+        v
+    });
+    let mut y = Tensor::zeros(&[n, o, h, wd]);
+    let yp = SyncPtr(y.data.as_mut_ptr());
+    let opad = pk.opad;
+    let sink = move |ni: usize, yy: usize, row: &[f32]| {
+        for oi in 0..o {
+            // SAFETY: row (ni, yy) of every plane is written by this task only.
+            let dst =
+                unsafe { std::slice::from_raw_parts_mut(yp.get().add(((ni * o + oi) * h + yy) * wd), wd) };
+            for (xx, d) in dst.iter_mut().enumerate() {
+                *d = row[xx * opad + oi];
+            }
+        }
+    };
+    correlate_rows(&xp, n, hp, wp, c, kh, kw, &pk, bias.as_deref(), h, wd, &sink);
+    y
 }
 
 /// Fast backward (same contract as [`conv2d_backward_ref`]).
@@ -129,5 +405,146 @@ pub fn conv2d_backward(
     dw: &mut Tensor,
     db: Option<&mut Tensor>,
 ) {
-    conv2d_backward_ref(x, w, dy, pad, dx, dw, db) // TODO(engine issue): fast path
+    let (n, c, h, wd) = x.dims4();
+    let (o, c2, _, _) = w.dims4();
+    assert_eq!(c, c2, "conv2d_backward: x has {c} channels, weight expects {c2}");
+    assert_eq!(dy.shape, [n, o, h, wd], "conv2d_backward: dy shape");
+    assert_eq!(dw.shape, w.shape, "conv2d_backward: dw shape");
+    if let Some(dx) = dx {
+        assert_eq!(dx.shape, x.shape, "conv2d_backward: dx shape");
+        conv2d_input_grad(w, dy, pad, dx);
+    }
+    conv2d_weight_grad(x, dy, pad, dw);
+    if let Some(db) = db {
+        let hw = h * wd;
+        let sums: Vec<f32> = (0..o)
+            .into_par_iter()
+            .map(|oi| (0..n).map(|ni| dy.data[(ni * o + oi) * hw..][..hw].iter().sum::<f32>()).sum())
+            .collect();
+        for (d, s) in db.data.iter_mut().zip(sums) {
+            *d += s;
+        }
+    }
+}
+
+/// dx += ∂L/∂x. dy: (N, O, H, W), w: (O, C, KH, KW), dx: (N, C, H, W).
+pub fn conv2d_input_grad(w: &Tensor, dy: &Tensor, pad: Padding, dx: &mut Tensor) {
+    let (n, o, h, wd) = dy.dims4();
+    let (_, c, kh, kw) = w.dims4();
+    let (ph, pw) = (kh / 2, kw / 2);
+    // Transposed, flipped weights: w'[c][o][ky][kx] = w[o][c][kh−1−ky][kw−1−kx].
+    let pk = pack_weights(c, o, kh, kw, |ci, oi, ky, kx| w.data[w.idx4(oi, ci, kh - 1 - ky, kw - 1 - kx)]);
+    let opad = pk.opad;
+    match pad {
+        Padding::Zero => {
+            let (dyp, hp, wp) = pad_nhwc(dy, ph, pw, Padding::Zero, 0);
+            let dxp = SyncPtr(dx.data.as_mut_ptr());
+            let sink = move |ni: usize, yy: usize, row: &[f32]| {
+                for ci in 0..c {
+                    // SAFETY: row (ni, yy) of every plane is written by this task only.
+                    let dst = unsafe {
+                        std::slice::from_raw_parts_mut(dxp.get().add(((ni * c + ci) * h + yy) * wd), wd)
+                    };
+                    for (xx, d) in dst.iter_mut().enumerate() {
+                        *d += row[xx * opad + ci];
+                    }
+                }
+            };
+            correlate_rows(&dyp, n, hp, wp, o, kh, kw, &pk, None, h, wd, &sink);
+        }
+        Padding::Replicate => {
+            // Gradient w.r.t. the padded input ((H+2ph) × (W+2pw)), a "full" correlation of dy
+            // zero-padded by (kh−1, kw−1); then fold the border onto the clamped pixels.
+            let (dyq, hq, wq) = pad_nhwc(dy, 2 * ph, 2 * pw, Padding::Zero, 0);
+            let (hp, wp) = (h + 2 * ph, wd + 2 * pw);
+            let mut full = vec![0.0f32; n * hp * wp * c];
+            let fp = SyncPtr(full.as_mut_ptr());
+            let sink = move |ni: usize, yy: usize, row: &[f32]| {
+                // SAFETY: pixel row (ni, yy) of `full` is written by this task only.
+                let dst =
+                    unsafe { std::slice::from_raw_parts_mut(fp.get().add((ni * hp + yy) * wp * c), wp * c) };
+                for xx in 0..wp {
+                    dst[xx * c..][..c].copy_from_slice(&row[xx * opad..][..c]);
+                }
+            };
+            correlate_rows(&dyq, n, hq, wq, o, kh, kw, &pk, None, hp, wp, &sink);
+            let full = &full;
+            dx.data.par_chunks_mut(h * wd).enumerate().for_each(|(plane, dst)| {
+                let (ni, ci) = (plane / c, plane % c);
+                for yy in 0..hp {
+                    let sy = (yy as isize - ph as isize).clamp(0, h as isize - 1) as usize;
+                    let src = &full[(ni * hp + yy) * wp * c..][..wp * c];
+                    let drow = &mut dst[sy * wd..][..wd];
+                    for xx in 0..wp {
+                        let sx = (xx as isize - pw as isize).clamp(0, wd as isize - 1) as usize;
+                        drow[sx] += src[xx * c + ci];
+                    }
+                }
+            });
+        }
+    }
+}
+
+/// dw += ∂L/∂w. One GEMM per tap on the padded grid: with g = (n·Hp + y)·Wp + x,
+/// dW[:, :, ky, kx] += dYg (O × K) · Xp[g + ky·Wp + kx] (K × C), where dYg is dy placed on the
+/// padded grid (zeros where x ≥ W or y ≥ H).
+pub fn conv2d_weight_grad(x: &Tensor, dy: &Tensor, pad: Padding, dw: &mut Tensor) {
+    use faer::linalg::matmul::matmul;
+    use faer::{Accum, MatMut, MatRef, Par};
+    let (n, c, h, wd) = x.dims4();
+    let (o, _, kh, kw) = dw.dims4();
+    let (ph, pw) = (kh / 2, kw / 2);
+    let (hp, wp) = (h + 2 * ph, wd + 2 * pw);
+    let extra = (kh - 1) * wp + (kw - 1);
+    let (xp, _, _) = pad_nhwc(x, ph, pw, pad, extra);
+    let k = n * hp * wp;
+    let mut dyg = vec![0.0f32; o * k];
+    dyg.par_chunks_mut(k).enumerate().for_each(|(oi, dst)| {
+        for ni in 0..n {
+            for yy in 0..h {
+                let src = &dy.data[((ni * o + oi) * h + yy) * wd..][..wd];
+                dst[(ni * hp + yy) * wp..][..wd].copy_from_slice(src);
+            }
+        }
+    });
+    // Fixed K chunks (whole padded rows, ~2048 pixels each), independent of the thread count.
+    let rows_total = n * hp;
+    let rows_per_chunk = (2048 / wp).max(1);
+    let chunks: Vec<(usize, usize)> = (0..rows_total)
+        .step_by(rows_per_chunk)
+        .map(|r0| (r0 * wp, (rows_per_chunk.min(rows_total - r0)) * wp))
+        .collect();
+    let taps = kh * kw;
+    let items: Vec<(usize, usize)> =
+        (0..chunks.len()).flat_map(|ch| (0..taps).map(move |t| (ch, t))).collect();
+    let partials: Vec<Vec<f32>> = items
+        .par_iter()
+        .map(|&(ch, t)| {
+            let (k0, kl) = chunks[ch];
+            let (ky, kx) = (t / kw, t % kw);
+            let mut part = vec![0.0f32; o * c];
+            let lhs = MatRef::from_row_major_slice_with_stride(&dyg[k0..], o, kl, k);
+            let xoff = (k0 + ky * wp + kx) * c;
+            let rhs = MatRef::from_row_major_slice(&xp[xoff..xoff + kl * c], kl, c);
+            let dst = MatMut::from_row_major_slice_mut(&mut part, o, c);
+            matmul(dst, Accum::Replace, lhs, rhs, 1.0f32, Par::Seq);
+            part
+        })
+        .collect();
+    // Sum partials in a fixed order, per tap.
+    let dwp = SyncPtr(dw.data.as_mut_ptr());
+    (0..taps).into_par_iter().for_each(|t| {
+        let mut sum = vec![0.0f32; o * c];
+        for ch in 0..chunks.len() {
+            for (s, v) in sum.iter_mut().zip(&partials[ch * taps + t]) {
+                *s += v;
+            }
+        }
+        for oi in 0..o {
+            for ci in 0..c {
+                // SAFETY: tap t of every (o, c) is written by this task only.
+                unsafe { *dwp.get().add((oi * c + ci) * taps + t) += sum[oi * c + ci] };
+            }
+        }
+    });
 }

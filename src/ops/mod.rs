@@ -13,6 +13,7 @@ pub mod cpu;
 pub mod loss;
 pub mod pixel_shuffle;
 pub mod resample;
+pub mod peak;
 
 pub use conv2d::Padding;
 

@@ -1,0 +1,165 @@
+//! The fast conv2d paths (SIMD + rayon) against the scalar reference on random shapes: odd
+//! sizes, C_in ≠ C_out, channel counts that are not multiples of 16, 1×1 / 3×3 / 5×5 / 3×5
+//! kernels, both paddings, with and without bias and dx; gradients must accumulate (+=).
+
+use anisocb::ops::conv2d::{conv2d, conv2d_backward, conv2d_backward_ref, conv2d_ref};
+use anisocb::ops::Padding;
+use anisocb::Tensor;
+
+/// Tiny deterministic PRNG (SplitMix64) for test data.
+struct Rng(u64);
+impl Rng {
+    fn next_u64(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^ (z >> 31)
+    }
+    /// Uniform in [−1, 1).
+    fn f(&mut self) -> f32 {
+        (self.next_u64() >> 40) as f32 / (1u64 << 23) as f32 - 1.0
+    }
+    fn tensor(&mut self, shape: &[usize]) -> Tensor {
+        let n: usize = shape.iter().product();
+        Tensor::from_vec(shape, (0..n).map(|_| self.f()).collect()).unwrap()
+    }
+}
+
+/// |a − b| ≤ atol + rtol·|b| everywhere; prints the largest difference on failure.
+fn assert_close(what: &str, a: &Tensor, b: &Tensor, atol: f32, rtol: f32) {
+    assert_eq!(a.shape, b.shape, "{what}: shapes differ");
+    let mut worst = (0.0f32, 0usize);
+    let mut bad = 0;
+    for (i, (x, y)) in a.data.iter().zip(&b.data).enumerate() {
+        let d = (x - y).abs();
+        if d > atol + rtol * y.abs() {
+            bad += 1;
+        }
+        if d > worst.0 || d.is_nan() {
+            worst = (d, i);
+        }
+    }
+    assert!(
+        bad == 0,
+        "{what}: {bad} values out of tolerance; largest |diff| {} at flat index {} (fast {}, ref {})",
+        worst.0,
+        worst.1,
+        a.data[worst.1],
+        b.data[worst.1]
+    );
+}
+
+#[allow(clippy::too_many_arguments)]
+fn check_case(
+    rng: &mut Rng,
+    n: usize,
+    c: usize,
+    o: usize,
+    h: usize,
+    w: usize,
+    kh: usize,
+    kw: usize,
+    pad: Padding,
+    bias: bool,
+    with_dx: bool,
+) {
+    let what = format!("n{n} c{c} o{o} {h}x{w} k{kh}x{kw} {pad:?} bias={bias} dx={with_dx}");
+    let x = rng.tensor(&[n, c, h, w]);
+    let wt = rng.tensor(&[o, c, kh, kw]);
+    let b = bias.then(|| rng.tensor(&[o]));
+    let tol_scale = ((c * kh * kw) as f32).sqrt();
+    let y_fast = conv2d(&x, &wt, b.as_ref(), pad);
+    let y_ref = conv2d_ref(&x, &wt, b.as_ref(), pad);
+    assert_close(&format!("forward {what}"), &y_fast, &y_ref, 1e-5 * tol_scale, 1e-4);
+
+    let dy = rng.tensor(&[n, o, h, w]);
+    // Gradients accumulate: start from the same non-zero buffers.
+    let dx0 = rng.tensor(&[n, c, h, w]);
+    let dw0 = rng.tensor(&[o, c, kh, kw]);
+    let db0 = rng.tensor(&[o]);
+    let (mut dx_f, mut dw_f, mut db_f) = (dx0.clone(), dw0.clone(), db0.clone());
+    let (mut dx_r, mut dw_r, mut db_r) = (dx0.clone(), dw0.clone(), db0.clone());
+    conv2d_backward(&x, &wt, &dy, pad, with_dx.then_some(&mut dx_f), &mut dw_f, bias.then_some(&mut db_f));
+    conv2d_backward_ref(
+        &x,
+        &wt,
+        &dy,
+        pad,
+        with_dx.then_some(&mut dx_r),
+        &mut dw_r,
+        bias.then_some(&mut db_r),
+    );
+    let dx_tol = 1e-5 * ((o * kh * kw) as f32).sqrt() * 2.0;
+    let dw_tol = 1e-5 * ((n * h * w) as f32).sqrt() * 2.0;
+    if with_dx {
+        assert_close(&format!("dx {what}"), &dx_f, &dx_r, dx_tol, 1e-4);
+    } else {
+        assert_eq!(dx_f, dx0, "dx untouched when not requested");
+    }
+    assert_close(&format!("dw {what}"), &dw_f, &dw_r, dw_tol, 1e-4);
+    if bias {
+        assert_close(&format!("db {what}"), &db_f, &db_r, 1e-5 * ((n * h * w) as f32).sqrt() * 2.0, 1e-4);
+    } else {
+        assert_eq!(db_f, db0, "db untouched when not requested");
+    }
+}
+
+#[test]
+fn conv_fast_matches_ref_on_fixed_edge_shapes() {
+    let mut rng = Rng(1);
+    for pad in [Padding::Zero, Padding::Replicate] {
+        // first layer (C_in = 3), last layers (C_out = 1, 3), the hot 64→64, 64→256 upscaling,
+        // channel tails (17, 33, 70), 1×1 / 5×5 / 3×5 kernels, tiny images (1×1, 2×3).
+        check_case(&mut rng, 2, 3, 32, 7, 9, 3, 3, pad, true, true);
+        check_case(&mut rng, 1, 32, 1, 9, 5, 3, 3, pad, true, true);
+        check_case(&mut rng, 1, 64, 3, 6, 13, 3, 3, pad, false, true);
+        check_case(&mut rng, 1, 64, 64, 8, 8, 3, 3, pad, true, true);
+        check_case(&mut rng, 1, 16, 256, 5, 7, 3, 3, pad, true, true);
+        check_case(&mut rng, 2, 17, 33, 11, 3, 3, 3, pad, true, false);
+        check_case(&mut rng, 1, 70, 70, 5, 19, 3, 3, pad, false, true);
+        check_case(&mut rng, 1, 5, 7, 9, 11, 1, 1, pad, true, true);
+        check_case(&mut rng, 1, 5, 20, 9, 11, 5, 5, pad, true, true);
+        check_case(&mut rng, 1, 4, 6, 8, 10, 3, 5, pad, false, true);
+        check_case(&mut rng, 1, 3, 5, 1, 1, 3, 3, pad, true, true);
+        check_case(&mut rng, 3, 2, 3, 2, 3, 5, 5, pad, true, true);
+        check_case(&mut rng, 1, 8, 8, 40, 3, 3, 3, pad, true, true);
+    }
+}
+
+#[test]
+fn conv_fast_matches_ref_on_random_shapes() {
+    let mut rng = Rng(42);
+    for _ in 0..30 {
+        let n = 1 + (rng.next_u64() % 3) as usize;
+        let c = 1 + (rng.next_u64() % 40) as usize;
+        let o = 1 + (rng.next_u64() % 80) as usize;
+        let h = 1 + (rng.next_u64() % 14) as usize;
+        let w = 1 + (rng.next_u64() % 14) as usize;
+        let k = [1, 3, 3, 3, 5][(rng.next_u64() % 5) as usize];
+        let pad = if rng.next_u64() % 2 == 0 { Padding::Zero } else { Padding::Replicate };
+        let bias = rng.next_u64() % 2 == 0;
+        let with_dx = rng.next_u64() % 4 != 0;
+        check_case(&mut rng, n, c, o, h, w, k, k, pad, bias, with_dx);
+    }
+}
+
+#[test]
+fn conv_fast_is_deterministic() {
+    let mut rng = Rng(7);
+    let x = rng.tensor(&[2, 19, 13, 17]);
+    let w = rng.tensor(&[23, 19, 3, 3]);
+    let dy = rng.tensor(&[2, 23, 13, 17]);
+    let run = || {
+        let y = conv2d(&x, &w, None, Padding::Replicate);
+        let mut dx = Tensor::zeros(&x.shape);
+        let mut dw = Tensor::zeros(&w.shape);
+        conv2d_backward(&x, &w, &dy, Padding::Replicate, Some(&mut dx), &mut dw, None);
+        (y, dx, dw)
+    };
+    let a = run();
+    let b = run();
+    assert!(a.0.data.iter().zip(&b.0.data).all(|(p, q)| p.to_bits() == q.to_bits()));
+    assert!(a.1.data.iter().zip(&b.1.data).all(|(p, q)| p.to_bits() == q.to_bits()));
+    assert!(a.2.data.iter().zip(&b.2.data).all(|(p, q)| p.to_bits() == q.to_bits()));
+}
