@@ -11,9 +11,9 @@ pub mod adam;
 pub mod conv2d;
 pub mod cpu;
 pub mod loss;
+pub mod peak;
 pub mod pixel_shuffle;
 pub mod resample;
-pub mod peak;
 
 pub use conv2d::Padding;
 
