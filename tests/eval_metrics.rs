@@ -38,6 +38,7 @@ fn metrics_are_zero_for_identical_meshes() {
         assert_eq!(f.boundary_length_ratio, 1.0);
         assert_eq!(f.area_ratio, 1.0);
         assert!(f.normal_angle_deg < 1e-3, "{}", f.normal_angle_deg);
+        assert_eq!(f.curvature_err, 0.0);
     }
     assert_eq!(s.flicker, 0.0);
     assert_eq!(s.flicker_per_step.len(), 3);
@@ -150,4 +151,26 @@ fn sequence_metrics_report_worst_frames_and_json() {
     assert!(j.starts_with("{\"mean\": {\"rmse\": ") && j.contains("\"flicker_per_step\": ["), "{j}");
     assert!(sequence_metrics(&pred[..2], &gt, None).is_err());
     assert!(vertex_rmse(&GridMesh::flat(3, 3, 1.0, 1.0), &gt[0]).is_err());
+}
+
+#[test]
+fn mean_curvature_of_a_cylinder_is_half_the_inverse_radius() {
+    // A sheet rolled onto a cylinder of radius 0.5 m (half a turn): H = 1/(2r) = 1 /m inside;
+    // a flat sheet has H = 0, so the curvature error between them is ≈ 1 /m.
+    let r = 0.5f32;
+    let flat = GridMesh::flat(41, 11, std::f32::consts::PI * r, 0.5);
+    let rolled = moved(&flat, |p| {
+        let a = p[0] / r;
+        [r * a.sin(), p[1], r * (1.0 - a.cos())]
+    });
+    let h = mean_curvature(&rolled);
+    for j in 1..10 {
+        for i in 1..40 {
+            let v = rolled.idx(i, j);
+            assert!((h[v] - 1.0).abs() < 0.01, "H at ({i}, {j}) = {}", h[v]);
+        }
+    }
+    assert!(mean_curvature(&flat).iter().all(|&x| x.abs() < 1e-6));
+    let e = curvature_error(&rolled, &flat).unwrap();
+    assert!((e - 1.0).abs() < 0.01, "{e}");
 }

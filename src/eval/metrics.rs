@@ -169,6 +169,57 @@ pub fn normal_angle_deg(pred: &GridMesh, gt: &GridMesh) -> Result<f32> {
     Ok((s / a.len() as f64) as f32)
 }
 
+/// Discrete mean curvature `H_v = |Σ_j (cot α_vj + cot β_vj)(p_j − p_v)| / (4 A_v)` (1/m;
+/// Meyer et al. 2003, unsigned, with `A_v` one third of the adjacent triangles' area) at every
+/// vertex; border vertices (no closed ring) get 0.
+pub fn mean_curvature(mesh: &GridMesh) -> Vec<f32> {
+    let p = crate::geom::laplacian::positions_f64(mesh);
+    let n = p.len();
+    let mut lap = vec![[0.0f64; 3]; n];
+    let mut area = vec![0.0f64; n];
+    for t in mesh.triangles() {
+        let (a, b, c) = (p[t[0]], p[t[1]], p[t[2]]);
+        let u = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
+        let w = [c[0] - a[0], c[1] - a[1], c[2] - a[2]];
+        let x = [u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2], u[0] * w[1] - u[1] * w[0]];
+        let tri = 0.5 * (x[0] * x[0] + x[1] * x[1] + x[2] * x[2]).sqrt();
+        for k in 0..3 {
+            // The angle at corner k weighs the opposite edge (i, j).
+            let (o, i, j) = (t[k], t[(k + 1) % 3], t[(k + 2) % 3]);
+            let cot = crate::geom::laplacian::cot_at(p[o], p[i], p[j]);
+            for d in 0..3 {
+                lap[i][d] += cot * (p[j][d] - p[i][d]);
+                lap[j][d] += cot * (p[i][d] - p[j][d]);
+            }
+            area[t[k]] += tri / 3.0;
+        }
+    }
+    (0..n)
+        .map(|v| {
+            if mesh.is_border(v % mesh.w, v / mesh.w) || area[v] <= 0.0 {
+                return 0.0;
+            }
+            let l = lap[v];
+            ((l[0] * l[0] + l[1] * l[1] + l[2] * l[2]).sqrt() / (4.0 * area[v])) as f32
+        })
+        .collect()
+}
+
+/// Wrinkle fidelity, second form: mean absolute mean-curvature error over interior vertices
+/// `I`, `(1/|I|) Σ_{v∈I} |H_v(p) − H_v(g)|` (1/m, see [`mean_curvature`]).
+pub fn curvature_error(pred: &GridMesh, gt: &GridMesh) -> Result<f32> {
+    same_grid(pred, gt)?;
+    let (a, b) = (mean_curvature(pred), mean_curvature(gt));
+    let (mut s, mut n) = (0.0f64, 0usize);
+    for v in 0..a.len() {
+        if !pred.is_border(v % pred.w, v / pred.w) {
+            s += (a[v] as f64 - b[v] as f64).abs();
+            n += 1;
+        }
+    }
+    Ok(if n == 0 { 0.0 } else { (s / n as f64) as f32 })
+}
+
 /// Temporal flicker (STED-like velocity error). With per-frame velocities
 /// `u_{t,v} = p_{t+1,v} − p_{t,v}` and `γ_{t,v} = g_{t+1,v} − g_{t,v}` (metres per frame):
 /// per step `f_t = √( (1/N) Σ_v |u_{t,v} − γ_{t,v}|² )`, overall `√( (1/(T−1)) Σ_t f_t² )`.
@@ -219,14 +270,23 @@ pub struct FrameMetrics {
     pub area_ratio: f32,
     /// [`normal_angle_deg`], degrees.
     pub normal_angle_deg: f32,
+    /// [`curvature_error`], 1/m.
+    pub curvature_err: f32,
 }
 
 impl FrameMetrics {
     /// Field names in the order of [`FrameMetrics::values`] (table headers, JSON keys).
-    pub const NAMES: [&'static str; 6] =
-        ["rmse", "boundary_rmse", "hausdorff", "boundary_length_ratio", "area_ratio", "normal_angle_deg"];
+    pub const NAMES: [&'static str; 7] = [
+        "rmse",
+        "boundary_rmse",
+        "hausdorff",
+        "boundary_length_ratio",
+        "area_ratio",
+        "normal_angle_deg",
+        "curvature_err",
+    ];
 
-    pub fn values(&self) -> [f32; 6] {
+    pub fn values(&self) -> [f32; 7] {
         [
             self.rmse,
             self.boundary_rmse,
@@ -234,10 +294,11 @@ impl FrameMetrics {
             self.boundary_length_ratio,
             self.area_ratio,
             self.normal_angle_deg,
+            self.curvature_err,
         ]
     }
 
-    fn from_values(v: [f32; 6]) -> FrameMetrics {
+    fn from_values(v: [f32; 7]) -> FrameMetrics {
         FrameMetrics {
             rmse: v[0],
             boundary_rmse: v[1],
@@ -245,6 +306,7 @@ impl FrameMetrics {
             boundary_length_ratio: v[3],
             area_ratio: v[4],
             normal_angle_deg: v[5],
+            curvature_err: v[6],
         }
     }
 
@@ -274,6 +336,7 @@ pub fn frame_metrics(pred: &GridMesh, gt: &GridMesh, boundary: &[bool]) -> Resul
         boundary_length_ratio: border_length(pred) / border_length(gt).max(f32::MIN_POSITIVE),
         area_ratio: surface_area(pred) / surface_area(gt).max(f32::MIN_POSITIVE),
         normal_angle_deg: normal_angle_deg(pred, gt)?,
+        curvature_err: curvature_error(pred, gt)?,
     })
 }
 
@@ -341,8 +404,8 @@ pub fn sequence_metrics(
     let per_frame =
         pred.iter().zip(gt).map(|(p, g)| frame_metrics(p, g, mask)).collect::<Result<Vec<_>>>()?;
     let n = per_frame.len() as f64;
-    let mut mean = [0.0f64; 6];
-    let mut worst = [0.0f32; 6];
+    let mut mean = [0.0f64; 7];
+    let mut worst = [0.0f32; 7];
     for f in &per_frame {
         for (k, v) in f.values().into_iter().enumerate() {
             mean[k] += v as f64 / n;
