@@ -4,7 +4,7 @@ use super::ui::{progress, save_png_rgb};
 use crate::error::Result;
 use crate::nn::config::parse_padding;
 use crate::nn::{NetConfig, NetKind};
-use crate::ops::{AdamParams, Cpu};
+use crate::ops::AdamParams;
 use crate::train::data::Dataset;
 use crate::train::plot::loss_curve_rgb;
 use crate::train::trainer::{train, train_all, Event, TrainOptions};
@@ -52,14 +52,18 @@ pub struct Args {
     /// BCE weight of positive pixels for boundary/enhance (1 = plain BCE, calibrated maps).
     #[arg(long, default_value_t = 1.0)]
     pub pos_weight: f32,
-    /// Continue from OUT/checkpoint.npz, bit-identically to an uninterrupted run.
+    /// Continue from OUT/checkpoint.npz, bit-identically to an uninterrupted run (same device).
     #[arg(long)]
     pub resume: bool,
+    /// Where the ops run: cpu, or cuda (feature `cuda`, needs an NVIDIA GPU).
+    #[arg(long, default_value = "cpu")]
+    pub device: String,
 }
 
 pub fn run(a: Args) -> Result<()> {
     let config = NetConfig::preset(&a.config)?.with_padding(parse_padding(&a.padding)?);
     let which = if a.net == "all" { None } else { Some(NetKind::parse(&a.net)?) };
+    let ops = crate::cuda::ops_for_device(&a.device)?;
     let data = Dataset::load(&a.data)?;
     let opts = TrainOptions {
         config,
@@ -110,7 +114,7 @@ pub fn run(a: Args) -> Result<()> {
     };
     let summary = match which {
         Some(kind) => {
-            let r = train(&Cpu, &data, kind, &opts, &mut on_event)?;
+            let r = train(ops.as_ref(), &data, kind, &opts, &mut on_event)?;
             format!(
                 "{}: train loss {:.4e}, val loss {}, {:.1} samples/s → {}",
                 kind.name(),
@@ -121,7 +125,7 @@ pub fn run(a: Args) -> Result<()> {
             )
         }
         None => {
-            let (_, reports) = train_all(&Cpu, &data, &opts, &mut on_event)?;
+            let (_, reports) = train_all(ops.as_ref(), &data, &opts, &mut on_event)?;
             let mut s: Vec<String> = reports
                 .iter()
                 .map(|r| {

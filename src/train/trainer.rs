@@ -360,12 +360,17 @@ pub fn train(
             }
         }
         st.history.push(row);
-        if last_step || (opts.checkpoint_every > 0 && st.step % opts.checkpoint_every == 0) {
+        if !last_step && opts.checkpoint_every > 0 && st.step % opts.checkpoint_every == 0 {
             write_checkpoint(&ckpt, net, opts, &st)?;
             write_loss_csv(&opts.out.join("loss.csv"), &st.history)?;
             on_event(Event::Checkpoint { net, step: st.step, dir: &opts.out, history: &st.history });
         }
     }
+    // Always (also when a resumed run had nothing left to do), so that a run killed anywhere
+    // after its last step still ends with the same files as an uninterrupted one.
+    write_checkpoint(&ckpt, net, opts, &st)?;
+    write_loss_csv(&opts.out.join("loss.csv"), &st.history)?;
+    on_event(Event::Checkpoint { net, step: st.step, dir: &opts.out, history: &st.history });
     let weights = opts.out.join("weights.npz");
     save_net(&weights, &st.trunk)?;
     let secs = t0.elapsed().as_secs_f64();
