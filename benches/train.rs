@@ -1,5 +1,6 @@
 //! Training throughput (samples/s: batch 32 of 16×16 LR patches → 32×32 HR, forward + backward
-//! + Adam) and inference time per 32×32 → 64×64 frame, for the `small` and `paper` configs.
+//! and Adam) and inference time per 32×32 → 64×64 frame, for the `small` and `paper` configs.
+//!
 //! `cargo bench --bench train [-- small|paper]`. Compare with JAX/XLA: `python3 benches/train_jax.py`.
 
 use anisocb::nn::{AnisoCb, GeometryNet, NetConfig, NetKind};
