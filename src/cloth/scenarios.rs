@@ -180,7 +180,7 @@ impl ScenarioSpec {
                     let pos = uv.iter().map(|&(u, v)| [(u - 0.5) * sx, 1.5 - v * sy, 0.0]).collect();
                     let pins = (0..w).map(|i| (i, 0.0)).collect();
                     let kin = Kinematics::Flap { amplitude: 0.25, freq: 0.6, dir: [0.0, 0.0, 1.0] };
-                    let wind = Wind::gusty([0.5, 0.0, 2.5], 1.2, 4, self.seed);
+                    let wind = Wind::gusty([0.5, 0.0, 1.8], 1.2, 4, self.seed);
                     let col = if self.scenario == Scenario::FlagSphere {
                         Colliders {
                             sphere: Some(Sphere { center: [0.1, 1.5 - 0.75 * sy, 0.45], radius: 0.25 }),
@@ -214,8 +214,8 @@ impl ScenarioSpec {
                         center_y: 1.0,
                         center_z: 0.0,
                         omega: 0.5,
-                        inward_speed: 0.06,
-                        max_inward: 0.15 * sx,
+                        inward_speed: 0.03,
+                        max_inward: 0.06 * sx,
                     };
                     (pos, pins, kin, calm, Colliders::default())
                 }

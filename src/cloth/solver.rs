@@ -42,6 +42,8 @@ pub struct Cloth {
     pub time: f32,
     lambda_d: Vec<f32>,
     lambda_b: Vec<[f32; 3]>,
+    /// Per bending constraint: `w_j·k_j` and `Σ w_j k_j²` (masses are fixed, so precomputed).
+    bend_w: Vec<([f32; 4], f32)>,
     accel: Vec<[f32; 3]>,
 }
 
@@ -75,7 +77,16 @@ impl Cloth {
         }
         let dist = distance_constraints(rest, material);
         let bend = bend_constraints(rest, material);
+        let bend_w = bend
+            .items
+            .iter()
+            .map(|b| {
+                let wk: [f32; 4] = std::array::from_fn(|j| inv_mass[b.v[j] as usize] * b.k[j]);
+                (wk, (0..4).map(|j| wk[j] * b.k[j]).sum())
+            })
+            .collect();
         Cloth {
+            bend_w,
             w: rest.w,
             h: rest.h,
             x: rest.pos.clone(),
@@ -164,7 +175,7 @@ impl Cloth {
             let inv_h2 = 1.0 / (h * h);
             for _ in 0..p.iterations {
                 solve_distance(&mut self.x, &self.inv_mass, &self.dist.items, &mut self.lambda_d, inv_h2);
-                solve_bend(&mut self.x, &self.inv_mass, &self.bend.items, &mut self.lambda_b, inv_h2);
+                solve_bend(&mut self.x, &self.bend_w, &self.bend.items, &mut self.lambda_b, inv_h2);
                 if let (Some(frac), Some(tt)) = (track_frac, track) {
                     let blend = (s + 1) as f32 / p.substeps as f32;
                     for v in 0..n {
@@ -212,30 +223,27 @@ fn solve_distance(x: &mut [[f32; 3]], w: &[f32], cs: &[Distance], lambda: &mut [
     }
 }
 
-/// Projection of the linear isometric-bending constraints `Σ k_j x_j = 0` (3 components).
-fn solve_bend(x: &mut [[f32; 3]], w: &[f32], cs: &[Bend], lambda: &mut [[f32; 3]], inv_h2: f32) {
-    for (c, l) in cs.iter().zip(lambda.iter_mut()) {
-        let vi = c.v.map(|v| v as usize);
-        let ws: f32 = (0..4).map(|j| w[vi[j]] * c.k[j] * c.k[j]).sum();
+/// Projection of the linear isometric-bending constraints `Σ k_j x_j = 0` (3 components);
+/// `pre[c] = (w_j·k_j, Σ w_j k_j²)`.
+fn solve_bend(x: &mut [[f32; 3]], pre: &[([f32; 4], f32)], cs: &[Bend], lambda: &mut [[f32; 3]], inv_h2: f32) {
+    for ((c, &(wk, ws)), l) in cs.iter().zip(pre).zip(lambda.iter_mut()) {
         if ws == 0.0 {
             continue;
         }
+        let vi = c.v.map(|v| v as usize);
         let at = c.alpha * inv_h2;
-        let mut cv = [0.0f32; 3];
-        for j in 0..4 {
-            for k in 0..3 {
-                cv[k] += c.k[j] * x[vi[j]][k];
-            }
-        }
+        let (p0, p1, p2, p3) = (x[vi[0]], x[vi[1]], x[vi[2]], x[vi[3]]);
+        let cv: [f32; 3] =
+            std::array::from_fn(|k| c.k[0] * p0[k] + c.k[1] * p1[k] + c.k[2] * p2[k] + c.k[3] * p3[k]);
         let denom = 1.0 / (ws + at);
         let dl: [f32; 3] = std::array::from_fn(|k| (-cv[k] - at * l[k]) * denom);
         for k in 0..3 {
             l[k] += dl[k];
         }
         for j in 0..4 {
-            let f = w[vi[j]] * c.k[j];
+            let xj = &mut x[vi[j]];
             for k in 0..3 {
-                x[vi[j]][k] += f * dl[k];
+                xj[k] += wk[j] * dl[k];
             }
         }
     }
