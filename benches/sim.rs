@@ -7,8 +7,14 @@ use std::time::Instant;
 
 fn main() {
     let filter: Option<String> = std::env::args().skip(1).find(|a| !a.starts_with('-'));
-    println!("cloth XPBD, flag-sphere, {} substeps x 1 iteration per frame", ScenarioSpec::new(Scenario::Flag).params.substeps);
-    println!("{:>10} {:>10} {:>12} {:>12} {:>14}", "grid", "vertices", "constraints", "ms/frame", "ns/constraint");
+    println!(
+        "cloth XPBD, flag-sphere, {} substeps x 1 iteration per frame",
+        ScenarioSpec::new(Scenario::Flag).params.substeps
+    );
+    println!(
+        "{:>10} {:>10} {:>12} {:>12} {:>14}",
+        "grid", "vertices", "constraints", "ms/frame", "ns/constraint"
+    );
     for n in [32usize, 64, 128, 256] {
         let label = format!("{n}x{n}");
         if filter.as_ref().is_some_and(|f| !label.contains(f.as_str())) {

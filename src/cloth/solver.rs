@@ -225,7 +225,13 @@ fn solve_distance(x: &mut [[f32; 3]], w: &[f32], cs: &[Distance], lambda: &mut [
 
 /// Projection of the linear isometric-bending constraints `Σ k_j x_j = 0` (3 components);
 /// `pre[c] = (w_j·k_j, Σ w_j k_j²)`.
-fn solve_bend(x: &mut [[f32; 3]], pre: &[([f32; 4], f32)], cs: &[Bend], lambda: &mut [[f32; 3]], inv_h2: f32) {
+fn solve_bend(
+    x: &mut [[f32; 3]],
+    pre: &[([f32; 4], f32)],
+    cs: &[Bend],
+    lambda: &mut [[f32; 3]],
+    inv_h2: f32,
+) {
     for ((c, &(wk, ws)), l) in cs.iter().zip(pre).zip(lambda.iter_mut()) {
         if ws == 0.0 {
             continue;
