@@ -152,13 +152,69 @@ impl SyncPtr {
     }
 }
 
+/// A zero-filled f32 buffer taken from a small per-thread pool and returned to it on drop, so
+/// repeated calls do not pay for fresh pages (page faults cost about as much as the
+/// arithmetic on small images).
+struct Scratch(Vec<f32>);
+
+thread_local! {
+    static POOL: std::cell::RefCell<Vec<Vec<f32>>> = const { std::cell::RefCell::new(Vec::new()) };
+}
+
+/// Buffers kept per thread, and the largest one kept (floats).
+const POOL_KEEP: usize = 6;
+const POOL_MAX_LEN: usize = 1 << 25;
+
+impl Scratch {
+    fn zeroed(len: usize) -> Scratch {
+        let v = POOL.with(|p| {
+            let mut p = p.borrow_mut();
+            // Prefer the smallest pooled buffer that fits, else the largest one (grown).
+            let best = (0..p.len()).filter(|&i| p[i].capacity() >= len).min_by_key(|&i| p[i].capacity());
+            let pick = best.or_else(|| (0..p.len()).max_by_key(|&i| p[i].capacity()));
+            pick.map(|i| p.swap_remove(i))
+        });
+        let mut v = v.unwrap_or_default();
+        v.clear();
+        v.resize(len, 0.0);
+        Scratch(v)
+    }
+}
+
+impl Drop for Scratch {
+    fn drop(&mut self) {
+        let v = std::mem::take(&mut self.0);
+        if v.capacity() <= POOL_MAX_LEN {
+            POOL.with(|p| {
+                let mut p = p.borrow_mut();
+                if p.len() < POOL_KEEP {
+                    p.push(v);
+                }
+            });
+        }
+    }
+}
+
+impl std::ops::Deref for Scratch {
+    type Target = [f32];
+    fn deref(&self) -> &[f32] {
+        &self.0
+    }
+}
+
+impl std::ops::DerefMut for Scratch {
+    fn deref_mut(&mut self) -> &mut [f32] {
+        &mut self.0
+    }
+}
+
 /// Padded channels-last copy of `x` (N, C, H, W): returns (N·Hp·Wp + extra) pixels × C floats,
 /// pixel (n, Y, X) at ((n·Hp + Y)·Wp + X)·C, holding x[n, :, Y−ph, X−pw] with `pad` applied.
 /// The `extra` trailing pixels are zero (slack for strided views that run past the end).
-fn pad_nhwc(x: &Tensor, ph: usize, pw: usize, pad: Padding, extra: usize) -> (Vec<f32>, usize, usize) {
+fn pad_nhwc(x: &Tensor, ph: usize, pw: usize, pad: Padding, extra: usize) -> (Scratch, usize, usize) {
     let (n, c, h, w) = x.dims4();
     let (hp, wp) = (h + 2 * ph, w + 2 * pw);
-    let mut out = vec![0.0f32; (n * hp * wp + extra) * c];
+    let mut out = Scratch::zeroed((n * hp * wp + extra) * c);
     let row_len = wp * c;
     out[..n * hp * row_len].par_chunks_mut(row_len).enumerate().for_each(|(r, dst)| {
         let (ni, yy) = (r / hp, r % hp);
@@ -181,7 +237,7 @@ fn pad_nhwc(x: &Tensor, ph: usize, pw: usize, pad: Padding, extra: usize) -> (Ve
 /// whole vectors, zero-filled), [ky][kx][c_in][ov·16]. `get(o, c, ky, kx)` reads the logical
 /// weight of output channel o, input channel c.
 struct Packed {
-    data: Vec<f32>,
+    data: Scratch,
     /// (offset, vectors) per block.
     blocks: Vec<(usize, usize)>,
     /// Output channels rounded up to a multiple of 16.
@@ -196,7 +252,7 @@ fn pack_weights(
     get: impl Fn(usize, usize, usize, usize) -> f32,
 ) -> Packed {
     let opad = o.div_ceil(L) * L;
-    let mut data = vec![0.0f32; opad * c * kh * kw];
+    let mut data = Scratch::zeroed(opad * c * kh * kw);
     let mut blocks = Vec::new();
     let mut off = 0;
     for ob in (0..opad).step_by(OB) {
@@ -272,23 +328,77 @@ unsafe fn micro<const OV: usize, const P: usize>(
 }
 
 macro_rules! dispatch_p {
-    ($ov:literal, $np:expr, $($args:expr),*) => {
+    ($f:ident, $ov:literal, $np:expr, $($args:expr),*) => {
         match $np {
-            1 => micro::<$ov, 1>($($args),*),
-            2 => micro::<$ov, 2>($($args),*),
-            3 => micro::<$ov, 3>($($args),*),
-            4 => micro::<$ov, 4>($($args),*),
-            5 => micro::<$ov, 5>($($args),*),
-            6 => micro::<$ov, 6>($($args),*),
-            7 => micro::<$ov, 7>($($args),*),
-            8 => micro::<$ov, 8>($($args),*),
-            9 => micro::<$ov, 9>($($args),*),
-            10 => micro::<$ov, 10>($($args),*),
-            11 => micro::<$ov, 11>($($args),*),
-            12 => micro::<$ov, 12>($($args),*),
+            1 => $f::<$ov, 1>($($args),*),
+            2 => $f::<$ov, 2>($($args),*),
+            3 => $f::<$ov, 3>($($args),*),
+            4 => $f::<$ov, 4>($($args),*),
+            5 => $f::<$ov, 5>($($args),*),
+            6 => $f::<$ov, 6>($($args),*),
+            7 => $f::<$ov, 7>($($args),*),
+            8 => $f::<$ov, 8>($($args),*),
+            9 => $f::<$ov, 9>($($args),*),
+            10 => $f::<$ov, 10>($($args),*),
+            11 => $f::<$ov, 11>($($args),*),
+            12 => $f::<$ov, 12>($($args),*),
             _ => unreachable!(),
         }
     };
+}
+
+/// Weight-gradient micro-kernel: P input channels × OV vectors of output channels of one tap,
+/// summed over `npix` pixels: acc[p][j] += Σ_i x[i·xs + p] · dy[i·ds + j·16 ..].
+/// `x` points at (pixel 0 shifted by the tap, channel c0) of the padded NHWC input (pixel
+/// stride `xs`), `dy` at (pixel 0, output channel ob) of the NHWC dy on the padded grid (pixel
+/// stride `ds`), `acc_out` at the partial dW[tap][c0][ob] (channel stride `opad`).
+///
+/// # Safety
+/// All `npix` pixels of both buffers and the P×OV·16 accumulator block must be in bounds.
+#[inline(always)]
+#[allow(clippy::too_many_arguments, clippy::needless_range_loop)]
+unsafe fn micro_dw<const OV: usize, const P: usize>(
+    x: *const f32,
+    xs: usize,
+    dy: *const f32,
+    ds: usize,
+    npix: usize,
+    acc_out: *mut f32,
+    opad: usize,
+) {
+    let mut acc = [[f32x16::ZERO; OV]; P];
+    for p in 0..P {
+        for j in 0..OV {
+            acc[p][j] = (acc_out.add(p * opad + j * L) as *const f32x16).read_unaligned();
+        }
+    }
+    for i in 0..npix {
+        let mut wv = [f32x16::ZERO; OV];
+        for j in 0..OV {
+            wv[j] = (dy.add(i * ds + j * L) as *const f32x16).read_unaligned();
+        }
+        let xb = x.add(i * xs);
+        for p in 0..P {
+            let xv = f32x16::splat(*xb.add(p));
+            for j in 0..OV {
+                acc[p][j] = xv.mul_add(wv[j], acc[p][j]);
+            }
+        }
+    }
+    for p in 0..P {
+        for j in 0..OV {
+            (acc_out.add(p * opad + j * L) as *mut f32x16).write_unaligned(acc[p][j]);
+        }
+    }
+}
+
+/// Split `total` into `ceil(total / max)` near-equal tiles of ≤ `max`: (start, len) pairs.
+fn tiles(total: usize, max: usize) -> impl Iterator<Item = (usize, usize)> {
+    let count = total.div_ceil(max).max(1);
+    (0..count).map(move |t| {
+        let start = total * t / count;
+        (start, total * (t + 1) / count - start)
+    })
 }
 
 /// Max pixels per tile for OV vectors (keeps P·OV + OV + 1 ≤ 32 registers).
@@ -349,10 +459,10 @@ fn correlate_rows(
                         let wptr = pk.data.as_ptr().add(off);
                         let aptr = row.as_mut_ptr().add(x0 * opad + bi * OB);
                         match ov {
-                            4 => dispatch_p!(4, np, xptr, wp, c, kh, kw, wptr, aptr, opad),
-                            3 => dispatch_p!(3, np, xptr, wp, c, kh, kw, wptr, aptr, opad),
-                            2 => dispatch_p!(2, np, xptr, wp, c, kh, kw, wptr, aptr, opad),
-                            _ => dispatch_p!(1, np, xptr, wp, c, kh, kw, wptr, aptr, opad),
+                            4 => dispatch_p!(micro, 4, np, xptr, wp, c, kh, kw, wptr, aptr, opad),
+                            3 => dispatch_p!(micro, 3, np, xptr, wp, c, kh, kw, wptr, aptr, opad),
+                            2 => dispatch_p!(micro, 2, np, xptr, wp, c, kh, kw, wptr, aptr, opad),
+                            _ => dispatch_p!(micro, 1, np, xptr, wp, c, kh, kw, wptr, aptr, opad),
                         }
                     }
                     x0 += np;
@@ -457,7 +567,7 @@ pub fn conv2d_input_grad(w: &Tensor, dy: &Tensor, pad: Padding, dx: &mut Tensor)
             // zero-padded by (kh−1, kw−1); then fold the border onto the clamped pixels.
             let (dyq, hq, wq) = pad_nhwc(dy, 2 * ph, 2 * pw, Padding::Zero, 0);
             let (hp, wp) = (h + 2 * ph, wd + 2 * pw);
-            let mut full = vec![0.0f32; n * hp * wp * c];
+            let mut full = Scratch::zeroed(n * hp * wp * c);
             let fp = SyncPtr(full.as_mut_ptr());
             let sink = move |ni: usize, yy: usize, row: &[f32]| {
                 // SAFETY: pixel row (ni, yy) of `full` is written by this task only.
@@ -485,65 +595,84 @@ pub fn conv2d_input_grad(w: &Tensor, dy: &Tensor, pad: Padding, dx: &mut Tensor)
     }
 }
 
-/// dw += ∂L/∂w. One GEMM per tap on the padded grid: with g = (n·Hp + y)·Wp + x,
-/// dW[:, :, ky, kx] += dYg (O × K) · Xp[g + ky·Wp + kx] (K × C), where dYg is dy placed on the
-/// padded grid (zeros where x ≥ W or y ≥ H).
+/// Pixels per inner block of the weight gradient (dy and x blocks stay in L1/L2).
+const DW_SUB: usize = 128;
+
+/// dw += ∂L/∂w, accumulated over all pixels per tap with the [`micro_dw`] kernel:
+/// dW[:, :, ky, kx] += Σ_g dYg[g] ⊗ Xp[g + ky·Wp + kx], where g = (n·Hp + y)·Wp + x runs over the
+/// padded pixel grid of the rows y < H (dYg, dy on that grid, is zero where x ≥ W). The pixels
+/// are cut into a fixed number of parts (from the problem size, not the thread count), each
+/// summed into its own partial dW; the partials are added in a fixed order (deterministic).
+/// x: (N, C, H, W), dy: (N, O, H, W), dw: (O, C, KH, KW).
 pub fn conv2d_weight_grad(x: &Tensor, dy: &Tensor, pad: Padding, dw: &mut Tensor) {
-    use faer::linalg::matmul::matmul;
-    use faer::{Accum, MatMut, MatRef, Par};
     let (n, c, h, wd) = x.dims4();
     let (o, _, kh, kw) = dw.dims4();
     let (ph, pw) = (kh / 2, kw / 2);
     let (hp, wp) = (h + 2 * ph, wd + 2 * pw);
     let extra = (kh - 1) * wp + (kw - 1);
     let (xp, _, _) = pad_nhwc(x, ph, pw, pad, extra);
-    let k = n * hp * wp;
-    let mut dyg = vec![0.0f32; o * k];
-    dyg.par_chunks_mut(k).enumerate().for_each(|(oi, dst)| {
-        for ni in 0..n {
-            for yy in 0..h {
-                let src = &dy.data[((ni * o + oi) * h + yy) * wd..][..wd];
-                dst[(ni * hp + yy) * wp..][..wd].copy_from_slice(src);
+    let opad = o.div_ceil(L) * L;
+    // dy on the padded grid, channels last (rows y ≥ H are never read).
+    let mut dyg = Scratch::zeroed(n * hp * wp * opad);
+    dyg.par_chunks_mut(wp * opad).enumerate().for_each(|(r, dst)| {
+        let (ni, yy) = (r / hp, r % hp);
+        if yy >= h {
+            return;
+        }
+        for oi in 0..o {
+            let src = &dy.data[((ni * o + oi) * h + yy) * wd..][..wd];
+            for (xx, v) in src.iter().enumerate() {
+                dst[xx * opad + oi] = *v;
             }
         }
     });
-    // Fixed K chunks (whole padded rows, ~2048 pixels each), independent of the thread count.
-    let rows_total = n * hp;
-    let rows_per_chunk = (2048 / wp).max(1);
-    let chunks: Vec<(usize, usize)> = (0..rows_total)
-        .step_by(rows_per_chunk)
-        .map(|r0| (r0 * wp, (rows_per_chunk.min(rows_total - r0)) * wp))
-        .collect();
+    // Pixel segments: the rows y < H of each image, cut into ≤ DW_SUB-pixel blocks.
+    let blocks: Vec<(usize, usize)> =
+        (0..n).flat_map(|ni| tiles(h * wp, DW_SUB).map(move |(s, l)| (ni * hp * wp + s, l))).collect();
+    let parts = (n * h * wp).div_ceil(2048).clamp(1, 16).min(blocks.len());
     let taps = kh * kw;
-    let items: Vec<(usize, usize)> =
-        (0..chunks.len()).flat_map(|ch| (0..taps).map(move |t| (ch, t))).collect();
-    let partials: Vec<Vec<f32>> = items
-        .par_iter()
-        .map(|&(ch, t)| {
-            let (k0, kl) = chunks[ch];
-            let (ky, kx) = (t / kw, t % kw);
-            let mut part = vec![0.0f32; o * c];
-            let lhs = MatRef::from_row_major_slice_with_stride(&dyg[k0..], o, kl, k);
-            let xoff = (k0 + ky * wp + kx) * c;
-            let rhs = MatRef::from_row_major_slice(&xp[xoff..xoff + kl * c], kl, c);
-            let dst = MatMut::from_row_major_slice_mut(&mut part, o, c);
-            matmul(dst, Accum::Replace, lhs, rhs, 1.0f32, Par::Seq);
+    let oblocks: Vec<(usize, usize)> =
+        (0..opad).step_by(OB).map(|ob| (ob, ((opad - ob) / L).min(OB / L))).collect();
+    let partials: Vec<Scratch> = (0..parts)
+        .into_par_iter()
+        .map(|pi| {
+            let mut part = Scratch::zeroed(taps * c * opad);
+            let (b0, b1) = (blocks.len() * pi / parts, blocks.len() * (pi + 1) / parts);
+            for &(g0, len) in &blocks[b0..b1] {
+                for t in 0..taps {
+                    let off = (t / kw) * wp + t % kw;
+                    for &(ob, ov) in &oblocks {
+                        for (c0, np) in tiles(c, pmax(ov)) {
+                            // SAFETY: pixels g0+off .. g0+off+len of xp (len ≤ N·Hp·Wp + extra
+                            // by construction), pixels g0 .. g0+len of dyg, and channels
+                            // c0..c0+np, ob..ob+16·ov of the partial are in bounds.
+                            unsafe {
+                                let xptr = xp.as_ptr().add((g0 + off) * c + c0);
+                                let dptr = dyg.as_ptr().add(g0 * opad + ob);
+                                let aptr = part.as_mut_ptr().add((t * c + c0) * opad + ob);
+                                match ov {
+                                    4 => dispatch_p!(micro_dw, 4, np, xptr, c, dptr, opad, len, aptr, opad),
+                                    3 => dispatch_p!(micro_dw, 3, np, xptr, c, dptr, opad, len, aptr, opad),
+                                    2 => dispatch_p!(micro_dw, 2, np, xptr, c, dptr, opad, len, aptr, opad),
+                                    _ => dispatch_p!(micro_dw, 1, np, xptr, c, dptr, opad, len, aptr, opad),
+                                }
+                            }
+                        }
+                    }
+                }
+            }
             part
         })
         .collect();
-    // Sum partials in a fixed order, per tap.
-    let dwp = SyncPtr(dw.data.as_mut_ptr());
-    (0..taps).into_par_iter().for_each(|t| {
-        let mut sum = vec![0.0f32; o * c];
-        for ch in 0..chunks.len() {
-            for (s, v) in sum.iter_mut().zip(&partials[ch * taps + t]) {
-                *s += v;
-            }
-        }
-        for oi in 0..o {
-            for ci in 0..c {
-                // SAFETY: tap t of every (o, c) is written by this task only.
-                unsafe { *dwp.get().add((oi * c + ci) * taps + t) += sum[oi * c + ci] };
+    // Fixed-order sum of the partials into dw (OIHW).
+    dw.data.par_chunks_mut(c * taps).enumerate().for_each(|(oi, dst)| {
+        for ci in 0..c {
+            for t in 0..taps {
+                let mut s = 0.0f32;
+                for p in &partials {
+                    s += p[(t * c + ci) * opad + oi];
+                }
+                dst[ci * taps + t] += s;
             }
         }
     });
