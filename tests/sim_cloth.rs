@@ -193,3 +193,48 @@ fn run_directory_round_trips() {
     assert!(read_run(&dir.join("missing")).is_err());
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// Mean |strain| of row and column edges over frames `from..`.
+fn mean_strain(frames: &[GridMesh], from: usize) -> f32 {
+    let rest = &frames[0];
+    let (mut s, mut n) = (0.0f32, 0usize);
+    for f in &frames[from..] {
+        for j in 0..f.h {
+            for i in 0..f.w {
+                let v = f.idx(i, j);
+                for u in [(i + 1 < f.w).then(|| v + 1), (j + 1 < f.h).then(|| v + f.w)].into_iter().flatten()
+                {
+                    s += (dist(f.pos[v], f.pos[u]) / dist(rest.pos[v], rest.pos[u]) - 1.0).abs();
+                    n += 1;
+                }
+            }
+        }
+    }
+    s / n as f32
+}
+
+#[test]
+fn hr_run_of_a_pair_is_as_inextensible_as_the_lr_run() {
+    for s in [Scenario::Flag, Scenario::Twist] {
+        let (w, h) = if s == Scenario::Flag { (12, 12) } else { (16, 6) };
+        let sp = spec(s, w, h, 60);
+        let (lr, hr) = paired_run(&sp).unwrap();
+        let (a, b) = (mean_strain(&lr, 20), mean_strain(&hr, 20));
+        println!("{s}: mean |strain| LR {a:.4}, HR {b:.4}");
+        assert!(b < 1.5 * a + 0.01, "{s}: HR stretches more than LR ({b} vs {a})");
+    }
+}
+
+#[test]
+fn obj_frames_of_a_run_read_back_as_one_sequence() {
+    let dir = std::env::temp_dir().join(format!("anisocb-sim-seq-{}", std::process::id()));
+    let sp = spec(Scenario::Twist, 9, 4, 12);
+    let frames = run_single(&sp).unwrap();
+    write_single(&dir, &sp, &frames, true).unwrap();
+    let files = anisocb::geom::obj::list_obj_files(&dir.join("obj")).unwrap();
+    assert_eq!(files.len(), 12);
+    let (back, style) = anisocb::geom::obj::read_obj_sequence(&files).unwrap();
+    assert_eq!(style, anisocb::geom::obj::FaceStyle::Quads);
+    assert_eq!(back, frames);
+    let _ = std::fs::remove_dir_all(&dir);
+}

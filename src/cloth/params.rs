@@ -22,6 +22,12 @@ pub struct SimParams {
     pub friction: f32,
     /// Linear aerodynamic drag (kg/(m²·s)): force on a vertex = `drag · area · ((wind − v)·n) n`.
     pub drag: f32,
+    /// Long-range attachments (Kim, Chentanez, Müller 2012): every free vertex may not get
+    /// farther from its nearest pinned vertex than their rest distance × (1 + `tether_slack`).
+    /// Stops pinned cloth from stretching under its own weight at any resolution.
+    pub tethers: bool,
+    /// Allowed extra length of a tether (fraction of its rest length).
+    pub tether_slack: f32,
 }
 
 impl Default for SimParams {
@@ -35,6 +41,8 @@ impl Default for SimParams {
             collision_margin: 0.01,
             friction: 0.3,
             drag: 0.3,
+            tethers: true,
+            tether_slack: 0.02,
         }
     }
 }
@@ -55,6 +63,7 @@ impl SimParams {
             ("collision_margin", self.collision_margin),
             ("friction", self.friction),
             ("drag", self.drag),
+            ("tether_slack", self.tether_slack),
         ] {
             if !(v.is_finite() && v >= 0.0) {
                 return Err(Error::config(format!("{name} must be finite and ≥ 0, got {v}")));

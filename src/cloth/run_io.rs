@@ -106,6 +106,7 @@ pub fn meta_json(spec: &ScenarioSpec, role: &str, w: usize, h: usize, domain: &D
   \"dt_s\": {:?},
   \"substeps\": {},
   \"iterations\": {},
+  \"tethers\": {},
   \"gravity_m_per_s2\": {},
   \"damping_per_s\": {:?},
   \"collision_margin_m\": {:?},
@@ -132,6 +133,7 @@ pub fn meta_json(spec: &ScenarioSpec, role: &str, w: usize, h: usize, domain: &D
         p.dt,
         p.substeps,
         p.iterations,
+        if p.tethers { format!("{{\"slack\": {:?}}}", p.tether_slack) } else { "false".into() },
         arr(&p.gravity),
         p.damping,
         p.collision_margin,
@@ -163,7 +165,8 @@ pub fn write_pair(
     let domain = Domain::enclosing(&all, DOMAIN_MARGIN);
     let (hw, hh) = (hr[0].w, hr[0].h);
     let a = write_run(&dir.join("lr"), lr, &domain, &meta_json(spec, "lr", spec.w, spec.h, &domain), obj)?;
-    let b = write_run(&dir.join("hr"), hr, &domain, &meta_json(spec, "hr", hw, hh, &domain), obj)?;
+    let hs = spec.for_scale(spec.scale);
+    let b = write_run(&dir.join("hr"), hr, &domain, &meta_json(&hs, "hr", hw, hh, &domain), obj)?;
     Ok((a, b))
 }
 

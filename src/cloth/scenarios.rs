@@ -161,6 +161,15 @@ impl ScenarioSpec {
         Ok(())
     }
 
+    /// The spec an HR run at `scale`× the resolution uses: `scale`× the substeps, because a
+    /// Gauss–Seidel sweep carries a correction about one cell per substep, so a finer grid
+    /// needs proportionally more substeps to be as stiff as the coarse one.
+    pub fn for_scale(&self, scale: usize) -> ScenarioSpec {
+        let mut s = self.clone();
+        s.params.substeps = self.params.substeps * scale.max(1);
+        s
+    }
+
     /// Rest rectangle (width, height) in metres, fixed by the LR resolution.
     pub fn size(&self) -> (f32, f32) {
         let wd = self.scenario.width();
@@ -310,6 +319,7 @@ pub fn paired_run_with_progress(
     let lr = run_at(spec, spec.w, spec.h, None, &mut |k| progress(k))?;
     let track = if spec.tracking > 0.0 { Some((lr.as_slice(), spec.tracking)) } else { None };
     let (hw, hh) = (spec.scale * spec.w, spec.scale * spec.h);
-    let hr = run_at(spec, hw, hh, track, &mut |k| progress(spec.frames + k))?;
+    let hr_spec = spec.for_scale(spec.scale);
+    let hr = run_at(&hr_spec, hw, hh, track, &mut |k| progress(spec.frames + k))?;
     Ok((lr, hr))
 }

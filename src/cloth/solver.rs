@@ -42,6 +42,8 @@ pub struct Cloth {
     pub time: f32,
     lambda_d: Vec<f32>,
     lambda_b: Vec<[f32; 3]>,
+    /// Long-range attachments: (free vertex, pin index, rest distance m).
+    tethers: Vec<(u32, u32, f32)>,
     /// Per bending constraint: `w_j·k_j` and `Σ w_j k_j²` (masses are fixed, so precomputed).
     bend_w: Vec<([f32; 4], f32)>,
     accel: Vec<[f32; 3]>,
@@ -85,7 +87,26 @@ impl Cloth {
                 (wk, (0..4).map(|j| wk[j] * b.k[j]).sum())
             })
             .collect();
+        // Each free vertex tethers to its nearest pin at rest (the sheet is flat, so the rest
+        // distance is the geodesic one). Ties go to the lower pin index: deterministic.
+        let mut tethers = Vec::new();
+        if !pins.is_empty() {
+            for v in 0..n {
+                if inv_mass[v] == 0.0 {
+                    continue;
+                }
+                let (mut best, mut bd) = (0usize, f32::INFINITY);
+                for (k, p) in pins.iter().enumerate() {
+                    let d = crate::geom::mesh::dist(rest.pos[v], p.anchor);
+                    if d < bd {
+                        (best, bd) = (k, d);
+                    }
+                }
+                tethers.push((v as u32, best as u32, bd));
+            }
+        }
         Cloth {
+            tethers,
             bend_w,
             w: rest.w,
             h: rest.h,
@@ -185,6 +206,20 @@ impl Cloth {
                                 self.x[v][k] += frac * (target - self.x[v][k]);
                             }
                         }
+                    }
+                }
+            }
+            if p.tethers {
+                let slack = 1.0 + p.tether_slack;
+                for &(v, k, rest) in &self.tethers {
+                    let a = self.x[self.pins[k as usize].vertex];
+                    let xv = &mut self.x[v as usize];
+                    let d = sub(*xv, a);
+                    let l = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+                    let max = rest * slack;
+                    if l > max {
+                        let f = max / l;
+                        *xv = std::array::from_fn(|c| a[c] + d[c] * f);
                     }
                 }
             }
