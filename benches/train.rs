@@ -4,9 +4,11 @@
 //! `cargo bench --bench train [-- small|paper]`. Compare with JAX/XLA: `python3 benches/train_jax.py`.
 
 use anisocb::nn::{AnisoCb, GeometryNet, NetConfig, NetKind};
-use anisocb::ops::{AdamParams, Cpu, Ops};
+use anisocb::ops::{AdamParams, Cpu, Interp, Ops, Padding};
 use anisocb::train::adam::Adam;
 use anisocb::Tensor;
+use std::collections::BTreeMap;
+use std::sync::Mutex;
 use std::time::Instant;
 
 fn random(shape: &[usize], seed: u64) -> Tensor {
@@ -16,9 +18,84 @@ fn random(shape: &[usize], seed: u64) -> Tensor {
     t
 }
 
+/// Wraps an op table and adds up the wall time of each op (`-- profile`).
+struct Timed<'a> {
+    inner: &'a dyn Ops,
+    t: Mutex<BTreeMap<&'static str, (f64, u64)>>,
+}
+
+impl Timed<'_> {
+    fn time<R>(&self, name: &'static str, f: impl FnOnce() -> R) -> R {
+        let t0 = Instant::now();
+        let r = f();
+        let mut m = self.t.lock().unwrap();
+        let e = m.entry(name).or_default();
+        e.0 += t0.elapsed().as_secs_f64();
+        e.1 += 1;
+        r
+    }
+}
+
+impl Ops for Timed<'_> {
+    fn name(&self) -> &'static str {
+        "timed"
+    }
+    fn conv2d(&self, x: &Tensor, w: &Tensor, b: Option<&Tensor>, pad: Padding) -> Tensor {
+        self.time("conv2d", || self.inner.conv2d(x, w, b, pad))
+    }
+    fn conv2d_backward(
+        &self,
+        x: &Tensor,
+        w: &Tensor,
+        dy: &Tensor,
+        pad: Padding,
+        dx: Option<&mut Tensor>,
+        dw: &mut Tensor,
+        db: Option<&mut Tensor>,
+    ) {
+        self.time("conv2d_backward", || self.inner.conv2d_backward(x, w, dy, pad, dx, dw, db))
+    }
+    fn relu(&self, x: &Tensor) -> Tensor {
+        self.time("relu", || self.inner.relu(x))
+    }
+    fn relu_backward(&self, x: &Tensor, dy: &Tensor, dx: &mut Tensor) {
+        self.time("relu_backward", || self.inner.relu_backward(x, dy, dx))
+    }
+    fn add_assign(&self, a: &mut Tensor, b: &Tensor) {
+        self.time("add_assign", || self.inner.add_assign(a, b))
+    }
+    fn pixel_shuffle(&self, x: &Tensor, r: usize) -> Tensor {
+        self.time("pixel_shuffle", || self.inner.pixel_shuffle(x, r))
+    }
+    fn pixel_unshuffle(&self, x: &Tensor, r: usize) -> Tensor {
+        self.time("pixel_unshuffle", || self.inner.pixel_unshuffle(x, r))
+    }
+    fn resize(&self, x: &Tensor, h: usize, w: usize, m: Interp) -> Tensor {
+        self.time("resize", || self.inner.resize(x, h, w, m))
+    }
+    fn resize_backward(&self, dy: &Tensor, m: Interp, dx: &mut Tensor) {
+        self.time("resize_backward", || self.inner.resize_backward(dy, m, dx))
+    }
+    fn sigmoid(&self, x: &Tensor) -> Tensor {
+        self.time("sigmoid", || self.inner.sigmoid(x))
+    }
+    fn mse(&self, p: &Tensor, t: &Tensor) -> (f32, Tensor) {
+        self.time("mse", || self.inner.mse(p, t))
+    }
+    fn bce_with_logits(&self, z: &Tensor, t: &Tensor, w: f32) -> (f32, Tensor) {
+        self.time("bce_with_logits", || self.inner.bce_with_logits(z, t, w))
+    }
+    fn adam_update(&self, p: &mut [f32], g: &[f32], m: &mut [f32], v: &mut [f32], s: u64, hp: &AdamParams) {
+        self.time("adam_update", || self.inner.adam_update(p, g, m, v, s, hp))
+    }
+}
+
 fn main() {
-    let only: Option<String> = std::env::args().skip(1).find(|a| a == "small" || a == "paper");
-    let ops: &dyn Ops = &Cpu;
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let only = args.iter().find(|a| *a == "small" || *a == "paper").cloned();
+    let timed = Timed { inner: &Cpu, t: Mutex::new(BTreeMap::new()) };
+    let profile = args.iter().any(|a| a == "profile");
+    let ops: &dyn Ops = if profile { &timed } else { &Cpu };
     println!(
         "threads: {} (rayon); the machine is shared, numbers are under load",
         rayon::current_num_threads()
@@ -57,6 +134,17 @@ fn main() {
             s * 1e3,
             flop / s / 1e9
         );
+        if profile {
+            let mut m = timed.t.lock().unwrap();
+            for (op, (secs, calls)) in m.iter() {
+                println!(
+                    "      {op:>16}: {:7.1} ms/step ({} calls)",
+                    secs * 1e3 / (steps + 1) as f64,
+                    calls / (steps + 1)
+                );
+            }
+            m.clear();
+        }
 
         let frame = random(&[1, 3, 32, 32], 4);
         let bundle = AnisoCb::new(cfg, 5);

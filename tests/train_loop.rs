@@ -208,6 +208,7 @@ fn train_all_writes_a_loadable_bundle() {
     let dir = tmp("all");
     let (bundle, reports) = train_all(&Cpu, &data, &tiny_opts(dir.clone(), 2), &mut |_| {}).unwrap();
     assert_eq!(reports.len(), 3);
+    assert!(reports[0].baseline_val_loss.is_some_and(|b| b > 0.0) && reports[1].baseline_val_loss.is_none());
     assert_eq!(AnisoCb::load(&dir.join("weights.npz")).unwrap(), bundle);
     let out = bundle.forward(&Cpu, &data.lr.slice_batch(0, 2)).unwrap();
     assert_eq!(out.boundary.shape, vec![2, 1, 12, 12]);

@@ -84,7 +84,7 @@ pub fn run(a: Args) -> Result<()> {
     let mut val: Option<f32> = None;
     let mut png_err = None;
     let mut on_event = |e: Event| match e {
-        Event::Start { net, start, steps, train_frames, val_frames } => {
+        Event::Start { net, start, steps, train_frames, val_frames, baseline_val } => {
             pb.finish_and_clear();
             pb = progress(steps, net.name());
             pb.set_position(start);
@@ -96,6 +96,9 @@ pub fn run(a: Args) -> Result<()> {
                 crate::nn::Trunk::zeros(net, config).num_params(),
                 if start > 0 { format!(", resuming at step {start}") } else { String::new() }
             ));
+            if let Some(b) = baseline_val {
+                pb.println(format!("bicubic alone (R = 0): validation loss {b:.4e}"));
+            }
         }
         Event::Step { step, loss, .. } => {
             let e = ema.map_or(loss, |e| 0.95 * e + 0.05 * loss);
@@ -116,10 +119,11 @@ pub fn run(a: Args) -> Result<()> {
         Some(kind) => {
             let r = train(ops.as_ref(), &data, kind, &opts, &mut on_event)?;
             format!(
-                "{}: train loss {:.4e}, val loss {}, {:.1} samples/s → {}",
+                "{}: train loss {:.4e}, val loss {}{}, {:.1} samples/s → {}",
                 kind.name(),
                 r.last_train_loss,
                 r.last_val_loss.map_or("-".into(), |v| format!("{v:.4e}")),
+                r.baseline_val_loss.map_or(String::new(), |b| format!(" (bicubic alone {b:.4e})")),
                 r.samples_per_s,
                 r.weights.display()
             )

@@ -81,13 +81,15 @@ pub struct LogRow {
 /// What the loop tells its caller.
 #[derive(Debug)]
 pub enum Event<'a> {
-    /// A run of `net` begins at `start` (0, or the resumed step) of `steps`.
+    /// A run of `net` begins at `start` (0, or the resumed step) of `steps`. `baseline_val`:
+    /// GeometryNet's validation loss with `R = 0` (bicubic alone), the number to beat.
     Start {
         net: NetKind,
         start: u64,
         steps: u64,
         train_frames: usize,
         val_frames: usize,
+        baseline_val: Option<f32>,
     },
     Step {
         net: NetKind,
@@ -115,6 +117,8 @@ pub struct TrainReport {
     pub history: Vec<LogRow>,
     pub last_train_loss: f32,
     pub last_val_loss: Option<f32>,
+    /// GeometryNet only: validation MSE of the bicubic interpolation alone (`R = 0`).
+    pub baseline_val_loss: Option<f32>,
     /// Training samples per second over the steps run in this process.
     pub samples_per_s: f64,
     pub weights: PathBuf,
@@ -301,12 +305,17 @@ pub fn train(
     let (train_idx, val_idx) = split(data.len(), opts.val_frac)?;
     let mut sampler = PatchSampler::new(data, train_idx.clone(), opts.seed, opts.batch, opts.patch)?;
     let u_all = (net == NetKind::Geometry).then(|| interpolate_all(ops, data));
+    let baseline_val = match &u_all {
+        Some(u) if !val_idx.is_empty() => Some(ops.mse(&gather(u, &val_idx), &gather(&data.hr, &val_idx)).0),
+        _ => None,
+    };
     on_event(Event::Start {
         net,
         start: st.step,
         steps: opts.steps,
         train_frames: train_idx.len(),
         val_frames: val_idx.len(),
+        baseline_val,
     });
     let mut grads = st.trunk.zeros_like();
     let t0 = std::time::Instant::now();
@@ -378,6 +387,7 @@ pub fn train(
     Ok(TrainReport {
         last_train_loss: st.history.last().map_or(f32::NAN, |r| r.train),
         last_val_loss: last_val,
+        baseline_val_loss: baseline_val,
         samples_per_s: if secs > 0.0 { (ran * opts.batch as u64) as f64 / secs } else { 0.0 },
         history: st.history,
         trunk: st.trunk,
