@@ -91,8 +91,8 @@ impl Cloth {
         // distance is the geodesic one). Ties go to the lower pin index: deterministic.
         let mut tethers = Vec::new();
         if !pins.is_empty() {
-            for v in 0..n {
-                if inv_mass[v] == 0.0 {
+            for (v, &w) in inv_mass.iter().enumerate() {
+                if w == 0.0 {
                     continue;
                 }
                 let (mut best, mut bd) = (0usize, f32::INFINITY);
