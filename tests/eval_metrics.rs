@@ -96,7 +96,7 @@ fn flicker_is_zero_for_constant_offset_and_equals_velocity_error() {
 #[test]
 fn hausdorff_matches_brute_force_on_random_meshes() {
     let mut rng = Rng(42);
-    for (w, h) in [(3, 2), (9, 7), (31, 17)] {
+    for (w, h) in [(3, 2), (9, 7), (31, 17), (64, 40)] {
         let rand_mesh = |rng: &mut Rng| {
             let mut m = GridMesh::flat(w, h, 1.0, 1.0);
             for p in &mut m.pos {
@@ -113,9 +113,13 @@ fn hausdorff_matches_brute_force_on_random_meshes() {
                 })
                 .fold(0.0f32, f32::max)
         };
-        let want = directed(&a, &b).max(directed(&b, &a));
-        let got = hausdorff(&a, &b).unwrap();
-        assert!((got - want).abs() <= 1e-5 * (1.0 + want), "{w}x{h}: {got} vs brute force {want}");
+        // Also a far, unrelated pair (mirrored and shifted), where no early exit helps.
+        let far = moved(&b, |p| [p[1] + 0.7, p[0], -p[2]]);
+        for (x, y) in [(&a, &b), (&a, &far)] {
+            let want = directed(x, y).max(directed(y, x));
+            let got = hausdorff(x, y).unwrap();
+            assert!((got - want).abs() <= 1e-5 * (1.0 + want), "{w}x{h}: {got} vs brute force {want}");
+        }
     }
 }
 

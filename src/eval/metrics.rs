@@ -69,38 +69,98 @@ pub fn masked_rmse(pred: &GridMesh, gt: &GridMesh, mask: &[bool]) -> Result<f32>
     Ok(if n == 0 { 0.0 } else { (s / n as f64).sqrt() as f32 })
 }
 
-/// Directed vertex-to-vertex distance `max_{a∈A} min_{b∈B} |a − b|` (early-break search that
-/// starts at the same grid index and walks outwards; exact).
+/// Balanced k-d tree over a point set (implicit: node = index range, split at its middle on
+/// the range's widest axis). Built with `select_nth_unstable_by` and index tie-breaks, so the
+/// layout is deterministic.
+struct KdTree<'a> {
+    pts: &'a [[f32; 3]],
+    idx: Vec<usize>,
+    /// Split axis of the node whose middle element sits at this position.
+    axis: Vec<u8>,
+}
+
+const KD_LEAF: usize = 8;
+
+impl<'a> KdTree<'a> {
+    fn new(pts: &'a [[f32; 3]]) -> KdTree<'a> {
+        let mut t = KdTree { pts, idx: (0..pts.len()).collect(), axis: vec![0; pts.len()] };
+        let mut idx = std::mem::take(&mut t.idx);
+        t.build(&mut idx, 0);
+        t.idx = idx;
+        t
+    }
+
+    fn build(&mut self, idx: &mut [usize], offset: usize) {
+        if idx.len() <= KD_LEAF {
+            return;
+        }
+        let pts = self.pts;
+        let (mut lo, mut hi) = ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]);
+        for &i in idx.iter() {
+            for k in 0..3 {
+                lo[k] = lo[k].min(pts[i][k]);
+                hi[k] = hi[k].max(pts[i][k]);
+            }
+        }
+        let k =
+            (0..3).max_by(|&a, &b| (hi[a] - lo[a]).total_cmp(&(hi[b] - lo[b])).then(b.cmp(&a))).unwrap_or(0);
+        let mid = idx.len() / 2;
+        idx.select_nth_unstable_by(mid, |&a, &b| pts[a][k].total_cmp(&pts[b][k]).then(a.cmp(&b)));
+        self.axis[offset + mid] = k as u8;
+        let (left, rest) = idx.split_at_mut(mid);
+        self.build(left, offset);
+        self.build(&mut rest[1..], offset + mid + 1);
+    }
+
+    /// Squared distance from `q` to its nearest point, or any value ≤ `enough` as soon as one
+    /// point that close is found (the early exit of the Hausdorff search). `hint` is a point
+    /// index likely to be close (the same grid vertex), which bounds the search from the start.
+    fn nearest_d2(&self, q: [f32; 3], enough: f64, hint: usize) -> f64 {
+        let mut best = d2(q, self.pts[hint.min(self.pts.len() - 1)]);
+        if best > enough {
+            self.search(0, self.idx.len(), q, enough, &mut best);
+        }
+        best
+    }
+
+    /// Returns true once `best ≤ enough` (stop everything).
+    fn search(&self, lo: usize, hi: usize, q: [f32; 3], enough: f64, best: &mut f64) -> bool {
+        if hi - lo <= KD_LEAF {
+            for &i in &self.idx[lo..hi] {
+                *best = best.min(d2(q, self.pts[i]));
+            }
+            return *best <= enough;
+        }
+        let mid = lo + (hi - lo) / 2;
+        let k = self.axis[mid] as usize;
+        let p = self.pts[self.idx[mid]];
+        *best = best.min(d2(q, p));
+        if *best <= enough {
+            return true;
+        }
+        let diff = q[k] as f64 - p[k] as f64;
+        let (near, far) = if diff < 0.0 { ((lo, mid), (mid + 1, hi)) } else { ((mid + 1, hi), (lo, mid)) };
+        if self.search(near.0, near.1, q, enough, best) {
+            return true;
+        }
+        if diff * diff < *best {
+            return self.search(far.0, far.1, q, enough, best);
+        }
+        false
+    }
+}
+
+/// Directed vertex-to-vertex distance `max_{a∈A} min_{b∈B} |a − b|`, squared: nearest
+/// neighbours through a uniform grid, with the early break of Taha & Hanbury (a point whose
+/// nearest neighbour is closer than the running maximum cannot raise it). Exact.
 fn directed_hausdorff(a: &[[f32; 3]], b: &[[f32; 3]]) -> f64 {
-    let n = b.len();
+    let tree = KdTree::new(b);
     a.par_chunks(256)
         .enumerate()
         .map(|(ci, chunk)| {
             let mut cmax = 0.0f64;
             for (k, &p) in chunk.iter().enumerate() {
-                let i = (ci * 256 + k).min(n - 1);
-                let mut cmin = f64::INFINITY;
-                'search: for off in 0..n {
-                    let mut any = false;
-                    for j in [Some(i + off), i.checked_sub(off)].into_iter().flatten() {
-                        if j >= n {
-                            continue;
-                        }
-                        any = true;
-                        let d = d2(p, b[j]);
-                        if d < cmin {
-                            cmin = d;
-                            // `p` cannot raise the maximum any more.
-                            if cmin <= cmax {
-                                break 'search;
-                            }
-                        }
-                    }
-                    if !any {
-                        break;
-                    }
-                }
-                cmax = cmax.max(cmin);
+                cmax = cmax.max(tree.nearest_d2(p, cmax, ci * 256 + k));
             }
             cmax
         })
