@@ -158,6 +158,17 @@ fn resume_refuses_changed_options_and_fresh_runs_refuse_to_overwrite() {
     let err = train(&Cpu, &data, NetKind::Enhance, &changed, &mut |_| {}).unwrap_err().to_string();
     println!("{err}");
     assert!(err.contains("batch"), "{err}");
+    let other = synthetic(5, 6, 6);
+    let err = train(
+        &Cpu,
+        &other,
+        NetKind::Enhance,
+        &TrainOptions { resume: true, ..tiny_opts(dir.clone(), 4) },
+        &mut |_| {},
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(err.contains("data:"), "{err}");
     let none = TrainOptions { resume: true, ..tiny_opts(tmp("refuse-none"), 4) };
     assert!(train(&Cpu, &data, NetKind::Enhance, &none, &mut |_| {}).is_err());
 }

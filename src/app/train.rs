@@ -90,14 +90,16 @@ pub fn run(a: Args) -> Result<()> {
             pb.set_position(start);
             ema = None;
             val = None;
-            pb.println(format!(
+            let line = format!(
                 "{}: {} params, {train_frames} training / {val_frames} validation frames{}",
                 net.name(),
                 crate::nn::Trunk::zeros(net, config).num_params(),
                 if start > 0 { format!(", resuming at step {start}") } else { String::new() }
-            ));
+            );
+            // eprintln under suspend: shown also when stderr is not a terminal (bar hidden).
+            pb.suspend(|| eprintln!("{line}"));
             if let Some(b) = baseline_val {
-                pb.println(format!("bicubic alone (R = 0): validation loss {b:.4e}"));
+                pb.suspend(|| eprintln!("bicubic alone (R = 0): validation loss {b:.4e}"));
             }
         }
         Event::Step { step, loss, .. } => {

@@ -94,6 +94,21 @@ impl Dataset {
         }
     }
 
+    /// FNV-1a hash of the shapes and bits of every array: a resumed run must see the same data.
+    pub fn fingerprint(&self) -> u64 {
+        let mut h = 0xcbf2_9ce4_8422_2325u64;
+        let mut eat = |w: u64| {
+            for b in w.to_le_bytes() {
+                h = (h ^ b as u64).wrapping_mul(0x0100_0000_01b3);
+            }
+        };
+        for t in [&self.lr, &self.hr, &self.boundary, &self.edges] {
+            t.shape.iter().for_each(|&d| eat(d as u64));
+            t.data.chunks(2).for_each(|c| eat(c.iter().fold(0u64, |a, v| (a << 32) | v.to_bits() as u64)));
+        }
+        h
+    }
+
     /// Fraction of positive pixels of a map target (for choosing `pos_weight`).
     pub fn positive_fraction(&self, kind: NetKind) -> f64 {
         let t = self.target(kind);
@@ -108,7 +123,8 @@ pub fn split(n: usize, val_frac: f32) -> Result<(Vec<usize>, Vec<usize>)> {
     if !(0.0..1.0).contains(&val_frac) {
         return Err(Error::config(format!("--val-frac must be in [0, 1), got {val_frac}")));
     }
-    let n_val = ((val_frac as f64 * n as f64).ceil() as usize).min(n.saturating_sub(1));
+    // (−1e-6: 0.1f32 is 0.10000000149, and 10% of 800 frames should be 80, not 81.)
+    let n_val = ((val_frac as f64 * n as f64 - 1e-6).ceil().max(0.0) as usize).min(n.saturating_sub(1));
     Ok(((0..n - n_val).collect(), (n - n_val..n).collect()))
 }
 

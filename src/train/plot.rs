@@ -1,5 +1,6 @@
 //! A loss curve as an RGB picture (no font, no plotting crate): log-scale y with a grey line
-//! at every power of ten, training loss in blue, validation loss in orange, x = step.
+//! at every power of ten, training loss in light blue (its moving average dark blue),
+//! validation loss in orange, x = step.
 
 use super::trainer::LogRow;
 
@@ -53,7 +54,41 @@ pub fn loss_curve_rgb(history: &[LogRow], w: usize, h: usize) -> Vec<u8> {
         }
     };
     let ok = |v: f32| v.is_finite() && v > 0.0;
-    line(&mut history.iter().filter(|r| ok(r.train)).map(|r| (r.step, r.train)), [40, 90, 200]);
+    line(&mut history.iter().filter(|r| ok(r.train)).map(|r| (r.step, r.train)), [175, 200, 240]);
+    // Exponential moving average of the (noisy, per-batch) training loss, over ~2% of the run.
+    let alpha = 2.0 / (history.len() as f32 / 50.0 + 2.0);
+    let mut ema: Option<f32> = None;
+    let smooth: Vec<(u64, f32)> = history
+        .iter()
+        .filter(|r| ok(r.train))
+        .map(|r| {
+            let e = ema.map_or(r.train, |e| e + alpha * (r.train - e));
+            ema = Some(e);
+            (r.step, e)
+        })
+        .collect();
+    line(&mut smooth.into_iter(), [30, 70, 190]);
     line(&mut history.iter().filter(|r| ok(r.val)).map(|r| (r.step, r.val)), [230, 120, 20]);
     img
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn curve_draws_both_series_inside_the_picture() {
+        let h: Vec<LogRow> = (1..=200)
+            .map(|s| LogRow {
+                step: s,
+                train: 1.0 / s as f32,
+                val: if s % 50 == 0 { 2.0 / s as f32 } else { f32::NAN },
+            })
+            .collect();
+        let img = loss_curve_rgb(&h, 160, 90);
+        assert_eq!(img.len(), 160 * 90 * 3);
+        let has = |c: [u8; 3]| img.chunks_exact(3).any(|p| p == c);
+        assert!(has([30, 70, 190]) && has([230, 120, 20]));
+        assert!(loss_curve_rgb(&[], 10, 10).iter().all(|&b| b == 255));
+    }
 }

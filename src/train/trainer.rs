@@ -162,7 +162,7 @@ fn validation_loss(
     Ok(Some((sum / val.len() as f64) as f32))
 }
 
-fn options_json(net: NetKind, o: &TrainOptions, step: u64) -> String {
+fn options_json(net: NetKind, o: &TrainOptions, data_fp: u64, step: u64) -> String {
     Object::default()
         .str("format", "anisocb-checkpoint")
         .num("version", 1)
@@ -177,12 +177,13 @@ fn options_json(net: NetKind, o: &TrainOptions, step: u64) -> String {
         .num("eps", o.adam.eps)
         .num("val_frac", o.val_frac)
         .num("pos_weight", o.pos_weight)
+        .str("data", &format!("{data_fp:016x}"))
         .to_json()
 }
 
 /// Options that must be equal for a resume to reproduce an uninterrupted run.
-fn check_resumable(path: &Path, saved: &Object, net: NetKind, o: &TrainOptions) -> Result<u64> {
-    let now = Object::parse(&options_json(net, o, 0)).expect("own JSON parses");
+fn check_resumable(path: &Path, saved: &Object, net: NetKind, o: &TrainOptions, fp: u64) -> Result<u64> {
+    let now = Object::parse(&options_json(net, o, fp, 0)).expect("own JSON parses");
     let mut diffs = Vec::new();
     for (k, v) in &now.0 {
         if k == "step" {
@@ -222,7 +223,7 @@ fn new_adam(trunk: &Trunk, o: &TrainOptions) -> Adam {
     Adam::new(o.adam, &sizes)
 }
 
-fn write_checkpoint(path: &Path, net: NetKind, o: &TrainOptions, s: &State) -> Result<()> {
+fn write_checkpoint(path: &Path, net: NetKind, o: &TrainOptions, fp: u64, s: &State) -> Result<()> {
     let mut e = NpzEntries::default();
     push_trunk(&mut e, &s.trunk, "net.");
     s.adam.save("adam.", &mut e);
@@ -231,16 +232,16 @@ fn write_checkpoint(path: &Path, net: NetKind, o: &TrainOptions, s: &State) -> R
         h.extend_from_slice(&[r.step as f32, r.train, r.val]);
     }
     e.push_array("history", Tensor { shape: vec![s.history.len(), 3], data: h });
-    e.push_file("trainer.json", options_json(net, o, s.step).into_bytes());
+    e.push_file("trainer.json", options_json(net, o, fp, s.step).into_bytes());
     write_npz(path, &e)
 }
 
-fn read_checkpoint(path: &Path, net: NetKind, o: &TrainOptions) -> Result<State> {
+fn read_checkpoint(path: &Path, net: NetKind, o: &TrainOptions, fp: u64) -> Result<State> {
     let e = read_npz(path)?;
     let tj =
         e.file("trainer.json").ok_or_else(|| Error::format(path, "not a checkpoint (no trainer.json)"))?;
     let saved = Object::parse(&String::from_utf8_lossy(tj)).map_err(|m| Error::format(path, m))?;
-    let step = check_resumable(path, &saved, net, o)?;
+    let step = check_resumable(path, &saved, net, o, fp)?;
     let trunk = trunk_from_npz(&e, "net.", path, Some((net, o.config)))?;
     let mut adam = new_adam(&trunk, o);
     adam.load(&e, "adam.", path)?;
@@ -287,11 +288,12 @@ pub fn train(
     for f in ["checkpoint.npz", "loss.csv", "loss.png", "weights.npz"] {
         crate::io::atomic::remove_stale_temps(&opts.out.join(f))?;
     }
+    let fp = data.fingerprint();
     let mut st = if opts.resume {
         if !ckpt.exists() {
             return Err(Error::format(&ckpt, "--resume given but there is no checkpoint to resume from"));
         }
-        read_checkpoint(&ckpt, net, opts)?
+        read_checkpoint(&ckpt, net, opts, fp)?
     } else {
         if ckpt.exists() {
             return Err(Error::format(
@@ -370,14 +372,14 @@ pub fn train(
         }
         st.history.push(row);
         if !last_step && opts.checkpoint_every > 0 && st.step % opts.checkpoint_every == 0 {
-            write_checkpoint(&ckpt, net, opts, &st)?;
+            write_checkpoint(&ckpt, net, opts, fp, &st)?;
             write_loss_csv(&opts.out.join("loss.csv"), &st.history)?;
             on_event(Event::Checkpoint { net, step: st.step, dir: &opts.out, history: &st.history });
         }
     }
     // Always (also when a resumed run had nothing left to do), so that a run killed anywhere
     // after its last step still ends with the same files as an uninterrupted one.
-    write_checkpoint(&ckpt, net, opts, &st)?;
+    write_checkpoint(&ckpt, net, opts, fp, &st)?;
     write_loss_csv(&opts.out.join("loss.csv"), &st.history)?;
     on_event(Event::Checkpoint { net, step: st.step, dir: &opts.out, history: &st.history });
     let weights = opts.out.join("weights.npz");
