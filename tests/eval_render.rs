@@ -168,3 +168,33 @@ fn line_plot_draws_series_legend_and_log_axis() {
     LinePlot::new("empty").render(200, 150).unwrap();
     LinePlot::new("const").series_y("c", &[1.0, 1.0]).log_y(true).render(200, 150).unwrap();
 }
+
+#[test]
+fn sphere_prop_renders_as_a_disc_and_hides_cloth_behind_it() {
+    use anisocb::eval::render::{render_layers, sphere_mesh, Layer};
+    // Radius 0.5 m in a 1 m box, head-on, 10% margin on 100 px: a disc of 40 px radius.
+    let s = sphere_mesh([0.0, 0.0, 0.0], 0.5, 32);
+    let view = View { azimuth_deg: 0.0, elevation_deg: 0.0, fov_deg: 0.0, margin: 0.1 };
+    let cam = Camera::fit_meshes(&view, &[&s], 100, 100).unwrap();
+    let red = Layer { mesh: &s, colors: None, tint: Some([1.0, 0.0, 0.0]) };
+    let img = render_layers(&[red], &cam, &Shading::default()).unwrap();
+    let cover = cloth_pixels(&img) as f32 / 1e4;
+    let want = std::f32::consts::PI * 0.4 * 0.4;
+    assert!((cover - want).abs() < 0.02, "coverage {cover} vs {want}");
+    // A sheet behind the sphere (z = −0.6) shows only around it; in front (z = +0.6) covers it.
+    let mut sheet = GridMesh::flat(5, 5, 1.0, 1.0);
+    for p in &mut sheet.pos {
+        *p = [p[0] - 0.5, p[1] - 0.5, -0.6];
+    }
+    let blue = Layer { mesh: &sheet, colors: None, tint: Some([0.0, 0.0, 1.0]) };
+    let img = render_layers(&[blue, red], &cam, &Shading::default()).unwrap();
+    let c = img.get(50, 50);
+    assert!(c[0] > c[2], "sphere in front: {c:?}");
+    for p in &mut sheet.pos {
+        p[2] = 0.6;
+    }
+    let blue = Layer { mesh: &sheet, colors: None, tint: Some([0.0, 0.0, 1.0]) };
+    let img = render_layers(&[red, blue], &cam, &Shading::default()).unwrap();
+    let c = img.get(50, 50);
+    assert!(c[2] > c[0], "sheet in front: {c:?}");
+}

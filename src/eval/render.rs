@@ -273,6 +273,16 @@ pub fn vertex_normals(mesh: &GridMesh) -> Vec<V3> {
     n.into_iter().map(normalize).collect()
 }
 
+/// One mesh of a picture: the cloth (optionally heat-coloured) or a prop such as a collision
+/// sphere drawn in a flat `tint`.
+#[derive(Clone, Copy, Debug)]
+pub struct Layer<'a> {
+    pub mesh: &'a GridMesh,
+    pub colors: Option<ScalarColors<'a>>,
+    /// sRGB colour for both sides instead of the cloth colours (props).
+    pub tint: Option<V3>,
+}
+
 /// Renders `mesh` as seen by `cam` into a `cam.w × cam.h` picture.
 pub fn render_mesh(
     mesh: &GridMesh,
@@ -280,13 +290,20 @@ pub fn render_mesh(
     shade: &Shading,
     colors: Option<ScalarColors<'_>>,
 ) -> Result<Rgb8> {
-    if let Some(c) = &colors {
-        if c.values.len() != mesh.pos.len() {
-            return Err(Error::shape(format!(
-                "render: {} per-vertex values for a mesh of {} vertices",
-                c.values.len(),
-                mesh.pos.len()
-            )));
+    render_layers(&[Layer { mesh, colors, tint: None }], cam, shade)
+}
+
+/// Renders several meshes into one z-buffer (cloth and props), as seen by `cam`.
+pub fn render_layers(layers: &[Layer<'_>], cam: &Camera, shade: &Shading) -> Result<Rgb8> {
+    for l in layers {
+        if let Some(c) = &l.colors {
+            if c.values.len() != l.mesh.pos.len() {
+                return Err(Error::shape(format!(
+                    "render: {} per-vertex values for a mesh of {} vertices",
+                    c.values.len(),
+                    l.mesh.pos.len()
+                )));
+            }
         }
     }
     let ss = shade.ssaa.clamp(1, 4);
@@ -302,66 +319,69 @@ pub fn render_mesh(
             color[y * w + x] = bg;
         }
     }
-    let normals = vertex_normals(mesh);
-    let scr: Vec<(f32, f32, f32)> = mesh.pos.iter().map(|&p| cam_s.project(p)).collect();
-    // Vertex normals in camera space.
-    let ncam: Vec<V3> =
-        normals.iter().map(|&n| [dot(n, cam.right), dot(n, cam.up), dot(n, cam.back)]).collect();
-    let base_lin = |side: V3, v: usize| -> V3 {
-        match &colors {
-            Some(c) => {
-                let span = (c.hi - c.lo).abs().max(1e-30);
-                let col = heat_color((c.values[v] - c.lo) / span);
-                col.map(to_linear)
+    for layer in layers {
+        let (mesh, colors) = (layer.mesh, layer.colors);
+        let normals = vertex_normals(mesh);
+        let scr: Vec<(f32, f32, f32)> = mesh.pos.iter().map(|&p| cam_s.project(p)).collect();
+        // Vertex normals in camera space.
+        let ncam: Vec<V3> =
+            normals.iter().map(|&n| [dot(n, cam.right), dot(n, cam.up), dot(n, cam.back)]).collect();
+        let base_lin = |side: V3, v: usize| -> V3 {
+            match &colors {
+                Some(c) => {
+                    let span = (c.hi - c.lo).abs().max(1e-30);
+                    let col = heat_color((c.values[v] - c.lo) / span);
+                    col.map(to_linear)
+                }
+                None => side.map(to_linear),
             }
-            None => side.map(to_linear),
-        }
-    };
-    let key = normalize(shade.key_dir);
-    let half = normalize([key[0], key[1], key[2] + 1.0]);
-    for t in mesh.triangles() {
-        let [a, b, c] = t;
-        let (p0, p1, p2) = (scr[a], scr[b], scr[c]);
-        let area = (p1.0 - p0.0) * (p2.1 - p0.1) - (p2.0 - p0.0) * (p1.1 - p0.1);
-        if area.abs() < 1e-12 || !area.is_finite() {
-            continue;
-        }
-        // Which side of the cloth faces the camera.
-        let (wa, wb, wc) = (mesh.pos[a], mesh.pos[b], mesh.pos[c]);
-        let fnorm = cross(sub(wb, wa), sub(wc, wa));
-        let centroid: V3 = std::array::from_fn(|k| (wa[k] + wb[k] + wc[k]) / 3.0);
-        let front = dot(fnorm, cam.toward_eye(centroid)) >= 0.0;
-        let sgn = if front { 1.0 } else { -1.0 };
-        let side = if front { shade.front } else { shade.back };
-        let (c0, c1, c2) = (base_lin(side, a), base_lin(side, b), base_lin(side, c));
-        let xmin = p0.0.min(p1.0).min(p2.0).floor().max(0.0) as usize;
-        let ymin = p0.1.min(p1.1).min(p2.1).floor().max(0.0) as usize;
-        let xmax = (p0.0.max(p1.0).max(p2.0).ceil().max(0.0) as usize).min(w);
-        let ymax = (p0.1.max(p1.1).max(p2.1).ceil().max(0.0) as usize).min(h);
-        let inv = 1.0 / area;
-        for y in ymin..ymax {
-            let py = y as f32 + 0.5;
-            for x in xmin..xmax {
-                let px = x as f32 + 0.5;
-                // Barycentric weights from edge functions, normalised by the signed area.
-                let l0 = ((p1.0 - px) * (p2.1 - py) - (p2.0 - px) * (p1.1 - py)) * inv;
-                let l1 = ((p2.0 - px) * (p0.1 - py) - (p0.0 - px) * (p2.1 - py)) * inv;
-                let l2 = 1.0 - l0 - l1;
-                if l0 < 0.0 || l1 < 0.0 || l2 < 0.0 {
-                    continue;
+        };
+        let key = normalize(shade.key_dir);
+        let half = normalize([key[0], key[1], key[2] + 1.0]);
+        for t in mesh.triangles() {
+            let [a, b, c] = t;
+            let (p0, p1, p2) = (scr[a], scr[b], scr[c]);
+            let area = (p1.0 - p0.0) * (p2.1 - p0.1) - (p2.0 - p0.0) * (p1.1 - p0.1);
+            if area.abs() < 1e-12 || !area.is_finite() {
+                continue;
+            }
+            // Which side of the cloth faces the camera.
+            let (wa, wb, wc) = (mesh.pos[a], mesh.pos[b], mesh.pos[c]);
+            let fnorm = cross(sub(wb, wa), sub(wc, wa));
+            let centroid: V3 = std::array::from_fn(|k| (wa[k] + wb[k] + wc[k]) / 3.0);
+            let front = dot(fnorm, cam.toward_eye(centroid)) >= 0.0;
+            let sgn = if front { 1.0 } else { -1.0 };
+            let side = layer.tint.unwrap_or(if front { shade.front } else { shade.back });
+            let (c0, c1, c2) = (base_lin(side, a), base_lin(side, b), base_lin(side, c));
+            let xmin = p0.0.min(p1.0).min(p2.0).floor().max(0.0) as usize;
+            let ymin = p0.1.min(p1.1).min(p2.1).floor().max(0.0) as usize;
+            let xmax = (p0.0.max(p1.0).max(p2.0).ceil().max(0.0) as usize).min(w);
+            let ymax = (p0.1.max(p1.1).max(p2.1).ceil().max(0.0) as usize).min(h);
+            let inv = 1.0 / area;
+            for y in ymin..ymax {
+                let py = y as f32 + 0.5;
+                for x in xmin..xmax {
+                    let px = x as f32 + 0.5;
+                    // Barycentric weights from edge functions, normalised by the signed area.
+                    let l0 = ((p1.0 - px) * (p2.1 - py) - (p2.0 - px) * (p1.1 - py)) * inv;
+                    let l1 = ((p2.0 - px) * (p0.1 - py) - (p0.0 - px) * (p2.1 - py)) * inv;
+                    let l2 = 1.0 - l0 - l1;
+                    if l0 < 0.0 || l1 < 0.0 || l2 < 0.0 {
+                        continue;
+                    }
+                    let z = l0 * p0.2 + l1 * p1.2 + l2 * p2.2;
+                    let i = y * w + x;
+                    if z <= depth[i] {
+                        continue;
+                    }
+                    depth[i] = z;
+                    let n: V3 =
+                        std::array::from_fn(|k| sgn * (l0 * ncam[a][k] + l1 * ncam[b][k] + l2 * ncam[c][k]));
+                    let n = normalize(n);
+                    let diff = shade.ambient + shade.key * dot(n, key).max(0.0) + shade.head * n[2].max(0.0);
+                    let spec = shade.spec * dot(n, half).max(0.0).powf(shade.shininess);
+                    color[i] = std::array::from_fn(|k| (l0 * c0[k] + l1 * c1[k] + l2 * c2[k]) * diff + spec);
                 }
-                let z = l0 * p0.2 + l1 * p1.2 + l2 * p2.2;
-                let i = y * w + x;
-                if z <= depth[i] {
-                    continue;
-                }
-                depth[i] = z;
-                let n: V3 =
-                    std::array::from_fn(|k| sgn * (l0 * ncam[a][k] + l1 * ncam[b][k] + l2 * ncam[c][k]));
-                let n = normalize(n);
-                let diff = shade.ambient + shade.key * dot(n, key).max(0.0) + shade.head * n[2].max(0.0);
-                let spec = shade.spec * dot(n, half).max(0.0).powf(shade.shininess);
-                color[i] = std::array::from_fn(|k| (l0 * c0[k] + l1 * c1[k] + l2 * c2[k]) * diff + spec);
             }
         }
     }
@@ -385,6 +405,30 @@ pub fn render_mesh(
     Ok(out)
 }
 
+/// A UV sphere as a grid mesh (`2·segments + 1` columns around, `segments + 1` rows from pole
+/// to pole; seam and poles duplicated), e.g. a collision sphere to draw beside the cloth.
+/// `center`, `radius` in metres.
+pub fn sphere_mesh(center: V3, radius: f32, segments: usize) -> GridMesh {
+    let n = segments.max(3);
+    let (w, h) = (2 * n + 1, n + 1);
+    let mut pos = Vec::with_capacity(w * h);
+    for j in 0..h {
+        let th = std::f32::consts::PI * j as f32 / n as f32;
+        for i in 0..w {
+            let ph = std::f32::consts::PI * i as f32 / n as f32;
+            pos.push([
+                center[0] + radius * th.sin() * ph.cos(),
+                center[1] + radius * th.cos(),
+                center[2] + radius * th.sin() * ph.sin(),
+            ]);
+        }
+    }
+    GridMesh::new(w, h, pos)
+}
+
+/// Grey of props (spheres) in [`render_row_with_props`].
+pub const PROP_TINT: V3 = [0.72, 0.72, 0.70];
+
 /// One tile of a comparison row: a mesh, its label, optional per-vertex scalars.
 pub struct Tile<'a> {
     pub mesh: &'a GridMesh,
@@ -402,12 +446,27 @@ pub fn render_row(
     tile_h: usize,
     gap: usize,
 ) -> Result<Rgb8> {
+    render_row_with_props(tiles, &[], view, shade, (tile_w, tile_h), gap)
+}
+
+/// [`render_row`] with props (e.g. [`sphere_mesh`] of the scene's colliders) drawn in grey in
+/// every tile. The camera is fitted to the cloth tiles only; props may run off the picture.
+pub fn render_row_with_props(
+    tiles: &[Tile<'_>],
+    props: &[GridMesh],
+    view: &View,
+    shade: &Shading,
+    (tile_w, tile_h): (usize, usize),
+    gap: usize,
+) -> Result<Rgb8> {
     let meshes: Vec<&GridMesh> = tiles.iter().map(|t| t.mesh).collect();
     let cam = Camera::fit_meshes(view, &meshes, tile_w, tile_h)?;
     let scale = if tile_h >= 256 { 2 } else { 1 };
     let mut pics = Vec::with_capacity(tiles.len());
     for t in tiles {
-        let mut p = render_mesh(t.mesh, &cam, shade, t.colors)?;
+        let mut layers = vec![Layer { mesh: t.mesh, colors: t.colors, tint: None }];
+        layers.extend(props.iter().map(|m| Layer { mesh: m, colors: None, tint: Some(PROP_TINT) }));
+        let mut p = render_layers(&layers, &cam, shade)?;
         if !t.label.is_empty() {
             p.label(t.label, scale);
         }
