@@ -413,7 +413,9 @@ fn pmax(ov: usize) -> usize {
 
 /// Correlate a padded NHWC input (n images of hp×wp pixels, c channels) with packed weights
 /// into out_h × out_w outputs per image: out[y][x] = init + Σ_taps,c w · xp[y+ky][x+kx].
-/// For each output row, `sink(n, y, row)` gets the row as NHWC scratch (out_w × opad floats).
+/// The output rows of each image are produced in `groups` of (first row, row count), one rayon
+/// task per (image, group); `sink(n, group index, rows)` then gets the group's rows as NHWC
+/// scratch (rows × out_w × opad floats).
 #[allow(clippy::too_many_arguments)]
 fn correlate_rows(
     xp: &[f32],
@@ -427,17 +429,21 @@ fn correlate_rows(
     init: Option<&[f32]>,
     out_h: usize,
     out_w: usize,
+    groups: &[(usize, usize)],
     sink: &(dyn Fn(usize, usize, &[f32]) + Sync),
 ) {
     assert!(out_h + kh - 1 <= hp && out_w + kw - 1 <= wp);
     assert!(xp.len() >= n * hp * wp * c);
+    assert!(groups.iter().all(|&(y0, r)| y0 + r <= out_h));
     let opad = pk.opad;
-    (0..n * out_h).into_par_iter().for_each_init(
-        || vec![0.0f32; out_w * opad],
-        |row, r| {
-            let (ni, y) = (r / out_h, r % out_h);
-            for x in 0..out_w {
-                let dst = &mut row[x * opad..][..opad];
+    let row_len = out_w * opad;
+    (0..n * groups.len()).into_par_iter().for_each_init(Vec::new, |buf: &mut Vec<f32>, task| {
+        let (ni, gi) = (task / groups.len(), task % groups.len());
+        let (y0, rows) = groups[gi];
+        buf.resize(rows * row_len, 0.0);
+        for (ri, row) in buf.chunks_exact_mut(row_len).enumerate() {
+            let y = y0 + ri;
+            for dst in row.chunks_exact_mut(opad) {
                 match init {
                     Some(b) => dst.copy_from_slice(b),
                     None => dst.fill(0.0),
@@ -445,15 +451,9 @@ fn correlate_rows(
             }
             let xrow = ((ni * hp + y) * wp) * c;
             for (bi, &(off, ov)) in pk.blocks.iter().enumerate() {
-                let pm = pmax(ov);
-                // Near-equal tiles of ≤ pm pixels.
-                let tiles = out_w.div_ceil(pm);
-                let mut x0 = 0;
-                for t in 0..tiles {
-                    let np = (out_w - x0) / (tiles - t) + usize::from((out_w - x0) % (tiles - t) != 0);
-                    let np = np.min(pm);
-                    // SAFETY: rows y..y+kh < hp and columns x0..x0+np+kw−1 ≤ wp of image ni
-                    // (asserted above); the scratch has out_w × opad floats.
+                for (x0, np) in tiles(out_w, pmax(ov)) {
+                    // SAFETY: rows y..y+kh ≤ hp and columns x0..x0+np+kw−1 ≤ wp of image ni
+                    // (asserted above); the row scratch has out_w × opad floats.
                     unsafe {
                         let xptr = xp.as_ptr().add(xrow + x0 * c);
                         let wptr = pk.data.as_ptr().add(off);
@@ -465,13 +465,16 @@ fn correlate_rows(
                             _ => dispatch_p!(micro, 1, np, xptr, wp, c, kh, kw, wptr, aptr, opad),
                         }
                     }
-                    x0 += np;
                 }
-                debug_assert_eq!(x0, out_w);
             }
-            sink(ni, y, row);
-        },
-    );
+        }
+        sink(ni, gi, &buf[..rows * row_len]);
+    });
+}
+
+/// One group per output row.
+fn single_rows(out_h: usize) -> Vec<(usize, usize)> {
+    (0..out_h).map(|y| (y, 1)).collect()
 }
 
 /// Fast forward (same contract as [`conv2d_ref`]).
@@ -501,7 +504,7 @@ pub fn conv2d(x: &Tensor, w: &Tensor, b: Option<&Tensor>, pad: Padding) -> Tenso
             }
         }
     };
-    correlate_rows(&xp, n, hp, wp, c, kh, kw, &pk, bias.as_deref(), h, wd, &sink);
+    correlate_rows(&xp, n, hp, wp, c, kh, kw, &pk, bias.as_deref(), h, wd, &single_rows(h), &sink);
     y
 }
 
@@ -560,37 +563,42 @@ pub fn conv2d_input_grad(w: &Tensor, dy: &Tensor, pad: Padding, dx: &mut Tensor)
                     }
                 }
             };
-            correlate_rows(&dyp, n, hp, wp, o, kh, kw, &pk, None, h, wd, &sink);
+            correlate_rows(&dyp, n, hp, wp, o, kh, kw, &pk, None, h, wd, &single_rows(h), &sink);
         }
         Padding::Replicate => {
-            // Gradient w.r.t. the padded input ((H+2ph) × (W+2pw)), a "full" correlation of dy
-            // zero-padded by (kh−1, kw−1); then fold the border onto the clamped pixels.
+            // Gradient w.r.t. the padded input ((H+2ph) × (W+2pw)): a "full" correlation of dy
+            // zero-padded by (kh−1, kw−1), folded onto the clamped pixels. One task per dx row
+            // r computes every padded row that folds onto r (rows 0..=ph for r = 0, the last
+            // ph+1 rows for r = H−1), so the fold writes only row r.
             let (dyq, hq, wq) = pad_nhwc(dy, 2 * ph, 2 * pw, Padding::Zero, 0);
             let (hp, wp) = (h + 2 * ph, wd + 2 * pw);
-            let mut full = Scratch::zeroed(n * hp * wp * c);
-            let fp = SyncPtr(full.as_mut_ptr());
-            let sink = move |ni: usize, yy: usize, row: &[f32]| {
-                // SAFETY: pixel row (ni, yy) of `full` is written by this task only.
-                let dst =
-                    unsafe { std::slice::from_raw_parts_mut(fp.get().add((ni * hp + yy) * wp * c), wp * c) };
-                for xx in 0..wp {
-                    dst[xx * c..][..c].copy_from_slice(&row[xx * opad..][..c]);
-                }
+            let groups: Vec<(usize, usize)> = if h == 1 {
+                vec![(0, hp)]
+            } else {
+                (0..h)
+                    .map(|r| match r {
+                        0 => (0, ph + 1),
+                        r if r == h - 1 => (r + ph, ph + 1),
+                        r => (r + ph, 1),
+                    })
+                    .collect()
             };
-            correlate_rows(&dyq, n, hq, wq, o, kh, kw, &pk, None, hp, wp, &sink);
-            let full = &full;
-            dx.data.par_chunks_mut(h * wd).enumerate().for_each(|(plane, dst)| {
-                let (ni, ci) = (plane / c, plane % c);
-                for yy in 0..hp {
-                    let sy = (yy as isize - ph as isize).clamp(0, h as isize - 1) as usize;
-                    let src = &full[(ni * hp + yy) * wp * c..][..wp * c];
-                    let drow = &mut dst[sy * wd..][..wd];
-                    for xx in 0..wp {
-                        let sx = (xx as isize - pw as isize).clamp(0, wd as isize - 1) as usize;
-                        drow[sx] += src[xx * c + ci];
+            let dxp = SyncPtr(dx.data.as_mut_ptr());
+            let sink = move |ni: usize, r: usize, rows: &[f32]| {
+                for ci in 0..c {
+                    // SAFETY: row (ni, r) of every plane is written by this task only.
+                    let drow = unsafe {
+                        std::slice::from_raw_parts_mut(dxp.get().add(((ni * c + ci) * h + r) * wd), wd)
+                    };
+                    for row in rows.chunks_exact(wp * opad) {
+                        for (xx, px) in row.chunks_exact(opad).enumerate() {
+                            let sx = (xx as isize - pw as isize).clamp(0, wd as isize - 1) as usize;
+                            drow[sx] += px[ci];
+                        }
                     }
                 }
-            });
+            };
+            correlate_rows(&dyq, n, hq, wq, o, kh, kw, &pk, None, hp, wp, &groups, &sink);
         }
     }
 }
@@ -629,7 +637,8 @@ pub fn conv2d_weight_grad(x: &Tensor, dy: &Tensor, pad: Padding, dw: &mut Tensor
     // Pixel segments: the rows y < H of each image, cut into ≤ DW_SUB-pixel blocks.
     let blocks: Vec<(usize, usize)> =
         (0..n).flat_map(|ni| tiles(h * wp, DW_SUB).map(move |(s, l)| (ni * hp * wp + s, l))).collect();
-    let parts = (n * h * wp).div_ceil(2048).clamp(1, 16).min(blocks.len());
+    // At least 4 parts (load balance on small images), at most 16 (memory for partials).
+    let parts = (n * h * wp).div_ceil(2048).clamp(4, 16).min(blocks.len());
     let taps = kh * kw;
     let oblocks: Vec<(usize, usize)> =
         (0..opad).step_by(OB).map(|ob| (ob, ((opad - ob) / L).min(OB / L))).collect();
@@ -664,16 +673,25 @@ pub fn conv2d_weight_grad(x: &Tensor, dy: &Tensor, pad: Padding, dw: &mut Tensor
             part
         })
         .collect();
-    // Fixed-order sum of the partials into dw (OIHW).
-    dw.data.par_chunks_mut(c * taps).enumerate().for_each(|(oi, dst)| {
-        for ci in 0..c {
-            for t in 0..taps {
-                let mut s = 0.0f32;
-                for p in &partials {
-                    s += p[(t * c + ci) * opad + oi];
-                }
-                dst[ci * taps + t] += s;
+    // Fixed-order sum of the partials (contiguous, vectorised), then scatter into dw (OIHW).
+    let mut partials = partials.into_iter();
+    let Some(mut sum) = partials.next() else {
+        return;
+    };
+    let rest: Vec<Scratch> = partials.collect();
+    sum.par_chunks_mut(4096).enumerate().for_each(|(i, dst)| {
+        for p in &rest {
+            for (d, v) in dst.iter_mut().zip(&p[i * 4096..]) {
+                *d += v;
             }
         }
     });
+    for t in 0..taps {
+        for ci in 0..c {
+            let src = &sum[(t * c + ci) * opad..][..o];
+            for (oi, v) in src.iter().enumerate() {
+                dw.data[(oi * c + ci) * taps + t] += v;
+            }
+        }
+    }
 }

@@ -252,6 +252,14 @@ pub fn run_conv_bench(
     out(&format!("fp32 FMA peak (f32x16 chains): 1 thread {p1:.1} GFLOP/s, {nt} threads {pn:.1} GFLOP/s"));
     if let Ok(l) = std::fs::read_to_string("/proc/loadavg") {
         out(&format!("load average at start: {}", l.trim()));
+        let load1: f64 = l.split_whitespace().next().and_then(|v| v.parse().ok()).unwrap_or(0.0);
+        let cores = std::thread::available_parallelism().map_or(1, |c| c.get());
+        if load1 > 0.5 * cores as f64 {
+            out(&format!(
+                "warning: the machine is busy (load {load1:.1} on {cores} cores): wall-clock times and the \
+                 peak are understated; `--threads 1` adds an on-CPU-time column that is not"
+            ));
+        }
     }
     out(&format!(
         "{:<22} {:<22} {:>9} {:>9} {:>9} {:>7}{}",
