@@ -162,8 +162,8 @@ thread_local! {
 }
 
 /// Buffers kept per thread, and the largest one kept (floats).
-const POOL_KEEP: usize = 6;
-const POOL_MAX_LEN: usize = 1 << 25;
+const POOL_KEEP: usize = 4;
+const POOL_MAX_LEN: usize = 1 << 24;
 
 impl Scratch {
     fn zeroed(len: usize) -> Scratch {
