@@ -238,3 +238,13 @@ fn obj_frames_of_a_run_read_back_as_one_sequence() {
     assert_eq!(back, frames);
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn parallel_colour_sweeps_give_the_same_bits_as_serial() {
+    let mut sp = spec(Scenario::FlagSphere, 40, 40, 12);
+    sp.params.parallel_min_colour = usize::MAX;
+    let serial = run_single(&sp).unwrap();
+    sp.params.parallel_min_colour = 1;
+    let parallel = run_single(&sp).unwrap();
+    assert_eq!(bits(&serial), bits(&parallel));
+}

@@ -28,6 +28,9 @@ pub struct SimParams {
     pub tethers: bool,
     /// Allowed extra length of a tether (fraction of its rest length).
     pub tether_slack: f32,
+    /// A colour of constraints with at least this many members is projected on the rayon
+    /// pool (members of a colour share no vertex, so the result is the same bits as serial).
+    pub parallel_min_colour: usize,
 }
 
 impl Default for SimParams {
@@ -43,6 +46,7 @@ impl Default for SimParams {
             drag: 0.3,
             tethers: true,
             tether_slack: 0.02,
+            parallel_min_colour: 4096,
         }
     }
 }

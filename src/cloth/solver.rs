@@ -44,8 +44,8 @@ pub struct Cloth {
     lambda_b: Vec<[f32; 3]>,
     /// Long-range attachments: (free vertex, pin index, rest distance m).
     tethers: Vec<(u32, u32, f32)>,
-    /// Per bending constraint: `w_j·k_j` and `Σ w_j k_j²` (masses are fixed, so precomputed).
-    bend_w: Vec<([f32; 4], f32)>,
+    /// Bending constraints with `w_j·k_j` and `Σ w_j k_j²` (masses are fixed, so precomputed).
+    bend_w: Coloured<BendW>,
     accel: Vec<[f32; 3]>,
 }
 
@@ -79,14 +79,17 @@ impl Cloth {
         }
         let dist = distance_constraints(rest, material);
         let bend = bend_constraints(rest, material);
-        let bend_w = bend
-            .items
-            .iter()
-            .map(|b| {
-                let wk: [f32; 4] = std::array::from_fn(|j| inv_mass[b.v[j] as usize] * b.k[j]);
-                (wk, (0..4).map(|j| wk[j] * b.k[j]).sum())
-            })
-            .collect();
+        let bend_w = Coloured {
+            items: bend
+                .items
+                .iter()
+                .map(|b| {
+                    let wk: [f32; 4] = std::array::from_fn(|j| inv_mass[b.v[j] as usize] * b.k[j]);
+                    BendW { c: *b, wk, ws: (0..4).map(|j| wk[j] * b.k[j]).sum() }
+                })
+                .collect(),
+            ranges: bend.ranges.clone(),
+        };
         // Each free vertex tethers to its nearest pin at rest (the sheet is flat, so the rest
         // distance is the geodesic one). Ties go to the lower pin index: deterministic.
         let mut tethers = Vec::new();
@@ -195,8 +198,9 @@ impl Cloth {
             self.lambda_b.iter_mut().for_each(|l| *l = [0.0; 3]);
             let inv_h2 = 1.0 / (h * h);
             for _ in 0..p.iterations {
-                solve_distance(&mut self.x, &self.inv_mass, &self.dist.items, &mut self.lambda_d, inv_h2);
-                solve_bend(&mut self.x, &self.bend_w, &self.bend.items, &mut self.lambda_b, inv_h2);
+                let par = p.parallel_min_colour;
+                solve_distance(&mut self.x, &self.inv_mass, &self.dist, &mut self.lambda_d, inv_h2, par);
+                solve_bend(&mut self.x, &self.bend_w, &mut self.lambda_b, inv_h2, par);
                 if let (Some(frac), Some(tt)) = (track_frac, track) {
                     let blend = (s + 1) as f32 / p.substeps as f32;
                     for v in 0..n {
@@ -233,59 +237,119 @@ impl Cloth {
     }
 }
 
+/// Positions shared by the threads projecting one colour. Constraints of a colour touch
+/// disjoint vertices, so no two threads read or write the same element.
+#[derive(Clone, Copy)]
+struct XPtr(*mut [f32; 3]);
+// SAFETY: only used inside one colour (disjoint vertex sets) while the owning `&mut` slice is
+// borrowed by `for_colours`.
+unsafe impl Send for XPtr {}
+unsafe impl Sync for XPtr {}
+
+impl XPtr {
+    #[inline(always)]
+    fn get(self, i: usize) -> [f32; 3] {
+        // SAFETY: `i` is a vertex of the grid (constraints are built from it); see `XPtr`.
+        unsafe { self.0.add(i).read() }
+    }
+    #[inline(always)]
+    fn set(self, i: usize, v: [f32; 3]) {
+        // SAFETY: as in `get`; no other thread touches vertex `i` in this colour.
+        unsafe { self.0.add(i).write(v) }
+    }
+}
+
+/// The overflow colour of [`super::constraints::colour`] may hold conflicting constraints.
+const OVERFLOW_COLOUR: usize = 127;
+
+/// Run `f` over each colour's constraints in colour order: serially, or for colours with at
+/// least `par_min` members in parallel chunks (same bits either way).
+fn for_colours<T: Sync, L: Send>(
+    x: &mut [[f32; 3]],
+    cs: &Coloured<T>,
+    lambda: &mut [L],
+    par_min: usize,
+    f: impl Fn(XPtr, &T, &mut L) + Sync,
+) {
+    let xp = XPtr(x.as_mut_ptr());
+    for (c, r) in cs.ranges.iter().enumerate() {
+        let (items, ls) = (&cs.items[r.clone()], &mut lambda[r.clone()]);
+        if r.len() >= par_min && c < OVERFLOW_COLOUR {
+            use rayon::prelude::*;
+            items.par_chunks(1024).zip(ls.par_chunks_mut(1024)).for_each(|(ic, lc)| {
+                for (it, l) in ic.iter().zip(lc.iter_mut()) {
+                    f(xp, it, l);
+                }
+            });
+        } else {
+            for (it, l) in items.iter().zip(ls.iter_mut()) {
+                f(xp, it, l);
+            }
+        }
+    }
+}
+
 /// Gauss–Seidel projection of distance constraints (in colour order).
-fn solve_distance(x: &mut [[f32; 3]], w: &[f32], cs: &[Distance], lambda: &mut [f32], inv_h2: f32) {
-    for (c, l) in cs.iter().zip(lambda.iter_mut()) {
+fn solve_distance(
+    x: &mut [[f32; 3]],
+    w: &[f32],
+    cs: &Coloured<Distance>,
+    lambda: &mut [f32],
+    inv_h2: f32,
+    par: usize,
+) {
+    for_colours(x, cs, lambda, par, |x, c, l| {
         let (a, b) = (c.a as usize, c.b as usize);
         let (wa, wb) = (w[a], w[b]);
         let ws = wa + wb;
         if ws == 0.0 {
-            continue;
+            return;
         }
-        let d = sub(x[a], x[b]);
+        let (xa, xb) = (x.get(a), x.get(b));
+        let d = sub(xa, xb);
         let len = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
         if len < 1e-12 {
-            continue;
+            return;
         }
         let at = c.alpha * inv_h2;
         let dl = (-(len - c.rest) - at * *l) / (ws + at);
         *l += dl;
         let s = dl / len;
-        for k in 0..3 {
-            x[a][k] += wa * s * d[k];
-            x[b][k] -= wb * s * d[k];
-        }
-    }
+        x.set(a, std::array::from_fn(|k| xa[k] + wa * s * d[k]));
+        x.set(b, std::array::from_fn(|k| xb[k] - wb * s * d[k]));
+    });
 }
 
-/// Projection of the linear isometric-bending constraints `Σ k_j x_j = 0` (3 components);
-/// `pre[c] = (w_j·k_j, Σ w_j k_j²)`.
-fn solve_bend(
-    x: &mut [[f32; 3]],
-    pre: &[([f32; 4], f32)],
-    cs: &[Bend],
-    lambda: &mut [[f32; 3]],
-    inv_h2: f32,
-) {
-    for ((c, &(wk, ws)), l) in cs.iter().zip(pre).zip(lambda.iter_mut()) {
+/// A bending constraint with its mass-weighted coefficients.
+#[derive(Clone, Copy, Debug)]
+struct BendW {
+    c: Bend,
+    /// `w_j · k_j` (1/kg).
+    wk: [f32; 4],
+    /// `Σ w_j k_j²` (1/kg).
+    ws: f32,
+}
+
+/// Projection of the linear isometric-bending constraints `Σ k_j x_j = 0` (3 components).
+fn solve_bend(x: &mut [[f32; 3]], cs: &Coloured<BendW>, lambda: &mut [[f32; 3]], inv_h2: f32, par: usize) {
+    for_colours(x, cs, lambda, par, |x, b, l| {
+        let (c, wk, ws) = (&b.c, b.wk, b.ws);
         if ws == 0.0 {
-            continue;
+            return;
         }
         let vi = c.v.map(|v| v as usize);
         let at = c.alpha * inv_h2;
-        let (p0, p1, p2, p3) = (x[vi[0]], x[vi[1]], x[vi[2]], x[vi[3]]);
-        let cv: [f32; 3] =
-            std::array::from_fn(|k| c.k[0] * p0[k] + c.k[1] * p1[k] + c.k[2] * p2[k] + c.k[3] * p3[k]);
+        let p = vi.map(|v| x.get(v));
+        let cv: [f32; 3] = std::array::from_fn(|k| {
+            c.k[0] * p[0][k] + c.k[1] * p[1][k] + c.k[2] * p[2][k] + c.k[3] * p[3][k]
+        });
         let denom = 1.0 / (ws + at);
         let dl: [f32; 3] = std::array::from_fn(|k| (-cv[k] - at * l[k]) * denom);
         for k in 0..3 {
             l[k] += dl[k];
         }
         for j in 0..4 {
-            let xj = &mut x[vi[j]];
-            for k in 0..3 {
-                xj[k] += wk[j] * dl[k];
-            }
+            x.set(vi[j], std::array::from_fn(|k| p[j][k] + wk[j] * dl[k]));
         }
-    }
+    });
 }
