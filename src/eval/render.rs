@@ -33,7 +33,8 @@ impl Default for View {
     }
 }
 
-type V3 = [f32; 3];
+/// A 3-vector (metres for positions, unit for directions, sRGB in [0,1] for colours).
+pub type V3 = [f32; 3];
 
 #[inline]
 fn sub(a: V3, b: V3) -> V3 {
