@@ -249,7 +249,7 @@ fn pack_weights(
     c: usize,
     kh: usize,
     kw: usize,
-    get: impl Fn(usize, usize, usize, usize) -> f32,
+    get: impl Fn(usize, usize, usize, usize) -> f32 + Sync,
 ) -> Packed {
     let opad = o.div_ceil(L) * L;
     let mut data = Scratch::zeroed(opad * c * kh * kw);
@@ -258,18 +258,16 @@ fn pack_weights(
     for ob in (0..opad).step_by(OB) {
         let ov = ((opad - ob) / L).min(OB / L);
         let wdt = ov * L;
-        for ky in 0..kh {
-            for kx in 0..kw {
-                for ci in 0..c {
-                    let base = off + ((ky * kw + kx) * c + ci) * wdt;
-                    for j in 0..wdt {
-                        if ob + j < o {
-                            data[base + j] = get(ob + j, ci, ky, kx);
-                        }
-                    }
+        let jmax = wdt.min(o - ob);
+        // One rayon task per tap (the block is [tap][c_in][wdt]).
+        data[off..off + kh * kw * c * wdt].par_chunks_mut(c * wdt).enumerate().for_each(|(t, dst)| {
+            let (ky, kx) = (t / kw, t % kw);
+            for (ci, row) in dst.chunks_exact_mut(wdt).enumerate() {
+                for (j, d) in row[..jmax].iter_mut().enumerate() {
+                    *d = get(ob + j, ci, ky, kx);
                 }
             }
-        }
+        });
         blocks.push((off, ov));
         off += kh * kw * c * wdt;
     }
