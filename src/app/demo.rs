@@ -1,10 +1,265 @@
-//! `anisocb demo`. TODO: filled by its issue.
+//! `anisocb demo`: simulate a held-out scenario at LR and HR, upscale the LR run with the
+//! embedded weights, compare bicubic interpolation and anisocb against the HR run, and write
+//! OBJ sequences, a metrics table and pictures to `demo-out/`.
 
-use crate::error::{Error, Result};
+use super::ui::{progress, save_png_rgb};
+use super::upscale::{load_model, meshes_of, set_threads};
+use crate::cloth::run_io::write_pair;
+use crate::cloth::scenarios::{paired_run_with_progress, Scenario, ScenarioSpec, SCENARIO_HELP};
+use crate::error::Result;
+use crate::eval::image::{hstack, image_rgb8, upscale_nearest, vstack, Rgb8};
+use crate::eval::metrics::{border_mask, sequence_metrics, vertex_errors, SequenceMetrics};
+use crate::eval::render::{colorbar, render_row, ScalarColors, Shading, Tile, View};
+use crate::geom::obj::write_obj_grid;
+use crate::geom::GridMesh;
+use crate::io::atomic::ensure_dir;
+use crate::io::{read_npy, write_atomic_bytes};
+use crate::sr::compose::DEFAULT_ETA;
+use crate::sr::upscale::{upscale_images, UpscaleParams};
+use crate::tensor::Tensor;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// The scenario the shipped weights never saw in training (see weights/README.md).
+pub const HELD_OUT_SCENARIO: &str = "flag-sphere";
+/// Its seed (training runs use seeds 1..=N of the other scenarios).
+pub const HELD_OUT_SEED: u64 = 1000;
 
 #[derive(clap::Args, Debug)]
-pub struct Args {}
+#[command(after_help = SCENARIO_HELP)]
+pub struct Args {
+    /// Output directory.
+    #[arg(long, default_value = "demo-out")]
+    pub out: PathBuf,
+    /// Scenario to simulate (the default is held out of the shipped model's training data).
+    #[arg(long, default_value = HELD_OUT_SCENARIO)]
+    pub scenario: String,
+    /// Frames to simulate (at 30 fps).
+    #[arg(long, default_value_t = 120)]
+    pub frames: usize,
+    /// Random seed of the scenario (wind gusts, perturbations).
+    #[arg(long, default_value_t = HELD_OUT_SEED)]
+    pub seed: u64,
+    /// Wrinkle enhancement η ≥ 0 (Eq 12).
+    #[arg(long, default_value_t = DEFAULT_ETA)]
+    pub eta: f32,
+    /// Weights file instead of the embedded model.
+    #[arg(long)]
+    pub weights: Option<PathBuf>,
+    /// Worker threads (default: all cores).
+    #[arg(long)]
+    pub threads: Option<usize>,
+    /// Compute device: cpu or cuda.
+    #[arg(long, default_value = "cpu")]
+    pub device: String,
+}
 
-pub fn run(_args: Args) -> Result<()> {
-    Err(Error::config("`demo` is not implemented yet"))
+/// Mean metrics of one method, in millimetres where lengths.
+pub struct Row {
+    pub method: String,
+    pub metrics: SequenceMetrics,
+}
+
+/// Markdown table of the demo's comparison (lengths in mm).
+pub fn metrics_table(rows: &[Row]) -> String {
+    let mut s = String::from(
+        "| method | vertex RMSE (mm) | boundary RMSE (mm) | Hausdorff (mm) | border length ratio | normal angle (°) | flicker (mm/frame) |\n\
+         |---|---:|---:|---:|---:|---:|---:|\n",
+    );
+    for r in rows {
+        let m = &r.metrics.mean;
+        s.push_str(&format!(
+            "| {} | {:.3} | {:.3} | {:.3} | {:.4} | {:.2} | {:.3} |\n",
+            r.method,
+            1e3 * m.rmse,
+            1e3 * m.boundary_rmse,
+            1e3 * m.hausdorff,
+            m.boundary_length_ratio,
+            m.normal_angle_deg,
+            1e3 * r.metrics.flicker
+        ));
+    }
+    s
+}
+
+pub fn run(a: Args) -> Result<()> {
+    set_threads(a.threads)?;
+    let t0 = Instant::now();
+    let ops = crate::cuda::ops_for_device(&a.device)?;
+    let model = load_model(a.weights.as_deref())?;
+    let mut spec = ScenarioSpec::new(Scenario::from_name(&a.scenario)?);
+    spec.frames = a.frames;
+    spec.seed = a.seed;
+    spec.scale = model.scale();
+    spec.validate()?;
+    ensure_dir(&a.out)?;
+
+    // 1. Simulate the pair (HR is the ground truth).
+    let pb = progress(2 * spec.frames as u64, "simulate");
+    let (lr, hr) = paired_run_with_progress(&spec, &mut |k| pb.set_position(k as u64))?;
+    pb.finish_and_clear();
+    let sim_s = t0.elapsed().as_secs_f64();
+    let run_dir = a.out.join("sim");
+    write_pair(&run_dir, &spec, &lr, &hr, false)?;
+    let domain = crate::geom::Domain::from_tensor(&read_npy(&run_dir.join("lr/domain.npy"))?)?;
+    let lr_images = crate::io::npy::read_geometry_images(&run_dir.join("lr/geometry.npy"))?;
+
+    // 2. Upscale.
+    let t1 = Instant::now();
+    let pb = progress(spec.frames as u64, "upscale");
+    let params = UpscaleParams { eta: a.eta, ..UpscaleParams::default() };
+    let up = upscale_images(ops.as_ref(), &model, &lr_images, &params, &mut |k| pb.set_position(k as u64))?;
+    pb.finish_and_clear();
+    let up_s = t1.elapsed().as_secs_f64();
+    let ours = meshes_of(&up.hr, &domain);
+    let bicubic = meshes_of(&up.interpolated, &domain);
+    let plain = {
+        let p = UpscaleParams { eta: 0.0, ..params };
+        let u0 = upscale_images(ops.as_ref(), &model, &lr_images, &p, &mut |_| {})?;
+        meshes_of(&u0.hr, &domain)
+    };
+
+    // 3. Metrics against the HR run.
+    let mask = border_mask(hr[0].w, hr[0].h);
+    let rows = vec![
+        Row {
+            method: "bicubic interpolation".into(),
+            metrics: sequence_metrics(&bicubic, &hr, Some(&mask))?,
+        },
+        Row { method: "anisocb, η = 0".into(), metrics: sequence_metrics(&plain, &hr, Some(&mask))? },
+        Row {
+            method: format!("anisocb, η = {}", a.eta),
+            metrics: sequence_metrics(&ours, &hr, Some(&mask))?,
+        },
+    ];
+    let table = metrics_table(&rows);
+    let header = format!(
+        "anisocb demo: scenario `{}` (seed {}, held out of training), {} frames, LR {}x{} -> HR {}x{}\n\
+         simulation (LR + HR) {:.1} s, upscaling {:.1} s ({:.1} ms/frame, {})\n\n",
+        spec.scenario,
+        spec.seed,
+        spec.frames,
+        lr[0].w,
+        lr[0].h,
+        hr[0].w,
+        hr[0].h,
+        sim_s,
+        up_s,
+        1e3 * up_s / spec.frames as f64,
+        ops.name()
+    );
+    write_atomic_bytes(&a.out.join("metrics.md"), format!("{header}{table}").as_bytes())?;
+    let json = format!(
+        "{{\"scenario\": \"{}\", \"seed\": {}, \"frames\": {}, \"eta\": {}, \"methods\": {{{}}}}}\n",
+        spec.scenario,
+        spec.seed,
+        spec.frames,
+        a.eta,
+        rows.iter()
+            .map(|r| format!("\"{}\": {}", r.method, r.metrics.to_json()))
+            .collect::<Vec<_>>()
+            .join(", ")
+    );
+    write_atomic_bytes(&a.out.join("metrics.json"), json.as_bytes())?;
+
+    // 4. OBJ sequences.
+    let pb = progress(4 * spec.frames as u64, "write obj");
+    for (name, seq) in [("lr", &lr), ("hr", &hr), ("bicubic", &bicubic), ("anisocb", &ours)] {
+        let dir = a.out.join(name);
+        ensure_dir(&dir)?;
+        for (k, m) in seq.iter().enumerate() {
+            write_obj_grid(&dir.join(format!("frame_{k:04}.obj")), m, true)?;
+            pb.inc(1);
+        }
+    }
+    pb.finish_and_clear();
+
+    // 5. Pictures.
+    let frames = pick_frames(spec.frames, 3);
+    write_pictures(&a.out, &frames, &lr, &bicubic, &ours, &hr, &up.boundary, &up.enhance, &up.hr)?;
+
+    println!("{header}{table}");
+    let out = a.out.display();
+    println!("wrote {out}/:");
+    println!("  compare.png         shaded renders LR | bicubic | anisocb | HR for frames {frames:?}");
+    println!("  error.png           per-vertex error (mm) of bicubic and anisocb vs HR");
+    println!("  maps.png            anisocb geometry image, predicted boundary map Γb, wrinkle map Γe");
+    println!("  metrics.md, .json   the table above (per frame in the JSON)");
+    println!("  lr/ hr/ bicubic/ anisocb/   OBJ sequences (frame_0000.obj ...); sim/ the simulated runs");
+    println!("total {:.1} s", t0.elapsed().as_secs_f64());
+    Ok(())
+}
+
+/// `n` frames spread over the second half of the run (the first frames are near the rest state).
+pub fn pick_frames(t: usize, n: usize) -> Vec<usize> {
+    (0..n).map(|k| (t / 2 + (k + 1) * (t / 2) / (n + 1)).min(t - 1)).collect()
+}
+
+#[allow(clippy::too_many_arguments)]
+fn write_pictures(
+    out: &Path,
+    frames: &[usize],
+    lr: &[GridMesh],
+    bicubic: &[GridMesh],
+    ours: &[GridMesh],
+    hr: &[GridMesh],
+    gb: &Tensor,
+    ge: &Tensor,
+    hr_images: &Tensor,
+) -> Result<()> {
+    let (view, shade) = (View::default(), Shading::default());
+    let mut rows = Vec::new();
+    let mut err_rows = Vec::new();
+    let mut map_rows = Vec::new();
+    let mut err_hi = 0.0f32;
+    let errs: Vec<(Vec<f32>, Vec<f32>)> = frames
+        .iter()
+        .map(|&k| Ok((vertex_errors(&bicubic[k], &hr[k])?, vertex_errors(&ours[k], &hr[k])?)))
+        .collect::<Result<_>>()?;
+    for (b, o) in &errs {
+        err_hi = b.iter().chain(o).fold(err_hi, |m, &v| m.max(1e3 * v));
+    }
+    let err_hi = err_hi.max(1e-3);
+    for (&k, (eb, eo)) in frames.iter().zip(&errs) {
+        let tiles = [
+            Tile { mesh: &lr[k], label: &format!("LR  frame {k}"), colors: None },
+            Tile { mesh: &bicubic[k], label: "bicubic", colors: None },
+            Tile { mesh: &ours[k], label: "anisocb", colors: None },
+            Tile { mesh: &hr[k], label: "HR (truth)", colors: None },
+        ];
+        rows.push(render_row(&tiles, &view, &shade, 320, 320, 6)?);
+        let (mb, mo): (Vec<f32>, Vec<f32>) =
+            (eb.iter().map(|v| 1e3 * v).collect(), eo.iter().map(|v| 1e3 * v).collect());
+        let etiles = [
+            Tile {
+                mesh: &bicubic[k],
+                label: &format!("bicubic error  frame {k}"),
+                colors: Some(ScalarColors { values: &mb, lo: 0.0, hi: err_hi }),
+            },
+            Tile {
+                mesh: &ours[k],
+                label: "anisocb error",
+                colors: Some(ScalarColors { values: &mo, lo: 0.0, hi: err_hi }),
+            },
+        ];
+        let row = render_row(&etiles, &view, &shade, 320, 320, 6)?;
+        let bar = colorbar(row.h, 0.0, err_hi, "err mm");
+        err_rows.push(hstack(&[row, bar], 6, [255; 3]));
+        let geo = image_rgb8(&hr_images.slice_batch(k, 1))?;
+        let b = image_rgb8(&gb.slice_batch(k, 1))?;
+        let e = image_rgb8(&ge.slice_batch(k, 1))?;
+        let s = (256 / geo.h.max(1)).max(1);
+        let mut tiles: Vec<Rgb8> = [geo, b, e].iter().map(|t| upscale_nearest(t, s)).collect();
+        for (t, l) in
+            tiles.iter_mut().zip([format!("anisocb image  frame {k}"), "boundary".into(), "wrinkles".into()])
+        {
+            t.label(&l, 1);
+        }
+        map_rows.push(hstack(&tiles, 6, [255; 3]));
+    }
+    for (name, rows) in [("compare.png", rows), ("error.png", err_rows), ("maps.png", map_rows)] {
+        let img = vstack(&rows, 6, [255; 3]);
+        save_png_rgb(&out.join(name), img.w, img.h, &img.data)?;
+    }
+    Ok(())
 }

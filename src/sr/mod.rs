@@ -2,5 +2,6 @@
 //! upscale pipeline around it.
 
 pub mod compose;
+pub mod upscale;
 
 pub use compose::{compose, DEFAULT_ETA};

@@ -1,0 +1,123 @@
+//! The upscale pipeline end to end: OBJ sequence in → OBJ sequence out (4× the vertices),
+//! the border does not shrink, and the result is deterministic.
+
+use anisocb::cloth::scenarios::{run_single, Scenario, ScenarioSpec};
+use anisocb::geom::geometry_image::sequence_to_images;
+use anisocb::geom::obj::{parse_obj, write_obj_grid};
+use anisocb::geom::{Domain, GridMesh};
+use anisocb::nn::bundle::AnisoCb;
+use anisocb::nn::config::NetConfig;
+use anisocb::ops::{Cpu, Interp, Ops};
+use anisocb::sr::upscale::{embedded_model, upscale_images, upscale_meshes, UpscaleParams};
+use std::path::Path;
+use std::process::Command;
+
+fn small_run(frames: usize) -> Vec<GridMesh> {
+    let mut spec = ScenarioSpec::new(Scenario::Drape);
+    spec.w = 12;
+    spec.h = 12;
+    spec.frames = frames;
+    spec.seed = 3;
+    run_single(&spec).unwrap()
+}
+
+/// A tiny model whose BoundaryNet says "boundary" everywhere (its last bias is +30).
+fn all_boundary_model() -> AnisoCb {
+    let mut m = AnisoCb::new(NetConfig::tiny(), 7);
+    let last = m.boundary.trunk.tail.last_mut().unwrap();
+    last.weight.data.iter_mut().for_each(|w| *w = 0.0);
+    last.bias.data[0] = 30.0;
+    m
+}
+
+#[test]
+fn all_boundary_map_keeps_the_interpolated_input_exactly() {
+    let frames = small_run(4);
+    let d = Domain::enclosing(&frames, 0.05);
+    let lr = sequence_to_images(&frames, &d);
+    let up =
+        upscale_images(&Cpu, &all_boundary_model(), &lr, &UpscaleParams::default(), &mut |_| {}).unwrap();
+    let (t, _, h, w) = lr.dims4();
+    let u = Cpu.resize(&lr, 2 * h, 2 * w, Interp::Bicubic);
+    assert_eq!(up.hr.shape, vec![t, 3, 2 * h, 2 * w]);
+    // Γb = σ(30) = 1 − 9e-14 in f64, exactly 1.0 in f32: Γfinal must equal U.
+    assert_eq!(up.hr.max_abs_diff(&u), 0.0);
+}
+
+#[test]
+fn shipped_model_does_not_shrink_the_border_and_is_deterministic() {
+    let model = embedded_model().expect("embedded weights decode");
+    let frames = small_run(6);
+    let d = Domain::enclosing(&frames, 0.05);
+    let p = UpscaleParams::default();
+    let (a, up) = upscale_meshes(&Cpu, &model, &frames, &d, &p, &mut |_| {}).unwrap();
+    let (b, _) = upscale_meshes(&Cpu, &model, &frames, &d, &p, &mut |_| {}).unwrap();
+    assert_eq!(a, b, "same input, same bits");
+    let interp: Vec<GridMesh> = (0..frames.len())
+        .map(|k| anisocb::geom::geometry_image::image_to_mesh(&up.interpolated, k, &d))
+        .collect();
+    let size = frames[0].longest_edge() * 11.0; // ≈ cloth width
+    for (m, u) in a.iter().zip(&interp) {
+        assert_eq!(m.pos.len(), 4 * frames[0].pos.len());
+        let ratio = anisocb::eval::metrics::border_length(m) / anisocb::eval::metrics::border_length(u);
+        assert!((ratio - 1.0).abs() < 0.02, "border length ratio vs interpolated input: {ratio}");
+        let mut worst = 0.0f32;
+        for j in 0..m.h {
+            for i in 0..m.w {
+                if m.is_border(i, j) {
+                    worst = worst.max(anisocb::geom::mesh::dist(m.pos[m.idx(i, j)], u.pos[u.idx(i, j)]));
+                }
+            }
+        }
+        assert!(
+            worst < 0.02 * size,
+            "border vertex moved {worst} m from the interpolated border (cloth ≈ {size} m)"
+        );
+    }
+}
+
+fn bin() -> &'static str {
+    env!("CARGO_BIN_EXE_anisocb")
+}
+
+#[test]
+fn cli_upscales_an_obj_sequence_into_obj_with_four_times_the_vertices() {
+    let dir = std::env::temp_dir().join(format!("anisocb-upscale-cli-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let input = dir.join("in");
+    std::fs::create_dir_all(&input).unwrap();
+    let frames = small_run(3);
+    for (k, f) in frames.iter().enumerate() {
+        // Triangles in, natural order: frame_2 must come before frame_10.
+        write_obj_grid(&input.join(format!("frame_{}.obj", [2, 10, 11][k])), f, false).unwrap();
+    }
+    let run = |out: &Path| {
+        let o = Command::new(bin())
+            .args(["upscale", input.to_str().unwrap(), "--out", out.to_str().unwrap()])
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "upscale failed: {}", String::from_utf8_lossy(&o.stderr));
+    };
+    run(&dir.join("out1"));
+    run(&dir.join("out2"));
+    for name in ["frame_2.obj", "frame_10.obj", "frame_11.obj"] {
+        let a = std::fs::read(dir.join("out1").join(name)).unwrap();
+        assert_eq!(a, std::fs::read(dir.join("out2").join(name)).unwrap(), "{name} differs between runs");
+        let path = dir.join("out1").join(name);
+        let m = parse_obj(&String::from_utf8(a).unwrap(), &path).unwrap();
+        assert_eq!(m.pos.len(), 24 * 24, "4x the vertices of the 12x12 input");
+        assert_eq!(m.faces.len(), 2 * 23 * 23);
+        assert!(m.faces.iter().all(|f| f.len() == 3), "output keeps the input's triangles");
+    }
+    let summary = std::fs::read_to_string(dir.join("out1/upscale.json")).unwrap();
+    assert!(summary.contains("\"domain\""), "{summary}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn cli_refuses_a_missing_input_with_its_name() {
+    let o = Command::new(bin()).args(["upscale", "no/such/dir", "--out", "/tmp/x"]).output().unwrap();
+    assert_eq!(o.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("no/such/dir"), "{err}");
+}
