@@ -43,6 +43,9 @@ pub struct Args {
     /// Wrinkle enhancement η ≥ 0 (Eq 12).
     #[arg(long, default_value_t = DEFAULT_ETA)]
     pub eta: f32,
+    /// HR→LR tracking strength of the ground-truth run, 1/s² (see `anisocb simulate --help`).
+    #[arg(long)]
+    pub tracking: Option<f32>,
     /// Weights file instead of the embedded model.
     #[arg(long)]
     pub weights: Option<PathBuf>,
@@ -91,6 +94,9 @@ pub fn run(a: Args) -> Result<()> {
     spec.frames = a.frames;
     spec.seed = a.seed;
     spec.scale = model.scale();
+    if let Some(t) = a.tracking {
+        spec.tracking = t;
+    }
     spec.validate()?;
     ensure_dir(&a.out)?;
 

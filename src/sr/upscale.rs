@@ -46,6 +46,8 @@ pub struct Upscaled {
     pub hr: Tensor,
     /// Bicubic interpolation U (T, 3, rH, rW): the baseline.
     pub interpolated: Tensor,
+    /// GeometryNet's residual R (T, 3, rH, rW), before composition.
+    pub residual: Tensor,
     /// Γb (T, 1, rH, rW).
     pub boundary: Tensor,
     /// Γe (T, 1, rH, rW).
@@ -80,6 +82,7 @@ pub fn upscale_images(
     let mut out = Upscaled {
         hr: Tensor::zeros(&[t, 3, hh, hw]),
         interpolated: Tensor::zeros(&[t, 3, hh, hw]),
+        residual: Tensor::zeros(&[t, 3, hh, hw]),
         boundary: Tensor::zeros(&[t, 1, hh, hw]),
         enhance: Tensor::zeros(&[t, 1, hh, hw]),
     };
@@ -91,6 +94,7 @@ pub fn upscale_images(
         let g = compose(&o.u, &o.r, Some(&o.boundary), Some(&o.enhance), params.eta)?;
         out.hr.data[done * px3..(done + n) * px3].copy_from_slice(&g.data);
         out.interpolated.data[done * px3..(done + n) * px3].copy_from_slice(&o.u.data);
+        out.residual.data[done * px3..(done + n) * px3].copy_from_slice(&o.r.data);
         out.boundary.data[done * px1..(done + n) * px1].copy_from_slice(&o.boundary.data);
         out.enhance.data[done * px1..(done + n) * px1].copy_from_slice(&o.enhance.data);
         done += n;
