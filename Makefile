@@ -37,6 +37,10 @@ bench:
 demo:
 	$(CARGO) run --release -- demo
 
+## Retrain the shipped model from scratch (simulate, dataset, train; ≈ 25 min on 2 cores).
+weights: build
+	./weights/make_weights.sh
+
 ## Regenerate reference .npy files (needs Python; `make test` does not).
 fixtures:
 	python3 -m pip install -q -r tests/fixtures/requirements.txt

@@ -167,7 +167,7 @@ pub fn run(a: Args) -> Result<()> {
     eprintln!("{}", input.domain_note);
     let pb = progress(t as u64, "upscale");
     let start = Instant::now();
-    let params = UpscaleParams { eta: a.eta, batch: a.batch };
+    let params = UpscaleParams { eta: a.eta, batch: a.batch, ..UpscaleParams::default() };
     let up =
         upscale_images(ops.as_ref(), &model, &input.images, &params, &mut |k| pb.set_position(k as u64))?;
     let secs = start.elapsed().as_secs_f64();

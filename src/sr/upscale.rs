@@ -31,11 +31,15 @@ pub struct UpscaleParams {
     pub eta: f32,
     /// Frames per network forward (memory ≈ batch · 2·C·r²·H·W floats at the widest layer).
     pub batch: usize,
+    /// Set Γb = 1 on the grid's border pixels: the topological border is known exactly (it is
+    /// always in the ground-truth map, Eq 4–9), so the border keeps the interpolated input
+    /// whatever BoundaryNet says there — no shrinkage of the cloth's outline by construction.
+    pub pin_border: bool,
 }
 
 impl Default for UpscaleParams {
     fn default() -> Self {
-        UpscaleParams { eta: super::compose::DEFAULT_ETA, batch: 8 }
+        UpscaleParams { eta: super::compose::DEFAULT_ETA, batch: 8, pin_border: true }
     }
 }
 
@@ -90,7 +94,10 @@ pub fn upscale_images(
     let mut done = 0;
     while done < t {
         let n = params.batch.min(t - done);
-        let o = model.forward(ops, &lr.slice_batch(done, n))?;
+        let mut o = model.forward(ops, &lr.slice_batch(done, n))?;
+        if params.pin_border {
+            set_border(&mut o.boundary, 1.0);
+        }
         let g = compose(&o.u, &o.r, Some(&o.boundary), Some(&o.enhance), params.eta)?;
         out.hr.data[done * px3..(done + n) * px3].copy_from_slice(&g.data);
         out.interpolated.data[done * px3..(done + n) * px3].copy_from_slice(&o.u.data);
@@ -127,4 +134,19 @@ pub fn upscale_meshes(
     let up = upscale_images(ops, model, &lr, params, on_frames)?;
     let meshes = (0..frames.len()).map(|k| image_to_mesh(&up.hr, k, domain)).collect();
     Ok((meshes, up))
+}
+
+/// Set the border pixels of every (N, 1, H, W) map to `v`.
+pub fn set_border(map: &mut Tensor, v: f32) {
+    let (n, c, h, w) = map.dims4();
+    for plane in map.data.chunks_exact_mut(h * w).take(n * c) {
+        for x in 0..w {
+            plane[x] = v;
+            plane[(h - 1) * w + x] = v;
+        }
+        for y in 0..h {
+            plane[y * w] = v;
+            plane[y * w + w - 1] = v;
+        }
+    }
 }
