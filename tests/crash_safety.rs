@@ -265,7 +265,6 @@ fn grid_obj(w: usize, h: usize, t: f32) -> String {
 }
 
 #[test]
-#[ignore = "needs `anisocb upscale INPUT... --out DIR` (issue 6) on main; run with --ignored once it lands"]
 fn killed_upscale_reruns_to_a_complete_identical_sequence() {
     let d = scratch("upscale");
     let input = d.join("frames");

@@ -6,7 +6,7 @@ use crate::error::{Error, Result};
 use crate::geom::geometry_image::image_to_mesh;
 use crate::geom::obj::{list_obj_files, natural_cmp, read_obj_sequence, write_obj_grid, FaceStyle};
 use crate::geom::{Domain, GridMesh};
-use crate::io::atomic::ensure_dir;
+use crate::io::atomic::{ensure_dir, remove_stale_temps};
 use crate::io::npy::read_geometry_images;
 use crate::io::{read_npy, write_atomic_bytes, write_npy};
 use crate::nn::bundle::AnisoCb;
@@ -173,6 +173,17 @@ pub fn run(a: Args) -> Result<()> {
     let secs = start.elapsed().as_secs_f64();
     pb.finish_and_clear();
     let quads = input.style != Some(FaceStyle::Triangles);
+    // A rerun after a kill: clear the temp files the killed run left (every file below is
+    // written atomically, so the outputs themselves are either complete or absent).
+    let mut outputs: Vec<PathBuf> =
+        ["geometry.npy", "domain.npy", "boundary.npy", "enhance.npy", "upscale.json"]
+            .iter()
+            .map(|n| a.out.join(n))
+            .collect();
+    outputs.extend(input.names.iter().map(|n| a.out.join(n)));
+    for p in &outputs {
+        remove_stale_temps(p)?;
+    }
     if fmt == "obj" {
         for (k, name) in input.names.iter().enumerate() {
             write_obj_grid(&a.out.join(name), &image_to_mesh(&up.hr, k, &input.domain), quads)?;
