@@ -4,7 +4,6 @@ use crate::error::{Error, Result};
 use crate::io::read_npy;
 use crate::nn::audit::audit;
 use crate::nn::weights::load_any;
-use crate::ops::Cpu;
 use std::path::PathBuf;
 
 #[derive(clap::Args, Debug)]
@@ -18,9 +17,13 @@ pub struct Args {
     /// Output folder for `<layer>.npy`.
     #[arg(long)]
     pub out: PathBuf,
+    /// Compute device: cpu or cuda.
+    #[arg(long, default_value = "cpu")]
+    pub device: String,
 }
 
 pub fn run(a: Args) -> Result<()> {
+    let ops = crate::cuda::ops_for_device(&a.device)?;
     let w = load_any(&a.weights)?;
     let mut x = read_npy(&a.input)?;
     if x.rank() == 3 {
@@ -36,7 +39,7 @@ pub fn run(a: Args) -> Result<()> {
     if let Some((i, v)) = x.first_non_finite() {
         return Err(Error::format(&a.input, format!("non-finite value {v} at index {i}")));
     }
-    let files = audit(&Cpu, &w, &x, &a.out)?;
+    let files = audit(ops.as_ref(), &w, &x, &a.out)?;
     println!("wrote {} activations to {}", files.len(), a.out.display());
     Ok(())
 }
