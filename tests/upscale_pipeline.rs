@@ -116,8 +116,53 @@ fn cli_upscales_an_obj_sequence_into_obj_with_four_times_the_vertices() {
 
 #[test]
 fn cli_refuses_a_missing_input_with_its_name() {
-    let o = Command::new(bin()).args(["upscale", "no/such/dir", "--out", "/tmp/x"]).output().unwrap();
+    let out = std::env::temp_dir().join(format!("anisocb-missing-{}", std::process::id()));
+    let o = Command::new(bin())
+        .args(["upscale", "no/such/dir", "--out", out.to_str().unwrap()])
+        .output()
+        .unwrap();
     assert_eq!(o.status.code(), Some(1));
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(err.contains("no/such/dir"), "{err}");
+}
+
+#[test]
+fn demo_and_eval_write_their_tables_and_pictures() {
+    let dir = std::env::temp_dir().join(format!("anisocb-demo-eval-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let demo = dir.join("demo");
+    let o = Command::new(bin())
+        .args(["demo", "--frames", "8", "--out", demo.to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "demo failed: {}", String::from_utf8_lossy(&o.stderr));
+    let table = std::fs::read_to_string(demo.join("metrics.md")).unwrap();
+    assert!(table.contains("| bicubic interpolation |") && table.contains("| anisocb, η = 0.5 |"), "{table}");
+    for f in ["compare.png", "error.png", "maps.png", "anisocb/frame_0007.obj", "hr/frame_0007.obj"] {
+        assert!(demo.join(f).is_file(), "demo did not write {f}");
+    }
+    // The demo's simulated pair doubles as a held-out run for eval.
+    let out = dir.join("eval");
+    let o = Command::new(bin())
+        .args([
+            "eval",
+            "--runs",
+            demo.join("sim").to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--eta",
+            "0,1",
+        ])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "eval failed: {}", String::from_utf8_lossy(&o.stderr));
+    let md = std::fs::read_to_string(out.join("results.md")).unwrap();
+    for row in ["| bicubic |", "| anisocb -boundary, eta=0.5 |", "| anisocb, eta=0 |", "| anisocb, eta=1 |"] {
+        assert!(md.contains(row), "results.md lacks {row}:\n{md}");
+    }
+    assert!(
+        out.join("sim-rmse.png").is_file() && out.join("sim-worst.png").is_file(),
+        "runs are labelled by directory"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
 }

@@ -172,13 +172,13 @@ pub fn run(a: Args) -> Result<()> {
     let mut cells = Vec::new();
     let pb = progress(a.runs.len() as u64, "eval");
     for dir in &a.runs {
-        let (lr, domain, meta) = read_run(&dir.join("lr"))?;
+        let (lr, domain, _) = read_run(&dir.join("lr"))?;
         let (hr_img, hr_domain, _) = read_run(&dir.join("hr"))?;
         if hr_domain != domain {
             return Err(Error::format(dir, "lr/ and hr/ have different domains; simulate them with --pair"));
         }
-        let scenario =
-            scenario_of(&meta).unwrap_or_else(|| dir.file_name().unwrap().to_string_lossy().into_owned());
+        // Runs are labelled by their directory name (unique, and the user's own naming).
+        let scenario = run_label(dir);
         let hr = meshes_of(&hr_img, &domain);
         let lr_m = meshes_of(&lr, &domain);
         let methods =
@@ -228,9 +228,9 @@ pub fn run(a: Args) -> Result<()> {
     Ok(())
 }
 
-fn scenario_of(meta: &str) -> Option<String> {
-    let v = crate::nn::json::Object::parse(meta).ok()?;
-    v.get("scenario")?.as_str().map(str::to_string)
+fn run_label(dir: &Path) -> String {
+    let name = dir.file_name().or_else(|| dir.parent().and_then(Path::file_name));
+    name.map_or_else(|| "run".to_string(), |n| n.to_string_lossy().into_owned())
 }
 
 fn write_plots(out: &Path, scenario: &str, rows: &[Cell]) -> Result<()> {
