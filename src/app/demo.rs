@@ -261,7 +261,8 @@ fn write_pictures(
         {
             t.label(&l, 1);
         }
-        map_rows.push(hstack(&tiles, 6, [255; 3]));
+        // Grey gaps: the pinned border of Γb is white and would vanish against white.
+        map_rows.push(hstack(&tiles, 6, [128; 3]));
     }
     for (name, rows) in [("compare.png", rows), ("error.png", err_rows), ("maps.png", map_rows)] {
         let img = vstack(&rows, 6, [255; 3]);
