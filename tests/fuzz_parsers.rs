@@ -12,40 +12,12 @@
 use anisocb::io::npz::{npz_bytes, npz_from_bytes};
 use anisocb::io::{npy_bytes, tensor_from_npy_bytes, NpzEntries};
 use anisocb::tensor::Tensor;
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::cell::Cell;
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::time::{Duration, Instant};
 
-// ---------------------------------------------------------------------------------------------
-// Largest single allocation of the current thread.
-
-struct Counting;
-
-thread_local! {
-    static LARGEST: Cell<usize> = const { Cell::new(0) };
-}
-
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, l: Layout) -> *mut u8 {
-        let _ = LARGEST.try_with(|m| m.set(m.get().max(l.size())));
-        unsafe { System.alloc(l) }
-    }
-    unsafe fn alloc_zeroed(&self, l: Layout) -> *mut u8 {
-        let _ = LARGEST.try_with(|m| m.set(m.get().max(l.size())));
-        unsafe { System.alloc_zeroed(l) }
-    }
-    unsafe fn realloc(&self, p: *mut u8, l: Layout, new: usize) -> *mut u8 {
-        let _ = LARGEST.try_with(|m| m.set(m.get().max(new)));
-        unsafe { System.realloc(p, l, new) }
-    }
-    unsafe fn dealloc(&self, p: *mut u8, l: Layout) {
-        unsafe { System.dealloc(p, l) }
-    }
-}
-
-#[global_allocator]
-static ALLOC: Counting = Counting;
+#[path = "common/alloc.rs"]
+mod alloc;
+use alloc::largest_alloc;
 
 // ---------------------------------------------------------------------------------------------
 // PRNG and mutator.
@@ -162,11 +134,9 @@ fn fuzz(target: &str, seeds: &[Vec<u8>], parse: impl Fn(&[u8]) -> bool) {
         let a = &seeds[rng.below(seeds.len())];
         let b = &seeds[rng.below(seeds.len())];
         let input = mutate(&mut rng, a, b);
-        LARGEST.with(|m| m.set(0));
         let t0 = Instant::now();
-        let r = catch_unwind(AssertUnwindSafe(|| parse(&input)));
+        let (r, big) = largest_alloc(|| catch_unwind(AssertUnwindSafe(|| parse(&input))));
         let dt = t0.elapsed();
-        let big = LARGEST.with(|m| m.get());
         slowest = slowest.max(dt);
         let problem = match r {
             Err(_) => Some("panicked".to_string()),
