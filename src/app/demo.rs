@@ -3,13 +3,14 @@
 //! OBJ sequences, a metrics table and pictures to `demo-out/`.
 
 use super::ui::{progress, save_png_rgb};
-use super::upscale::{load_model, meshes_of, set_threads};
+use super::upscale::{load_model, set_threads};
 use crate::cloth::run_io::write_pair;
 use crate::cloth::scenarios::{paired_run_with_progress, Scenario, ScenarioSpec, SCENARIO_HELP};
 use crate::error::Result;
 use crate::eval::image::{hstack, image_rgb8, upscale_nearest, vstack, Rgb8};
 use crate::eval::metrics::{border_mask, sequence_metrics, vertex_errors, SequenceMetrics};
 use crate::eval::render::{colorbar, render_row, ScalarColors, Shading, Tile, View};
+use crate::geom::geometry_image::images_to_sequence;
 use crate::geom::obj::write_obj_grid;
 use crate::geom::GridMesh;
 use crate::io::atomic::ensure_dir;
@@ -117,12 +118,12 @@ pub fn run(a: Args) -> Result<()> {
     let up = upscale_images(ops.as_ref(), &model, &lr_images, &params, &mut |k| pb.set_position(k as u64))?;
     pb.finish_and_clear();
     let up_s = t1.elapsed().as_secs_f64();
-    let ours = meshes_of(&up.hr, &domain);
-    let bicubic = meshes_of(&up.interpolated, &domain);
+    let ours = images_to_sequence(&up.hr, &domain);
+    let bicubic = images_to_sequence(&up.interpolated, &domain);
     let plain = {
         let p = UpscaleParams { eta: 0.0, ..params };
         let u0 = upscale_images(ops.as_ref(), &model, &lr_images, &p, &mut |_| {})?;
-        meshes_of(&u0.hr, &domain)
+        images_to_sequence(&u0.hr, &domain)
     };
 
     // 3. Metrics against the HR run.
@@ -217,16 +218,14 @@ fn write_pictures(
     let mut rows = Vec::new();
     let mut err_rows = Vec::new();
     let mut map_rows = Vec::new();
-    let mut err_hi = 0.0f32;
-    let errs: Vec<(Vec<f32>, Vec<f32>)> = frames
-        .iter()
-        .map(|&k| Ok((vertex_errors(&bicubic[k], &hr[k])?, vertex_errors(&ours[k], &hr[k])?)))
-        .collect::<Result<_>>()?;
-    for (b, o) in &errs {
-        err_hi = b.iter().chain(o).fold(err_hi, |m, &v| m.max(1e3 * v));
-    }
-    let err_hi = err_hi.max(1e-3);
-    for (&k, (eb, eo)) in frames.iter().zip(&errs) {
+    // Per-vertex errors in mm, one colour scale for all frames.
+    let mm = |p: &GridMesh, k: usize| -> Result<Vec<f32>> {
+        Ok(vertex_errors(p, &hr[k])?.iter().map(|v| 1e3 * v).collect())
+    };
+    let errs: Vec<(Vec<f32>, Vec<f32>)> =
+        frames.iter().map(|&k| Ok((mm(&bicubic[k], k)?, mm(&ours[k], k)?))).collect::<Result<_>>()?;
+    let err_hi = errs.iter().flat_map(|(b, o)| b.iter().chain(o)).fold(1e-3f32, |m, &v| m.max(v));
+    for (&k, (mb, mo)) in frames.iter().zip(&errs) {
         let tiles = [
             Tile { mesh: &lr[k], label: &format!("LR  frame {k}"), colors: None },
             Tile { mesh: &bicubic[k], label: "bicubic", colors: None },
@@ -234,18 +233,16 @@ fn write_pictures(
             Tile { mesh: &hr[k], label: "HR (truth)", colors: None },
         ];
         rows.push(render_row(&tiles, &view, &shade, 320, 320, 6)?);
-        let (mb, mo): (Vec<f32>, Vec<f32>) =
-            (eb.iter().map(|v| 1e3 * v).collect(), eo.iter().map(|v| 1e3 * v).collect());
         let etiles = [
             Tile {
                 mesh: &bicubic[k],
                 label: &format!("bicubic error  frame {k}"),
-                colors: Some(ScalarColors { values: &mb, lo: 0.0, hi: err_hi }),
+                colors: Some(ScalarColors { values: mb, lo: 0.0, hi: err_hi }),
             },
             Tile {
                 mesh: &ours[k],
                 label: "anisocb error",
-                colors: Some(ScalarColors { values: &mo, lo: 0.0, hi: err_hi }),
+                colors: Some(ScalarColors { values: mo, lo: 0.0, hi: err_hi }),
             },
         ];
         let row = render_row(&etiles, &view, &shade, 320, 320, 6)?;

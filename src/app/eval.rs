@@ -3,7 +3,7 @@
 //! study of (LR simulation + upscaling) vs HR simulation.
 
 use super::ui::{progress, save_png_rgb};
-use super::upscale::{load_model, meshes_of, set_threads};
+use super::upscale::{load_model, set_threads};
 use crate::cloth::run_io::read_run;
 use crate::cloth::scenarios::{run_single, Scenario, ScenarioSpec};
 use crate::error::{Error, Result};
@@ -11,6 +11,7 @@ use crate::eval::image::{hstack, vstack};
 use crate::eval::metrics::{border_mask, sequence_metrics, vertex_errors, FrameMetrics, SequenceMetrics};
 use crate::eval::plot::LinePlot;
 use crate::eval::render::{colorbar, render_row, ScalarColors, Shading, Tile, View};
+use crate::geom::geometry_image::images_to_sequence;
 use crate::geom::GridMesh;
 use crate::io::atomic::ensure_dir;
 use crate::io::write_atomic_bytes;
@@ -104,7 +105,8 @@ fn methods_for_run(
 ) -> Result<Vec<Method>> {
     let p = UpscaleParams::default();
     let up = upscale_images(ops, model, lr, &p, &mut |_| {})?;
-    let mut out = vec![Method { name: "bicubic".into(), meshes: meshes_of(&up.interpolated, domain) }];
+    let mut out =
+        vec![Method { name: "bicubic".into(), meshes: images_to_sequence(&up.interpolated, domain) }];
     if let Some(g) = prior {
         let mut r = Tensor::zeros(&up.residual.shape);
         let per = r.len() / r.shape[0];
@@ -113,22 +115,22 @@ fn methods_for_run(
             r.data[k * per..(k + 1) * per].copy_from_slice(&rk.data);
         }
         let hr = compose(&up.interpolated, &r, None, None, 0.0)?;
-        out.push(Method { name: "prior (Chen 2018 style)".into(), meshes: meshes_of(&hr, domain) });
+        out.push(Method { name: "prior (Chen 2018 style)".into(), meshes: images_to_sequence(&hr, domain) });
     }
     let no_b = compose(&up.interpolated, &up.residual, None, Some(&up.enhance), DEFAULT_ETA)?;
     out.push(Method {
         name: format!("anisocb -boundary, eta={DEFAULT_ETA}"),
-        meshes: meshes_of(&no_b, domain),
+        meshes: images_to_sequence(&no_b, domain),
     });
     for &eta in etas {
         let hr = compose(&up.interpolated, &up.residual, Some(&up.boundary), Some(&up.enhance), eta)?;
-        out.push(Method { name: format!("anisocb, eta={eta}"), meshes: meshes_of(&hr, domain) });
+        out.push(Method { name: format!("anisocb, eta={eta}"), meshes: images_to_sequence(&hr, domain) });
     }
     if let Some(pm) = paper {
         let pu = upscale_images(ops, pm, lr, &p, &mut |_| {})?;
         out.push(Method {
             name: format!("anisocb paper config, eta={DEFAULT_ETA}"),
-            meshes: meshes_of(&pu.hr, domain),
+            meshes: images_to_sequence(&pu.hr, domain),
         });
     }
     Ok(out)
@@ -179,8 +181,8 @@ pub fn run(a: Args) -> Result<()> {
         }
         // Runs are labelled by their directory name (unique, and the user's own naming).
         let scenario = run_label(dir);
-        let hr = meshes_of(&hr_img, &domain);
-        let lr_m = meshes_of(&lr, &domain);
+        let hr = images_to_sequence(&hr_img, &domain);
+        let lr_m = images_to_sequence(&lr, &domain);
         let methods =
             methods_for_run(ops.as_ref(), &model, prior.as_ref(), paper.as_ref(), &lr, &domain, &a.eta)?;
         let mask = border_mask(hr[0].w, hr[0].h);

@@ -5,7 +5,7 @@ use crate::cloth::run_io::DOMAIN_MARGIN;
 use crate::error::{Error, Result};
 use crate::geom::geometry_image::image_to_mesh;
 use crate::geom::obj::{list_obj_files, natural_cmp, read_obj_sequence, write_obj_grid, FaceStyle};
-use crate::geom::{Domain, GridMesh};
+use crate::geom::Domain;
 use crate::io::atomic::{ensure_dir, remove_stale_temps};
 use crate::io::npy::read_geometry_images;
 use crate::io::{read_npy, write_atomic_bytes, write_npy};
@@ -216,9 +216,4 @@ pub fn run(a: Args) -> Result<()> {
         a.out.display()
     );
     Ok(())
-}
-
-/// Meshes of a run's frames (helper for the demo and eval).
-pub fn meshes_of(images: &Tensor, domain: &Domain) -> Vec<GridMesh> {
-    (0..images.shape[0]).map(|k| image_to_mesh(images, k, domain)).collect()
 }

@@ -3,7 +3,7 @@
 //! With [`Interp::Bicubic`] this is exactly the `U` the networks refine.
 
 use crate::error::{Error, Result};
-use crate::geom::geometry_image::{image_to_mesh, sequence_to_images};
+use crate::geom::geometry_image::{images_to_sequence, sequence_to_images};
 use crate::geom::{Domain, GridMesh};
 use crate::ops::{Interp, Ops};
 
@@ -31,7 +31,7 @@ pub fn interpolate_sequence(
     }
     let imgs = sequence_to_images(lr, domain);
     let up = ops.resize(&imgs, factor * first.h, factor * first.w, mode);
-    Ok((0..lr.len()).map(|t| image_to_mesh(&up, t, domain)).collect())
+    Ok(images_to_sequence(&up, domain))
 }
 
 /// The bicubic baseline of one frame (factor 2 = the paper's ×2).

@@ -96,6 +96,11 @@ pub fn image_to_mesh(img: &Tensor, frame: usize, domain: &Domain) -> GridMesh {
     GridMesh::new(w, h, pos)
 }
 
+/// (T, 3, H, W) → one mesh per frame (Eq 2): the inverse of [`sequence_to_images`].
+pub fn images_to_sequence(images: &Tensor, domain: &Domain) -> Vec<GridMesh> {
+    (0..images.shape[0]).map(|k| image_to_mesh(images, k, domain)).collect()
+}
+
 /// A sequence of meshes → (T, 3, H, W).
 pub fn sequence_to_images(frames: &[GridMesh], domain: &Domain) -> Tensor {
     let (w, h) = (frames[0].w, frames[0].h);

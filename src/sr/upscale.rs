@@ -5,7 +5,7 @@
 
 use super::compose::compose;
 use crate::error::{Error, Result};
-use crate::geom::geometry_image::{image_to_mesh, sequence_to_images};
+use crate::geom::geometry_image::{images_to_sequence, sequence_to_images};
 use crate::geom::{Domain, GridMesh};
 use crate::io::npz::npz_from_bytes;
 use crate::nn::bundle::AnisoCb;
@@ -132,7 +132,7 @@ pub fn upscale_meshes(
     }
     let lr = sequence_to_images(frames, domain);
     let up = upscale_images(ops, model, &lr, params, on_frames)?;
-    let meshes = (0..frames.len()).map(|k| image_to_mesh(&up.hr, k, domain)).collect();
+    let meshes = images_to_sequence(&up.hr, domain);
     Ok((meshes, up))
 }
 
