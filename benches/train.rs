@@ -12,7 +12,7 @@ use std::sync::Mutex;
 use std::time::Instant;
 
 fn random(shape: &[usize], seed: u64) -> Tensor {
-    let mut rng = anisocb::nn::Rng::new(seed);
+    let mut rng = anisocb::rng::Rng::new(seed);
     let mut t = Tensor::zeros(shape);
     t.data.iter_mut().for_each(|v| *v = rng.uniform());
     t

@@ -33,9 +33,11 @@ pub mod imgproc;
 pub mod io;
 pub mod nn;
 pub mod ops;
+pub mod rng;
 pub mod sr;
 pub mod tensor;
 pub mod train;
+pub mod viz;
 
 #[cfg(feature = "cli")]
 pub mod app;

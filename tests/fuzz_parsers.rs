@@ -252,7 +252,7 @@ fn fuzz_config_json() {
         .collect();
     fuzz("config_json", &seeds, |b| {
         let text = String::from_utf8_lossy(b);
-        let parsed = anisocb::nn::json::Object::parse(&text).is_ok();
+        let parsed = anisocb::io::json::Object::parse(&text).is_ok();
         NetConfig::from_json(&text).is_ok() || parsed
     });
 }

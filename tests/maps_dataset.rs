@@ -122,7 +122,7 @@ fn dataset_names_the_directory_that_is_not_a_run() {
     let root = scratch("bad");
     let out = root.join("d.npz");
     assert_eq!(run(&["dataset", "--runs", root.to_str().unwrap(), "--out", out.to_str().unwrap()]), 1);
-    let r = anisocb::train::dataset::load_run(&root);
+    let r = anisocb::cloth::run_io::read_pair(&root);
     assert!(r.is_err_and(|e| e.to_string().contains(root.to_str().unwrap())));
     let _ = std::fs::remove_dir_all(&root);
 }

@@ -2,6 +2,7 @@
 
 use anisocb::geom::anisotropy::{boundary_map, BoundaryParams};
 use anisocb::geom::geometry_image::mesh_to_image;
+use anisocb::geom::vec3::{cross, dot, normalize_or};
 use anisocb::geom::Domain;
 use anisocb::geom::GridMesh;
 use anisocb::imgproc::{enhance_map, CannyParams};
@@ -22,16 +23,14 @@ fn folded(w: usize, h: usize, fold: usize, angle: f32) -> GridMesh {
 }
 
 fn rotate(m: &GridMesh, axis: [f32; 3], angle: f32, shift: [f32; 3]) -> GridMesh {
-    let n = (axis[0] * axis[0] + axis[1] * axis[1] + axis[2] * axis[2]).sqrt();
-    let k = [axis[0] / n, axis[1] / n, axis[2] / n];
+    let k = normalize_or(axis, axis);
     let (s, c) = angle.sin_cos();
     let pos = m
         .pos
         .iter()
         .map(|v| {
             // Rodrigues: v c + (k × v) s + k (k·v)(1 − c)
-            let kv = k[0] * v[0] + k[1] * v[1] + k[2] * v[2];
-            let cr = [k[1] * v[2] - k[2] * v[1], k[2] * v[0] - k[0] * v[2], k[0] * v[1] - k[1] * v[0]];
+            let (kv, cr) = (dot(k, *v), cross(k, *v));
             std::array::from_fn(|q| v[q] * c + cr[q] * s + k[q] * kv * (1.0 - c) + shift[q])
         })
         .collect();

@@ -174,22 +174,28 @@ fn run_directory_round_trips() {
     let sp = spec(Scenario::TwistZeroG, 8, 4, 5);
     let frames = run_at(&sp, 8, 4, None, &mut |_| {}).unwrap();
     let img = write_single(&dir.join("one"), &sp, &frames, true).unwrap();
-    let (img2, d, meta) = read_run(&dir.join("one")).unwrap();
+    let one = read_run(&dir.join("one")).unwrap();
+    let (img2, d) = (one.images, one.domain);
     assert_eq!(img, img2);
+    let meta = std::fs::read_to_string(dir.join("one/meta.json")).unwrap();
     assert!(meta.contains("\"scenario\": \"twist-zero-g\""), "{meta}");
+    assert_eq!(one.meta.unwrap().get("scenario").and_then(|v| v.as_str()), Some("twist-zero-g"));
     let back = anisocb::geom::obj::read_obj_grid(&dir.join("one/obj/frame_0004.obj")).unwrap();
     assert_eq!(back, frames[4]);
     let dm = image_to_mesh(&img2, 4, &d);
     assert!(dm.pos.iter().zip(&frames[4].pos).all(|(a, b)| dist(*a, *b) < 1e-5));
 
     let (lr, hr) = paired_run(&sp).unwrap();
-    write_pair(&dir.join("pair"), &sp, &lr, &hr, false).unwrap();
-    let (li, ld, _) = read_run(&dir.join("pair/lr")).unwrap();
-    let (hi, hd, hmeta) = read_run(&dir.join("pair/hr")).unwrap();
+    let written = write_pair(&dir.join("pair"), &sp, &lr, &hr, false).unwrap();
+    let (l, h) = (read_run(&dir.join("pair/lr")).unwrap(), read_run(&dir.join("pair/hr")).unwrap());
+    let (li, ld, hi, hd) = (l.images, l.domain, h.images, h.domain);
     assert_eq!(ld, hd, "LR and HR must share one domain");
     assert_eq!(li.shape, vec![5, 3, 4, 8]);
     assert_eq!(hi.shape, vec![5, 3, 8, 16]);
+    let hmeta = std::fs::read_to_string(dir.join("pair/hr/meta.json")).unwrap();
     assert!(hmeta.contains("\"role\": \"hr\""));
+    let back = anisocb::cloth::run_io::read_pair(&dir.join("pair")).unwrap();
+    assert_eq!((back.lr, back.hr, back.domain), (written.lr, written.hr, written.domain));
     assert!(read_run(&dir.join("missing")).is_err());
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -2,12 +2,13 @@
 //! boundary and edge maps, in one `.npz` (layout: [`crate::train::dataset`]), and a PNG
 //! contact sheet to check the maps by eye.
 
-use crate::error::{Error, Result};
+use crate::cloth::run_io::{pair_dir, read_pair};
+use crate::error::Result;
 use crate::geom::anisotropy::BoundaryParams;
 use crate::imgproc::CannyParams;
 use crate::tensor::Tensor;
-use crate::train::dataset::{build, is_held_out, load_run, Dataset, MapParams};
-use std::path::{Path, PathBuf};
+use crate::train::dataset::{build, is_held_out, MapParams};
+use std::path::PathBuf;
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
@@ -63,12 +64,12 @@ pub fn run(a: Args) -> Result<()> {
     let mut runs = Vec::new();
     let mut seen = Vec::new();
     for dir in &a.runs {
-        let pd = crate::train::dataset::pair_dir(dir)?;
+        let pd = pair_dir(dir)?;
         if seen.contains(&pd) {
             continue; // `DIR/lr` and `DIR/hr` both given: one run
         }
         seen.push(pd.clone());
-        let r = load_run(&pd)?;
+        let r = read_pair(&pd)?;
         if is_held_out(&r, &a.holdout) {
             eprintln!("held out: {} ({})", r.name, r.scenario);
             continue;
@@ -81,7 +82,7 @@ pub fn run(a: Args) -> Result<()> {
     pb.finish_and_clear();
     crate::io::write_npz(&a.out, &ds.to_npz())?;
     let png = a.png.clone().unwrap_or_else(|| a.out.with_extension("png"));
-    write_contact_sheet(&png, &ds, a.sheet_frames)?;
+    super::ui::save_png(&png, &ds.contact_sheet(a.sheet_frames)?)?;
     let pos = |t: &Tensor| t.data.iter().filter(|&&v| v > 0.5).count() as f64 / t.data.len().max(1) as f64;
     eprintln!(
         "wrote {} ({} frames from {} runs, LR {}×{} → HR {}×{}; boundary {:.1}% / edges {:.1}% of pixels), {}",
@@ -97,46 +98,4 @@ pub fn run(a: Args) -> Result<()> {
         png.display()
     );
     Ok(())
-}
-
-/// Rows of (LR, HR, boundary map, edge map) for up to `count` evenly spaced frames; geometry
-/// images as 8-bit RGB clamped to [0,1], maps white on black, nearest upscaling.
-pub fn write_contact_sheet(path: &Path, ds: &Dataset, count: usize) -> Result<()> {
-    if ds.is_empty() || count == 0 {
-        return Err(Error::config("contact sheet needs at least one frame"));
-    }
-    let n = ds.len();
-    let rows = count.min(n);
-    let picks: Vec<usize> = (0..rows).map(|k| if rows == 1 { 0 } else { k * (n - 1) / (rows - 1) }).collect();
-    let (hh, wh) = (ds.hr.shape[2], ds.hr.shape[3]);
-    let (hl, wl) = (ds.lr.shape[2], ds.lr.shape[3]);
-    let zoom = (128 / wh.max(hh)).max(1);
-    let (th, tw) = (hh * zoom, wh * zoom);
-    let gap = 4;
-    let (w, h) = (4 * tw + 5 * gap, rows * th + (rows + 1) * gap);
-    let mut rgb = vec![40u8; w * h * 3];
-    let to8 = |v: f32| (v.clamp(0.0, 1.0) * 255.0).round() as u8;
-    for (row, &f) in picks.iter().enumerate() {
-        let y0 = gap + row * (th + gap);
-        for col in 0..4 {
-            let x0 = gap + col * (tw + gap);
-            for y in 0..th {
-                for x in 0..tw {
-                    let (yh, xh) = (y / zoom, x / zoom);
-                    let px: [u8; 3] = match col {
-                        0 => {
-                            let (yl, xl) = (yh * hl / hh, xh * wl / wh);
-                            std::array::from_fn(|c| to8(ds.lr.data[ds.lr.idx4(f, c, yl, xl)]))
-                        }
-                        1 => std::array::from_fn(|c| to8(ds.hr.data[ds.hr.idx4(f, c, yh, xh)])),
-                        2 => [to8(ds.boundary.data[ds.boundary.idx4(f, 0, yh, xh)]); 3],
-                        _ => [to8(ds.edges.data[ds.edges.idx4(f, 0, yh, xh)]); 3],
-                    };
-                    let o = ((y0 + y) * w + x0 + x) * 3;
-                    rgb[o..o + 3].copy_from_slice(&px);
-                }
-            }
-        }
-    }
-    super::ui::save_png_rgb(path, w, h, &rgb)
 }

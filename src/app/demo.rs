@@ -2,22 +2,25 @@
 //! embedded weights, compare bicubic interpolation and anisocb against the HR run, and write
 //! OBJ sequences, a metrics table and pictures to `demo-out/`.
 
-use super::ui::{progress, save_png_rgb};
-use super::upscale::{load_model, set_threads};
+use super::setup::{load_model, set_threads};
+use super::ui::{progress, save_png};
 use crate::cloth::run_io::write_pair;
 use crate::cloth::scenarios::{paired_run_with_progress, Scenario, ScenarioSpec, SCENARIO_HELP};
 use crate::error::Result;
-use crate::eval::image::{hstack, image_rgb8, upscale_nearest, vstack, Rgb8};
 use crate::eval::metrics::{border_mask, sequence_metrics, vertex_errors, SequenceMetrics};
-use crate::eval::render::{colorbar, render_row, ScalarColors, Shading, Tile, View};
+use crate::eval::report::{metrics_table, Column};
 use crate::geom::geometry_image::images_to_sequence;
 use crate::geom::obj::write_obj_grid;
 use crate::geom::GridMesh;
 use crate::io::atomic::ensure_dir;
-use crate::io::{read_npy, write_atomic_bytes};
+use crate::io::json::{write_json, Layout, Object};
+use crate::io::write_atomic_bytes;
 use crate::sr::compose::DEFAULT_ETA;
 use crate::sr::upscale::{upscale_images, UpscaleParams};
 use crate::tensor::Tensor;
+use crate::viz::heat::{render_heat_row, scale_max, ScalarColors};
+use crate::viz::image::{hstack, image_rgb8, upscale_nearest, vstack, Rgb8};
+use crate::viz::render::{render_row, Shading, Tile, View};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -64,27 +67,15 @@ pub struct Row {
     pub metrics: SequenceMetrics,
 }
 
-/// Markdown table of the demo's comparison (lengths in mm).
-pub fn metrics_table(rows: &[Row]) -> String {
-    let mut s = String::from(
-        "| method | vertex RMSE (mm) | boundary RMSE (mm) | Hausdorff (mm) | border length ratio | normal angle (°) | flicker (mm/frame) |\n\
-         |---|---:|---:|---:|---:|---:|---:|\n",
-    );
-    for r in rows {
-        let m = &r.metrics.mean;
-        s.push_str(&format!(
-            "| {} | {:.3} | {:.3} | {:.3} | {:.4} | {:.2} | {:.3} |\n",
-            r.method,
-            1e3 * m.rmse,
-            1e3 * m.boundary_rmse,
-            1e3 * m.hausdorff,
-            m.boundary_length_ratio,
-            m.normal_angle_deg,
-            1e3 * r.metrics.flicker
-        ));
-    }
-    s
-}
+/// The columns of the demo's table (lengths in mm).
+pub const COLUMNS: [Column; 6] = [
+    Column::Rmse,
+    Column::BoundaryRmse,
+    Column::Hausdorff,
+    Column::BorderLengthRatio,
+    Column::NormalAngle,
+    Column::Flicker,
+];
 
 pub fn run(a: Args) -> Result<()> {
     set_threads(a.threads)?;
@@ -106,29 +97,23 @@ pub fn run(a: Args) -> Result<()> {
     let (lr, hr) = paired_run_with_progress(&spec, &mut |k| pb.set_position(k as u64))?;
     pb.finish_and_clear();
     let sim_s = t0.elapsed().as_secs_f64();
-    let run_dir = a.out.join("sim");
-    write_pair(&run_dir, &spec, &lr, &hr, false)?;
-    let domain = crate::geom::Domain::from_tensor(&read_npy(&run_dir.join("lr/domain.npy"))?)?;
-    let lr_images = crate::io::npy::read_geometry_images(&run_dir.join("lr/geometry.npy"))?;
+    let pair = write_pair(&a.out.join("sim"), &spec, &lr, &hr, false)?;
+    let domain = pair.domain;
 
     // 2. Upscale.
     let t1 = Instant::now();
     let pb = progress(spec.frames as u64, "upscale");
     let params = UpscaleParams { eta: a.eta, ..UpscaleParams::default() };
-    let up = upscale_images(ops.as_ref(), &model, &lr_images, &params, &mut |k| pb.set_position(k as u64))?;
+    let up = upscale_images(ops.as_ref(), &model, &pair.lr, &params, &mut |k| pb.set_position(k as u64))?;
     pb.finish_and_clear();
     let up_s = t1.elapsed().as_secs_f64();
     let ours = images_to_sequence(&up.hr, &domain);
     let bicubic = images_to_sequence(&up.interpolated, &domain);
-    let plain = {
-        let p = UpscaleParams { eta: 0.0, ..params };
-        let u0 = upscale_images(ops.as_ref(), &model, &lr_images, &p, &mut |_| {})?;
-        images_to_sequence(&u0.hr, &domain)
-    };
+    let plain = images_to_sequence(&up.with_eta(0.0)?, &domain);
 
     // 3. Metrics against the HR run.
     let mask = border_mask(hr[0].w, hr[0].h);
-    let rows = vec![
+    let rows = [
         Row {
             method: "bicubic interpolation".into(),
             metrics: sequence_metrics(&bicubic, &hr, Some(&mask))?,
@@ -139,7 +124,7 @@ pub fn run(a: Args) -> Result<()> {
             metrics: sequence_metrics(&ours, &hr, Some(&mask))?,
         },
     ];
-    let table = metrics_table(&rows);
+    let table = metrics_table(rows.iter().map(|r| (r.method.as_str(), &r.metrics)), &COLUMNS);
     let header = format!(
         "anisocb demo: scenario `{}` (seed {}, held out of training), {} frames, LR {}x{} -> HR {}x{}\n\
          simulation (LR + HR) {:.1} s, upscaling {:.1} s ({:.1} ms/frame, {})\n\n",
@@ -156,18 +141,14 @@ pub fn run(a: Args) -> Result<()> {
         ops.name()
     );
     write_atomic_bytes(&a.out.join("metrics.md"), format!("{header}{table}").as_bytes())?;
-    let json = format!(
-        "{{\"scenario\": \"{}\", \"seed\": {}, \"frames\": {}, \"eta\": {}, \"methods\": {{{}}}}}\n",
-        spec.scenario,
-        spec.seed,
-        spec.frames,
-        a.eta,
-        rows.iter()
-            .map(|r| format!("\"{}\": {}", r.method, r.metrics.to_json()))
-            .collect::<Vec<_>>()
-            .join(", ")
-    );
-    write_atomic_bytes(&a.out.join("metrics.json"), json.as_bytes())?;
+    let methods = rows.iter().fold(Object::new(), |o, r| o.val(&r.method, r.metrics.to_value()));
+    let json = Object::new()
+        .str("scenario", spec.scenario.name())
+        .num("seed", spec.seed)
+        .num("frames", spec.frames)
+        .num("eta", a.eta)
+        .val("methods", methods);
+    write_json(&a.out.join("metrics.json"), &json.into(), Layout::Compact)?;
 
     // 4. OBJ sequences.
     let pb = progress(4 * spec.frames as u64, "write obj");
@@ -224,7 +205,7 @@ fn write_pictures(
     };
     let errs: Vec<(Vec<f32>, Vec<f32>)> =
         frames.iter().map(|&k| Ok((mm(&bicubic[k], k)?, mm(&ours[k], k)?))).collect::<Result<_>>()?;
-    let err_hi = errs.iter().flat_map(|(b, o)| b.iter().chain(o)).fold(1e-3f32, |m, &v| m.max(v));
+    let err_hi = scale_max(errs.iter().flat_map(|(b, o)| b.iter().chain(o)), 1e-3);
     for (&k, (mb, mo)) in frames.iter().zip(&errs) {
         let tiles = [
             Tile { mesh: &lr[k], label: &format!("LR  frame {k}"), colors: None },
@@ -245,9 +226,7 @@ fn write_pictures(
                 colors: Some(ScalarColors { values: mo, lo: 0.0, hi: err_hi }),
             },
         ];
-        let row = render_row(&etiles, &view, &shade, 320, 320, 6)?;
-        let bar = colorbar(row.h, 0.0, err_hi, "err mm");
-        err_rows.push(hstack(&[row, bar], 6, [255; 3]));
+        err_rows.push(render_heat_row(&etiles, &view, &shade, (320, 320), 6, (0.0, err_hi), "err mm")?);
         let geo = image_rgb8(&hr_images.slice_batch(k, 1))?;
         let b = image_rgb8(&gb.slice_batch(k, 1))?;
         let e = image_rgb8(&ge.slice_batch(k, 1))?;
@@ -263,7 +242,7 @@ fn write_pictures(
     }
     for (name, rows) in [("compare.png", rows), ("error.png", err_rows), ("maps.png", map_rows)] {
         let img = vstack(&rows, 6, [255; 3]);
-        save_png_rgb(&out.join(name), img.w, img.h, &img.data)?;
+        save_png(&out.join(name), &img)?;
     }
     Ok(())
 }

@@ -2,18 +2,17 @@
 //! as numbers (markdown + JSON tables), per-frame plots and error renders; `--speed` adds the
 //! study of (LR simulation + upscaling) vs HR simulation.
 
-use super::ui::{progress, save_png_rgb};
-use super::upscale::{load_model, set_threads};
-use crate::cloth::run_io::read_run;
+use super::setup::{load_model, set_threads};
+use super::ui::{progress, save_png};
+use crate::cloth::run_io::read_pair;
 use crate::cloth::scenarios::{run_single, Scenario, ScenarioSpec};
 use crate::error::{Error, Result};
-use crate::eval::image::{hstack, vstack};
-use crate::eval::metrics::{border_mask, sequence_metrics, vertex_errors, FrameMetrics, SequenceMetrics};
-use crate::eval::plot::LinePlot;
-use crate::eval::render::{colorbar, render_row, ScalarColors, Shading, Tile, View};
+use crate::eval::metrics::{border_mask, sequence_metrics, vertex_errors, SequenceMetrics};
+use crate::eval::report::{metrics_table, Column};
 use crate::geom::geometry_image::images_to_sequence;
 use crate::geom::GridMesh;
 use crate::io::atomic::ensure_dir;
+use crate::io::json::{write_json, Layout, Object, Value};
 use crate::io::write_atomic_bytes;
 use crate::nn::bundle::AnisoCb;
 use crate::nn::config::NetConfig;
@@ -23,6 +22,10 @@ use crate::ops::Ops;
 use crate::sr::compose::{compose, DEFAULT_ETA};
 use crate::sr::upscale::{upscale_images, UpscaleParams};
 use crate::tensor::Tensor;
+use crate::viz::heat::{render_heat_row, scale_max, ScalarColors};
+use crate::viz::image::vstack;
+use crate::viz::plot::LinePlot;
+use crate::viz::render::{Shading, Tile, View};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -123,8 +126,10 @@ fn methods_for_run(
         meshes: images_to_sequence(&no_b, domain),
     });
     for &eta in etas {
-        let hr = compose(&up.interpolated, &up.residual, Some(&up.boundary), Some(&up.enhance), eta)?;
-        out.push(Method { name: format!("anisocb, eta={eta}"), meshes: images_to_sequence(&hr, domain) });
+        out.push(Method {
+            name: format!("anisocb, eta={eta}"),
+            meshes: images_to_sequence(&up.with_eta(eta)?, domain),
+        });
     }
     if let Some(pm) = paper {
         let pu = upscale_images(ops, pm, lr, &p, &mut |_| {})?;
@@ -142,24 +147,8 @@ pub fn results_markdown(cells: &[Cell]) -> String {
     let mut scenarios: Vec<&str> = cells.iter().map(|c| c.scenario.as_str()).collect();
     scenarios.dedup();
     for sc in scenarios {
-        s.push_str(&format!(
-            "\n### {sc}\n\n| method | vertex RMSE (mm) | boundary RMSE (mm) | Hausdorff (mm) | border length ratio | area ratio | normal angle (°) | mean-curvature err (1/m) | flicker (mm/frame) |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|\n"
-        ));
-        for c in cells.iter().filter(|c| c.scenario == sc) {
-            let m: &FrameMetrics = &c.metrics.mean;
-            s.push_str(&format!(
-                "| {} | {:.3} | {:.3} | {:.3} | {:.4} | {:.4} | {:.2} | {:.3} | {:.3} |\n",
-                c.method,
-                1e3 * m.rmse,
-                1e3 * m.boundary_rmse,
-                1e3 * m.hausdorff,
-                m.boundary_length_ratio,
-                m.area_ratio,
-                m.normal_angle_deg,
-                m.curvature_err,
-                1e3 * c.metrics.flicker
-            ));
-        }
+        let rows = cells.iter().filter(|c| c.scenario == sc).map(|c| (c.method.as_str(), &c.metrics));
+        s.push_str(&format!("\n### {sc}\n\n{}", metrics_table(rows, &Column::ALL)));
     }
     s
 }
@@ -174,17 +163,14 @@ pub fn run(a: Args) -> Result<()> {
     let mut cells = Vec::new();
     let pb = progress(a.runs.len() as u64, "eval");
     for dir in &a.runs {
-        let (lr, domain, _) = read_run(&dir.join("lr"))?;
-        let (hr_img, hr_domain, _) = read_run(&dir.join("hr"))?;
-        if hr_domain != domain {
-            return Err(Error::format(dir, "lr/ and hr/ have different domains; simulate them with --pair"));
-        }
+        let pair = read_pair(dir)?;
+        let (lr, domain) = (&pair.lr, &pair.domain);
         // Runs are labelled by their directory name (unique, and the user's own naming).
-        let scenario = run_label(dir);
-        let hr = images_to_sequence(&hr_img, &domain);
-        let lr_m = images_to_sequence(&lr, &domain);
+        let scenario = run_label(Path::new(&pair.name));
+        let hr = images_to_sequence(&pair.hr, domain);
+        let lr_m = images_to_sequence(lr, domain);
         let methods =
-            methods_for_run(ops.as_ref(), &model, prior.as_ref(), paper.as_ref(), &lr, &domain, &a.eta)?;
+            methods_for_run(ops.as_ref(), &model, prior.as_ref(), paper.as_ref(), lr, domain, &a.eta)?;
         let mask = border_mask(hr[0].w, hr[0].h);
         let mut rows = Vec::new();
         for m in &methods {
@@ -203,20 +189,17 @@ pub fn run(a: Args) -> Result<()> {
         results_markdown(&cells)
     );
     write_atomic_bytes(&a.out.join("results.md"), md.as_bytes())?;
-    let json = format!(
-        "[{}]\n",
-        cells
-            .iter()
-            .map(|c| format!(
-                "{{\"scenario\": \"{}\", \"method\": \"{}\", \"metrics\": {}}}",
-                c.scenario,
-                c.method,
-                c.metrics.to_json()
-            ))
-            .collect::<Vec<_>>()
-            .join(",\n")
-    );
-    write_atomic_bytes(&a.out.join("results.json"), json.as_bytes())?;
+    let json = cells
+        .iter()
+        .map(|c| {
+            Object::new()
+                .str("scenario", &c.scenario)
+                .str("method", &c.method)
+                .val("metrics", c.metrics.to_value())
+                .into()
+        })
+        .collect::<Vec<Value>>();
+    write_json(&a.out.join("results.json"), &json.into(), Layout::Rows)?;
     println!("{md}");
     if a.speed {
         let s = speed_study(ops.as_ref(), &model)?;
@@ -246,7 +229,7 @@ fn write_plots(out: &Path, scenario: &str, rows: &[Cell]) -> Result<()> {
         pics.push(plot.render(720, 360)?);
     }
     let img = vstack(&pics, 8, [255; 3]);
-    save_png_rgb(&out.join(format!("{scenario}-rmse.png")), img.w, img.h, &img.data)
+    save_png(&out.join(format!("{scenario}-rmse.png")), &img)
 }
 
 fn write_worst_renders(
@@ -273,7 +256,7 @@ fn write_worst_renders(
             .iter()
             .map(|m| Ok(vertex_errors(&m.meshes[k], &hr[k])?.iter().map(|v| 1e3 * v).collect()))
             .collect::<Result<_>>()?;
-        let hi = errs.iter().flatten().fold(1e-3f32, |m, &v| m.max(v));
+        let hi = scale_max(errs.iter().flatten(), 1e-3);
         let lr_label = format!("LR frame {k}");
         let mut tiles = vec![Tile { mesh: &lr[k], label: &lr_label, colors: None }];
         for (m, e) in shown.iter().zip(&errs) {
@@ -284,12 +267,10 @@ fn write_worst_renders(
             });
         }
         tiles.push(Tile { mesh: &hr[k], label: "HR (truth)", colors: None });
-        let row = render_row(&tiles, &view, &shade, 260, 260, 6)?;
-        let bar = colorbar(row.h, 0.0, hi, "err mm");
-        pics.push(hstack(&[row, bar], 6, [255; 3]));
+        pics.push(render_heat_row(&tiles, &view, &shade, (260, 260), 6, (0.0, hi), "err mm")?);
     }
     let img = vstack(&pics, 6, [255; 3]);
-    save_png_rgb(&out.join(format!("{scenario}-worst.png")), img.w, img.h, &img.data)
+    save_png(&out.join(format!("{scenario}-worst.png")), &img)
 }
 
 /// Time per frame of LR simulation + upscaling vs HR simulation, for the small (given) and the

@@ -7,6 +7,7 @@ pub mod cpu;
 pub mod dataset;
 pub mod demo;
 pub mod eval;
+pub mod setup;
 pub mod simulate;
 pub mod train;
 pub mod ui;

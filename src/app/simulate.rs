@@ -1,12 +1,13 @@
 //! `anisocb simulate`: run a cloth scenario (XPBD) at one resolution or as an LR/HR pair and
 //! write run directories (see [`crate::cloth::run_io`]) plus a preview picture of each.
 
-use crate::app::ui::{progress, save_png_rgb};
-use crate::cloth::run_io::{preview_rgb, write_pair, write_single};
+use crate::app::ui::{progress, save_png};
+use crate::cloth::run_io::{write_pair, write_single};
 use crate::cloth::scenarios::{paired_run_with_progress, run_at, SCENARIO_HELP};
 use crate::cloth::{Material, Scenario, ScenarioSpec};
 use crate::error::{Error, Result};
 use crate::tensor::Tensor;
+use crate::viz::sheet::frame_strip;
 use std::path::{Path, PathBuf};
 
 #[derive(clap::Args, Debug)]
@@ -87,8 +88,7 @@ pub fn spec_from_args(a: &Args) -> Result<ScenarioSpec> {
 }
 
 fn write_preview(dir: &Path, images: &Tensor) -> Result<()> {
-    let (w, h, rgb) = preview_rgb(images, 6, 160);
-    save_png_rgb(&dir.join("preview.png"), w, h, &rgb)
+    save_png(&dir.join("preview.png"), &frame_strip(images, 6, 160)?)
 }
 
 pub fn run(a: Args) -> Result<()> {
@@ -106,9 +106,9 @@ pub fn run(a: Args) -> Result<()> {
         ));
         let (lr, hr) = paired_run_with_progress(&spec, &mut |k| pb.set_position(k as u64 + 1))?;
         pb.finish_and_clear();
-        let (li, hi) = write_pair(&a.out, &spec, &lr, &hr, a.obj)?;
-        write_preview(&a.out.join("lr"), &li)?;
-        write_preview(&a.out.join("hr"), &hi)?;
+        let pair = write_pair(&a.out, &spec, &lr, &hr, a.obj)?;
+        write_preview(&a.out.join("lr"), &pair.lr)?;
+        write_preview(&a.out.join("hr"), &pair.hr)?;
         eprintln!(
             "simulated {} pair {}x{} / {}x{}, {} frames in {:.1} s → {}/{{lr,hr}}",
             spec.scenario,

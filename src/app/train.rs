@@ -1,13 +1,12 @@
 //! `anisocb train`: train GeometryNet / BoundaryNet / EnhanceNet (or all three) on a dataset.
 
-use super::ui::{progress, save_png_rgb};
+use super::ui::{progress, save_png};
 use crate::error::Result;
 use crate::nn::config::parse_padding;
 use crate::nn::{NetConfig, NetKind};
 use crate::ops::AdamParams;
 use crate::train::data::Dataset;
-use crate::train::plot::loss_curve_rgb;
-use crate::train::trainer::{train, train_all, Event, TrainOptions};
+use crate::train::trainer::{loss_plot, train, train_all, Event, TrainOptions};
 use std::path::PathBuf;
 
 #[derive(clap::Args, Debug)]
@@ -110,9 +109,11 @@ pub fn run(a: Args) -> Result<()> {
             pb.set_message(format!("loss {e:.3e}{v}"));
         }
         Event::Validation { loss, .. } => val = Some(loss),
-        Event::Checkpoint { dir, history, .. } => {
-            let rgb = loss_curve_rgb(history, 640, 360);
-            if let Err(e) = save_png_rgb(&dir.join("loss.png"), 640, 360, &rgb) {
+        Event::Checkpoint { net, dir, history, .. } => {
+            let png = loss_plot(net.name(), history)
+                .render(640, 360)
+                .and_then(|img| save_png(&dir.join("loss.png"), &img));
+            if let Err(e) = png {
                 png_err.get_or_insert(e);
             }
         }

@@ -1,6 +1,7 @@
 //! Shared pieces of the front end: progress bars and PNG output.
 
 use crate::error::{Error, Result};
+use crate::viz::Rgb8;
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::Path;
 
@@ -16,15 +17,15 @@ pub fn progress(len: u64, what: &str) -> ProgressBar {
     pb
 }
 
-/// Write an 8-bit RGB image (row-major, `w*h*3` bytes) as PNG, atomically.
-pub fn save_png_rgb(path: &Path, w: usize, h: usize, rgb: &[u8]) -> Result<()> {
-    assert_eq!(rgb.len(), w * h * 3);
+/// Write a picture as an 8-bit RGB PNG, atomically.
+pub fn save_png(path: &Path, img: &Rgb8) -> Result<()> {
+    assert_eq!(img.data.len(), img.w * img.h * 3);
     crate::io::write_atomic(path, |out| {
-        let mut enc = png::Encoder::new(out, w as u32, h as u32);
+        let mut enc = png::Encoder::new(out, img.w as u32, img.h as u32);
         enc.set_color(png::ColorType::Rgb);
         enc.set_depth(png::BitDepth::Eight);
         let mut wr = enc.write_header().map_err(std::io::Error::other)?;
-        wr.write_image_data(rgb).map_err(std::io::Error::other)?;
+        wr.write_image_data(&img.data).map_err(std::io::Error::other)?;
         wr.finish().map_err(std::io::Error::other)
     })
     .map_err(|e| match e {

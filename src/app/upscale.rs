@@ -1,17 +1,18 @@
 //! `anisocb upscale INPUT... --out DIR`: LR cloth animation in, HR animation out.
 
+use super::setup::{load_model, set_threads};
 use super::ui::progress;
+use crate::cloth::run_io::read_run_at;
 use crate::cloth::run_io::DOMAIN_MARGIN;
 use crate::error::{Error, Result};
-use crate::geom::geometry_image::image_to_mesh;
+use crate::geom::geometry_image::images_to_sequence;
 use crate::geom::obj::{list_obj_files, natural_cmp, read_obj_sequence, write_obj_grid, FaceStyle};
-use crate::geom::Domain;
+use crate::geom::{Domain, GridMesh};
 use crate::io::atomic::{ensure_dir, remove_stale_temps};
-use crate::io::npy::read_geometry_images;
-use crate::io::{read_npy, write_atomic_bytes, write_npy};
-use crate::nn::bundle::AnisoCb;
+use crate::io::json::{write_json, Layout, Object, Value};
+use crate::io::write_npy;
 use crate::sr::compose::DEFAULT_ETA;
-use crate::sr::upscale::{embedded_model, upscale_images, UpscaleParams};
+use crate::sr::upscale::{upscale_images, upscale_meshes, UpscaleParams};
 use crate::tensor::Tensor;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -60,15 +61,33 @@ pub struct Args {
     pub maps: bool,
 }
 
+/// The LR frames as the user gave them.
+pub enum LrFrames {
+    /// OBJ meshes.
+    Meshes(Vec<GridMesh>),
+    /// Geometry images (T, 3, H, W) of a run directory or a `.npy`.
+    Images(Tensor),
+}
+
 /// An LR sequence, from whatever the user gave.
 pub struct LrInput {
-    pub images: Tensor,
+    pub frames: LrFrames,
     pub domain: Domain,
     /// Output file names for OBJ output (one per frame).
     pub names: Vec<String>,
     /// Face style of OBJ input (None for .npy input).
     pub style: Option<FaceStyle>,
     pub domain_note: String,
+}
+
+impl LrInput {
+    /// (frames, columns, rows).
+    pub fn size(&self) -> (usize, usize, usize) {
+        match &self.frames {
+            LrFrames::Meshes(m) => (m.len(), m[0].w, m[0].h),
+            LrFrames::Images(t) => (t.shape[0], t.shape[3], t.shape[2]),
+        }
+    }
 }
 
 fn is_obj(p: &Path) -> bool {
@@ -86,19 +105,16 @@ pub fn read_input(inputs: &[PathBuf], margin: f32) -> Result<LrInput> {
         None
     };
     if let Some(gp) = npy {
-        let images = read_geometry_images(&gp)?;
-        let dp = gp.with_file_name("domain.npy");
-        if !dp.exists() {
-            return Err(Error::format(
-                &gp,
-                format!("needs its domain beside it ({} with [bmin; bmax], shape [2, 3])", dp.display()),
-            ));
-        }
-        let domain = Domain::from_tensor(&read_npy(&dp)?).map_err(|e| e.in_file(&dp))?;
-        let t = images.shape[0];
-        let names = (0..t).map(|k| format!("frame_{k:04}.obj")).collect();
-        let note = format!("domain from {}", dp.display());
-        return Ok(LrInput { images, domain, names, style: None, domain_note: note });
+        let run = read_run_at(&gp)?;
+        let names = (0..run.images.shape[0]).map(|k| format!("frame_{k:04}.obj")).collect();
+        let note = format!("domain from {}", gp.with_file_name("domain.npy").display());
+        return Ok(LrInput {
+            frames: LrFrames::Images(run.images),
+            domain: run.domain,
+            names,
+            style: None,
+            domain_note: note,
+        });
     }
     let mut files = Vec::new();
     for p in inputs {
@@ -121,7 +137,6 @@ pub fn read_input(inputs: &[PathBuf], margin: f32) -> Result<LrInput> {
         return Err(Error::config(format!("--margin must be ≥ 0, got {margin}")));
     }
     let domain = Domain::enclosing(&frames, margin);
-    let images = crate::geom::geometry_image::sequence_to_images(&frames, &domain);
     let names = files.iter().map(|p| p.file_name().unwrap().to_string_lossy().into_owned()).collect();
     let note = format!(
         "domain = bounding box of all frames + {:.0}% margin: bmin {:?}, bmax {:?} (m)",
@@ -129,26 +144,7 @@ pub fn read_input(inputs: &[PathBuf], margin: f32) -> Result<LrInput> {
         domain.bmin,
         domain.bmax
     );
-    Ok(LrInput { images, domain, names, style: Some(style), domain_note: note })
-}
-
-/// The model to use: `--weights FILE` or the embedded one.
-pub fn load_model(weights: Option<&Path>) -> Result<AnisoCb> {
-    match weights {
-        Some(p) => AnisoCb::load(p),
-        None => embedded_model(),
-    }
-}
-
-pub fn set_threads(threads: Option<usize>) -> Result<()> {
-    if let Some(n) = threads {
-        if n == 0 {
-            return Err(Error::config("--threads must be ≥ 1"));
-        }
-        // Fails only if a pool was already set up in this process; the first setting wins.
-        let _ = rayon::ThreadPoolBuilder::new().num_threads(n).build_global();
-    }
-    Ok(())
+    Ok(LrInput { frames: LrFrames::Meshes(frames), domain, names, style: Some(style), domain_note: note })
 }
 
 pub fn run(a: Args) -> Result<()> {
@@ -156,7 +152,7 @@ pub fn run(a: Args) -> Result<()> {
     let ops = crate::cuda::ops_for_device(&a.device)?;
     let model = load_model(a.weights.as_deref())?;
     let input = read_input(&a.input, a.margin)?;
-    let (t, _, h, w) = input.images.dims4();
+    let (t, w, h) = input.size();
     let r = model.scale();
     ensure_dir(&a.out)?;
     let fmt = match (a.format.as_str(), input.style) {
@@ -168,8 +164,15 @@ pub fn run(a: Args) -> Result<()> {
     let pb = progress(t as u64, "upscale");
     let start = Instant::now();
     let params = UpscaleParams { eta: a.eta, batch: a.batch, ..UpscaleParams::default() };
-    let up =
-        upscale_images(ops.as_ref(), &model, &input.images, &params, &mut |k| pb.set_position(k as u64))?;
+    let mut on_frames = |k: usize| pb.set_position(k as u64);
+    let (up, hr_meshes) = match &input.frames {
+        LrFrames::Meshes(m) => {
+            let (meshes, up) =
+                upscale_meshes(ops.as_ref(), &model, m, &input.domain, &params, &mut on_frames)?;
+            (up, Some(meshes))
+        }
+        LrFrames::Images(img) => (upscale_images(ops.as_ref(), &model, img, &params, &mut on_frames)?, None),
+    };
     let secs = start.elapsed().as_secs_f64();
     pb.finish_and_clear();
     let quads = input.style != Some(FaceStyle::Triangles);
@@ -185,8 +188,9 @@ pub fn run(a: Args) -> Result<()> {
         remove_stale_temps(p)?;
     }
     if fmt == "obj" {
-        for (k, name) in input.names.iter().enumerate() {
-            write_obj_grid(&a.out.join(name), &image_to_mesh(&up.hr, k, &input.domain), quads)?;
+        let meshes = hr_meshes.unwrap_or_else(|| images_to_sequence(&up.hr, &input.domain));
+        for (name, m) in input.names.iter().zip(&meshes) {
+            write_obj_grid(&a.out.join(name), m, quads)?;
         }
     } else {
         write_npy(&a.out.join("geometry.npy"), &up.hr)?;
@@ -196,18 +200,22 @@ pub fn run(a: Args) -> Result<()> {
         write_npy(&a.out.join("boundary.npy"), &up.boundary)?;
         write_npy(&a.out.join("enhance.npy"), &up.enhance)?;
     }
-    let summary = format!(
-        "{{\"frames\": {t}, \"lr\": [{w}, {h}], \"hr\": [{}, {}], \"eta\": {}, \"device\": \"{}\", \
-         \"seconds\": {secs:.3}, \"ms_per_frame\": {:.3}, \"domain\": {{\"bmin\": {:?}, \"bmax\": {:?}}}}}\n",
-        r * w,
-        r * h,
-        a.eta,
-        ops.name(),
-        1e3 * secs / t as f64,
-        input.domain.bmin,
-        input.domain.bmax
-    );
-    write_atomic_bytes(&a.out.join("upscale.json"), summary.as_bytes())?;
+    let size = |w: usize, h: usize| vec![Value::num(w), Value::num(h)];
+    let summary = Object::new()
+        .num("frames", t)
+        .val("lr", size(w, h))
+        .val("hr", size(r * w, r * h))
+        .num("eta", a.eta)
+        .str("device", ops.name())
+        .num("seconds", format!("{secs:.3}"))
+        .num("ms_per_frame", format!("{:.3}", 1e3 * secs / t as f64))
+        .val(
+            "domain",
+            Object::new()
+                .val("bmin", Value::reals(&input.domain.bmin))
+                .val("bmax", Value::reals(&input.domain.bmax)),
+        );
+    write_json(&a.out.join("upscale.json"), &summary.into(), Layout::Compact)?;
     println!(
         "upscaled {t} frames {w}x{h} -> {}x{} in {secs:.2} s ({:.1} ms/frame) -> {} ({fmt})",
         r * w,

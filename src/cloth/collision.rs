@@ -1,6 +1,8 @@
 //! Sphere and ground contacts, projected after the constraints of every substep, with a
 //! margin and position-based Coulomb friction (Macklin et al. 2014, "Unified particle physics").
 
+use crate::geom::vec3::{dot, norm, sub};
+
 /// A static sphere: centre (m), radius (m).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Sphere {
@@ -23,10 +25,10 @@ fn resolve(x: &mut [f32; 3], prev: [f32; 3], n: [f32; 3], pen: f32, mu: f32) {
     for k in 0..3 {
         x[k] += n[k] * pen;
     }
-    let dx = [x[0] - prev[0], x[1] - prev[1], x[2] - prev[2]];
-    let dn = dx[0] * n[0] + dx[1] * n[1] + dx[2] * n[2];
+    let dx = sub(*x, prev);
+    let dn = dot(dx, n);
     let t = [dx[0] - dn * n[0], dx[1] - dn * n[1], dx[2] - dn * n[2]];
-    let lt = (t[0] * t[0] + t[1] * t[1] + t[2] * t[2]).sqrt();
+    let lt = norm(t);
     if lt <= 0.0 {
         return;
     }
@@ -45,8 +47,8 @@ impl Colliders {
                 if inv_mass[v] == 0.0 {
                     continue;
                 }
-                let d = [x[v][0] - s.center[0], x[v][1] - s.center[1], x[v][2] - s.center[2]];
-                let l2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+                let d = sub(x[v], s.center);
+                let l2 = dot(d, d);
                 if l2 < r * r {
                     let l = l2.sqrt();
                     let n = if l > 1e-9 { [d[0] / l, d[1] / l, d[2] / l] } else { [0.0, 1.0, 0.0] };

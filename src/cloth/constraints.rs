@@ -15,6 +15,7 @@
 //! colour can be projected in any order or in parallel with the same result.
 
 use crate::geom::mesh::{dist, GridMesh};
+use crate::geom::vec3::{cross, dot, norm, sub};
 
 /// Distance constraint `|x_a − x_b| = rest` with compliance `alpha` (m/N).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -104,22 +105,10 @@ pub fn distance_constraints(rest: &GridMesh, mat: MaterialOf) -> Coloured<Distan
 }
 
 fn cot(a: [f32; 3], b: [f32; 3]) -> f32 {
-    let d = (a[0] * b[0] + a[1] * b[1] + a[2] * b[2]) as f64;
+    let d = dot(a, b) as f64;
     let c = cross(a, b);
-    let s = ((c[0] * c[0] + c[1] * c[1] + c[2] * c[2]) as f64).sqrt().max(1e-20);
+    let s = (dot(c, c) as f64).sqrt().max(1e-20);
     (d / s) as f32
-}
-
-pub(crate) fn cross(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
-    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
-}
-
-pub(crate) fn sub(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-
-pub(crate) fn norm(a: [f32; 3]) -> f32 {
-    (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt()
 }
 
 /// Isometric bending constraints on every interior edge of the triangulation.

@@ -22,7 +22,6 @@ pub mod collision;
 pub mod constraints;
 pub mod kinematics;
 pub mod params;
-pub mod rng;
 pub mod run_io;
 pub mod scenarios;
 pub mod solver;

@@ -1,11 +1,14 @@
-//! The run directory, read by the dataset builder and the demo:
+//! The run directory: written by `simulate` and `demo`, read (one reader, [`read_run`], and
+//! [`read_pair`] on top of it) by `dataset`, `eval` and `upscale`:
 //!
 //! ```text
 //! DIR/geometry.npy   (T, 3, H, W) f32 geometry images (Eq 1) of frames 0..T
 //! DIR/domain.npy     (2, 3) f32 [bmin; bmax] (m), the sequence-wide domain (Eq 1, 2)
-//! DIR/meta.json      scenario, resolution, frames, seed, dt, substeps, material, tracking … (readable)
+//! DIR/meta.json      scenario, resolution, frames, seed, dt, substeps, material, tracking … (readable;
+//!                    optional for readers)
 //! DIR/obj/frame_0000.obj …   optional, quads
-//! DIR/preview.png    a few frames' geometry images side by side (written by the CLI)
+//! DIR/preview.png    a few frames' geometry images side by side (written by the CLI,
+//!                    `viz::sheet::frame_strip`)
 //! ```
 //!
 //! A pair is `DIR/lr/…` and `DIR/hr/…`, sharing one domain (the union of both runs' bounds with
@@ -15,9 +18,11 @@ use super::scenarios::ScenarioSpec;
 use crate::error::{Error, Result};
 use crate::geom::geometry_image::sequence_to_images;
 use crate::geom::{Domain, GridMesh};
-use crate::io::{atomic::ensure_dir, read_npy, write_atomic_bytes, write_npy};
+use crate::io::json::{read_json, write_json, Layout, Object, Value};
+use crate::io::npy::read_geometry_images;
+use crate::io::{atomic::ensure_dir, read_npy, write_npy};
 use crate::tensor::Tensor;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 /// Margin (fraction of the largest extent) added around the runs' bounds to form the domain.
 pub const DOMAIN_MARGIN: f32 = 0.05;
@@ -28,7 +33,7 @@ pub fn write_run(
     dir: &Path,
     frames: &[GridMesh],
     domain: &Domain,
-    meta_json: &str,
+    meta: &Value,
     obj: bool,
 ) -> Result<Tensor> {
     if frames.is_empty() {
@@ -39,7 +44,7 @@ pub fn write_run(
     let images = sequence_to_images(frames, domain);
     write_npy(&dir.join("geometry.npy"), &images)?;
     write_npy(&dir.join("domain.npy"), &domain.to_tensor())?;
-    write_atomic_bytes(&dir.join("meta.json"), meta_json.as_bytes())?;
+    write_json(&dir.join("meta.json"), meta, Layout::Indented)?;
     if obj {
         let od = dir.join("obj");
         ensure_dir(&od)?;
@@ -50,101 +55,167 @@ pub fn write_run(
     Ok(images)
 }
 
-/// Read a run directory: images (T, 3, H, W), domain, and the metadata text.
-pub fn read_run(dir: &Path) -> Result<(Tensor, Domain, String)> {
-    let gp = dir.join("geometry.npy");
-    let images = read_npy(&gp)?;
-    if images.rank() != 4 || images.shape[1] != 3 {
-        return Err(Error::format(
-            &gp,
-            format!("expected (T, 3, H, W) geometry images, got shape {:?}", images.shape),
-        ));
-    }
-    if let Some((i, v)) = images.first_non_finite() {
-        return Err(Error::format(&gp, format!("non-finite value {v} at flat index {i}")));
-    }
-    let dp = dir.join("domain.npy");
-    let domain = Domain::from_tensor(&read_npy(&dp)?).map_err(|e| e.in_file(&dp))?;
-    let mp = dir.join("meta.json");
-    let meta = std::fs::read_to_string(&mp).map_err(|e| Error::io(&mp, e))?;
-    Ok((images, domain, meta))
+/// A run directory read back (or a pair's half).
+#[derive(Clone, Debug)]
+pub struct Run {
+    /// (T, 3, H, W) geometry images (Eq 1).
+    pub images: Tensor,
+    /// The sequence-wide domain the images are normalised by.
+    pub domain: Domain,
+    /// `meta.json`, where the directory has one.
+    pub meta: Option<Value>,
 }
 
-fn arr(v: &[f32]) -> String {
-    let s: Vec<String> = v.iter().map(|x| format!("{x:?}")).collect();
-    format!("[{}]", s.join(", "))
+/// Read a run directory: `dir/geometry.npy`, `dir/domain.npy`, and `dir/meta.json` if present.
+pub fn read_run(dir: &Path) -> Result<Run> {
+    read_run_at(&dir.join("geometry.npy"))
+}
+
+/// Read the geometry images at `geometry` (any `.npy` name) with the `domain.npy` beside it,
+/// and the `meta.json` beside it if there is one. Every check of
+/// [`crate::io::npy::read_geometry_images`] applies; errors name the file.
+pub fn read_run_at(geometry: &Path) -> Result<Run> {
+    let images = read_geometry_images(geometry)?;
+    let dp = geometry.with_file_name("domain.npy");
+    if !dp.exists() {
+        return Err(Error::format(
+            geometry,
+            format!("needs its domain beside it ({} with [bmin; bmax], shape [2, 3])", dp.display()),
+        ));
+    }
+    let domain = Domain::from_tensor(&read_npy(&dp)?).map_err(|e| e.in_file(&dp))?;
+    let mp = geometry.with_file_name("meta.json");
+    let meta = if mp.exists() { Some(read_json(&mp)?) } else { None };
+    Ok(Run { images, domain, meta })
+}
+
+/// One LR/HR run pair, loaded.
+#[derive(Clone, Debug)]
+pub struct RunPair {
+    /// The pair directory as given.
+    pub name: String,
+    /// From `meta.json` (HR, else LR); "unknown" without one.
+    pub scenario: String,
+    pub seed: Option<u64>,
+    /// (T, 3, H, W), in `domain`.
+    pub lr: Tensor,
+    /// (T, 3, sH, sW).
+    pub hr: Tensor,
+    /// The HR run's domain.
+    pub domain: Domain,
+}
+
+/// The pair directory of `dir`: `dir` itself when it holds `lr/` and `hr/`, its parent when
+/// `dir` is one of them.
+pub fn pair_dir(dir: &Path) -> Result<PathBuf> {
+    let has =
+        |d: &Path| d.join("lr").join("geometry.npy").is_file() && d.join("hr").join("geometry.npy").is_file();
+    if has(dir) {
+        return Ok(dir.to_path_buf());
+    }
+    let leaf = dir.file_name().and_then(|n| n.to_str());
+    if matches!(leaf, Some("lr" | "hr")) {
+        if let Some(parent) = dir.parent() {
+            if has(parent) {
+                return Ok(parent.to_path_buf());
+            }
+        }
+    }
+    Err(Error::format(
+        dir,
+        "not a simulated run pair: expected lr/geometry.npy and hr/geometry.npy (from `anisocb simulate --pair`)",
+    ))
+}
+
+/// Read a run pair (`dir` = the pair directory or its `lr/` or `hr/`). If the LR and HR
+/// domains differ (pairs not written by [`write_pair`]), the LR images are re-encoded into the
+/// HR domain (decode with the LR domain, encode with the HR one), so `lr`, `hr` and `domain`
+/// agree.
+pub fn read_pair(dir: &Path) -> Result<RunPair> {
+    let pd = pair_dir(dir)?;
+    let Run { images: mut lr, domain: lr_dom, meta: lr_meta } = read_run(&pd.join("lr"))?;
+    let Run { images: hr, domain, meta: hr_meta } = read_run(&pd.join("hr"))?;
+    let (tl, _, hl, wl) = lr.dims4();
+    let (th, _, hh, wh) = hr.dims4();
+    if tl != th {
+        return Err(Error::format(&pd, format!("LR has {tl} frames but HR has {th}")));
+    }
+    if hh % hl != 0 || wh % wl != 0 || hh / hl != wh / wl || hh / hl < 1 {
+        return Err(Error::format(
+            &pd,
+            format!("HR size {hh}×{wh} is not an integer multiple of LR size {hl}×{wl} on both axes"),
+        ));
+    }
+    if lr_dom != domain {
+        for px in 0..tl * hl * wl {
+            let (f, v) = (px / (hl * wl), px % (hl * wl));
+            let base = f * 3 * hl * wl + v;
+            let c = [lr.data[base], lr.data[base + hl * wl], lr.data[base + 2 * hl * wl]];
+            let e = domain.encode(lr_dom.decode(c));
+            for (k, ek) in e.iter().enumerate() {
+                lr.data[base + k * hl * wl] = *ek;
+            }
+        }
+    }
+    let meta = hr_meta.or(lr_meta).unwrap_or(Value::Null);
+    let scenario = meta.get("scenario").and_then(Value::as_str).unwrap_or("unknown").to_string();
+    let seed = meta.get("seed").and_then(Value::as_u64);
+    Ok(RunPair { name: pd.display().to_string(), scenario, seed, lr, hr, domain })
 }
 
 /// Human-readable metadata of one run (`role`: "single", "lr" or "hr") at `w × h`.
-pub fn meta_json(spec: &ScenarioSpec, role: &str, w: usize, h: usize, domain: &Domain) -> String {
+pub fn meta_json(spec: &ScenarioSpec, role: &str, w: usize, h: usize, domain: &Domain) -> Value {
     let p = &spec.params;
     let m = &spec.material;
     let (sx, sy) = spec.size();
-    let material = if spec.scenario == super::Scenario::TwistMaterials {
-        "\"bands along u: silk | rubber | denim\"".to_string()
+    let material: Value = if spec.scenario == super::Scenario::TwistMaterials {
+        "bands along u: silk | rubber | denim".into()
     } else {
-        format!(
-            "{{\"name\": \"{}\", \"density_kg_per_m2\": {:?}, \"stretch_compliance_m_per_n\": {:?}, \
-\"shear_compliance_m_per_n\": {:?}, \"bend_stiffness_n_m\": {:?}}}",
-            m.name, m.density, m.stretch_compliance, m.shear_compliance, m.bend_stiffness
-        )
+        Object::new()
+            .str("name", m.name)
+            .val("density_kg_per_m2", Value::real(m.density))
+            .val("stretch_compliance_m_per_n", Value::real(m.stretch_compliance))
+            .val("shear_compliance_m_per_n", Value::real(m.shear_compliance))
+            .val("bend_stiffness_n_m", Value::real(m.bend_stiffness))
+            .into()
     };
     let tracking = if role == "hr" { spec.tracking } else { 0.0 };
-    format!(
-        "{{
-  \"format\": \"anisocb-run/1\",
-  \"layout\": \"geometry.npy (T, 3, H, W) f32, pixel (row j, col i) = vertex (i, j), c = (p - bmin) / (bmax - bmin); domain.npy (2, 3) [bmin; bmax] in metres\",
-  \"scenario\": \"{}\",
-  \"description\": \"{}\",
-  \"role\": \"{}\",
-  \"resolution\": [{}, {}],
-  \"lr_resolution\": [{}, {}],
-  \"scale\": {},
-  \"frames\": {},
-  \"seed\": {},
-  \"rest_size_m\": {},
-  \"dt_s\": {:?},
-  \"substeps\": {},
-  \"iterations\": {},
-  \"tethers\": {},
-  \"gravity_m_per_s2\": {},
-  \"damping_per_s\": {:?},
-  \"collision_margin_m\": {:?},
-  \"friction\": {:?},
-  \"drag_kg_per_m2_s\": {:?},
-  \"material\": {},
-  \"bending\": \"isometric (Bergou et al. 2006)\",
-  \"tracking_per_s2\": {:?},
-  \"domain\": {{\"bmin\": {}, \"bmax\": {}}},
-  \"generator\": \"anisocb {}\"
-}}
-",
-        spec.scenario.name(),
-        spec.scenario.description(),
-        role,
-        w,
-        h,
-        spec.w,
-        spec.h,
-        spec.scale,
-        spec.frames,
-        spec.seed,
-        arr(&[sx, sy]),
-        p.dt,
-        p.substeps,
-        p.iterations,
-        if p.tethers { format!("{{\"slack\": {:?}}}", p.tether_slack) } else { "false".into() },
-        arr(&p.gravity),
-        p.damping,
-        p.collision_margin,
-        p.friction,
-        p.drag,
-        material,
-        tracking,
-        arr(&domain.bmin),
-        arr(&domain.bmax),
-        env!("CARGO_PKG_VERSION"),
-    )
+    let tethers: Value =
+        if p.tethers { Object::new().val("slack", Value::real(p.tether_slack)).into() } else { false.into() };
+    Object::new()
+        .str("format", "anisocb-run/1")
+        .str(
+            "layout",
+            "geometry.npy (T, 3, H, W) f32, pixel (row j, col i) = vertex (i, j), c = (p - bmin) / (bmax - bmin); \
+             domain.npy (2, 3) [bmin; bmax] in metres",
+        )
+        .str("scenario", spec.scenario.name())
+        .str("description", spec.scenario.description())
+        .str("role", role)
+        .val("resolution", vec![Value::num(w), Value::num(h)])
+        .val("lr_resolution", vec![Value::num(spec.w), Value::num(spec.h)])
+        .num("scale", spec.scale)
+        .num("frames", spec.frames)
+        .num("seed", spec.seed)
+        .val("rest_size_m", Value::reals(&[sx, sy]))
+        .val("dt_s", Value::real(p.dt))
+        .num("substeps", p.substeps)
+        .num("iterations", p.iterations)
+        .val("tethers", tethers)
+        .val("gravity_m_per_s2", Value::reals(&p.gravity))
+        .val("damping_per_s", Value::real(p.damping))
+        .val("collision_margin_m", Value::real(p.collision_margin))
+        .val("friction", Value::real(p.friction))
+        .val("drag_kg_per_m2_s", Value::real(p.drag))
+        .val("material", material)
+        .str("bending", "isometric (Bergou et al. 2006)")
+        .val("tracking_per_s2", Value::real(tracking))
+        .val(
+            "domain",
+            Object::new().val("bmin", Value::reals(&domain.bmin)).val("bmax", Value::reals(&domain.bmax)),
+        )
+        .str("generator", &format!("anisocb {}", env!("CARGO_PKG_VERSION")))
+        .into()
 }
 
 /// Write a single run to `dir`; returns its images.
@@ -153,46 +224,27 @@ pub fn write_single(dir: &Path, spec: &ScenarioSpec, frames: &[GridMesh], obj: b
     write_run(dir, frames, &domain, &meta_json(spec, "single", spec.w, spec.h, &domain), obj)
 }
 
-/// Write a pair to `dir/lr` and `dir/hr` with one shared domain; returns (LR, HR) images.
+/// Write a pair to `dir/lr` and `dir/hr` with one shared domain; returns what
+/// [`read_pair`] would read back.
 pub fn write_pair(
     dir: &Path,
     spec: &ScenarioSpec,
     lr: &[GridMesh],
     hr: &[GridMesh],
     obj: bool,
-) -> Result<(Tensor, Tensor)> {
+) -> Result<RunPair> {
     let all: Vec<GridMesh> = lr.iter().chain(hr.iter()).cloned().collect();
     let domain = Domain::enclosing(&all, DOMAIN_MARGIN);
     let (hw, hh) = (hr[0].w, hr[0].h);
-    let a = write_run(&dir.join("lr"), lr, &domain, &meta_json(spec, "lr", spec.w, spec.h, &domain), obj)?;
+    let lr = write_run(&dir.join("lr"), lr, &domain, &meta_json(spec, "lr", spec.w, spec.h, &domain), obj)?;
     let hs = spec.for_scale(spec.scale);
-    let b = write_run(&dir.join("hr"), hr, &domain, &meta_json(&hs, "hr", hw, hh, &domain), obj)?;
-    Ok((a, b))
-}
-
-/// An 8-bit RGB strip of `n` evenly spaced frames of (T, 3, H, W) images, each upscaled by
-/// nearest neighbour so it is at least `min_height` pixels tall, separated by 4 grey columns.
-/// Returns (width, height, rgb bytes).
-pub fn preview_rgb(images: &Tensor, n: usize, min_height: usize) -> (usize, usize, Vec<u8>) {
-    let (t, _, h, w) = images.dims4();
-    let n = n.clamp(1, t);
-    let s = min_height.div_ceil(h).max(1);
-    let gap = 4;
-    let (ch, cw) = (h * s, w * s);
-    let width = n * cw + (n - 1) * gap;
-    let mut rgb = vec![96u8; width * ch * 3];
-    for f in 0..n {
-        let k = if n == 1 { 0 } else { f * (t - 1) / (n - 1) };
-        let x0 = f * (cw + gap);
-        for y in 0..ch {
-            for x in 0..cw {
-                let (j, i) = (y / s, x / s);
-                for c in 0..3 {
-                    let v = images.data[images.idx4(k, c, j, i)];
-                    rgb[(y * width + x0 + x) * 3 + c] = (v.clamp(0.0, 1.0) * 255.0).round() as u8;
-                }
-            }
-        }
-    }
-    (width, ch, rgb)
+    let hr = write_run(&dir.join("hr"), hr, &domain, &meta_json(&hs, "hr", hw, hh, &domain), obj)?;
+    Ok(RunPair {
+        name: dir.display().to_string(),
+        scenario: spec.scenario.name().to_string(),
+        seed: Some(spec.seed),
+        lr,
+        hr,
+        domain,
+    })
 }

@@ -7,12 +7,13 @@
 //! project contacts with friction; `v ← (x − x_prev)/h`.
 
 use super::collision::Colliders;
-use super::constraints::{bend_constraints, cross, distance_constraints, sub, Bend, Coloured, Distance};
+use super::constraints::{bend_constraints, distance_constraints, Bend, Coloured, Distance};
 use super::kinematics::{Kinematics, Pin};
 use super::params::{Material, SimParams};
 use super::tracking::TrackTargets;
 use super::wind::Wind;
 use crate::geom::mesh::GridMesh;
+use crate::geom::vec3::{cross, norm, sub};
 
 /// Everything outside the cloth: how pins move, the wind, the colliders.
 #[derive(Clone, Debug)]
@@ -55,11 +56,8 @@ impl Cloth {
         let n = rest.pos.len();
         let mut area = vec![0.0f32; n];
         for t in rest.triangles() {
-            let a = 0.5
-                * super::constraints::norm(cross(
-                    sub(rest.pos[t[1]], rest.pos[t[0]]),
-                    sub(rest.pos[t[2]], rest.pos[t[0]]),
-                ));
+            let a =
+                0.5 * norm(cross(sub(rest.pos[t[1]], rest.pos[t[0]]), sub(rest.pos[t[2]], rest.pos[t[0]])));
             for &v in &t {
                 area[v] += a / 3.0;
             }
@@ -149,7 +147,7 @@ impl Cloth {
             }
         }
         for n in &mut nrm {
-            let l = super::constraints::norm(*n);
+            let l = norm(*n);
             if l > 0.0 {
                 *n = [n[0] / l, n[1] / l, n[2] / l];
             }
@@ -219,7 +217,7 @@ impl Cloth {
                     let a = self.x[self.pins[k as usize].vertex];
                     let xv = &mut self.x[v as usize];
                     let d = sub(*xv, a);
-                    let l = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+                    let l = norm(d);
                     let max = rest * slack;
                     if l > max {
                         let f = max / l;
@@ -307,7 +305,7 @@ fn solve_distance(
         }
         let (xa, xb) = (x.get(a), x.get(b));
         let d = sub(xa, xb);
-        let len = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+        let len = norm(d);
         if len < 1e-12 {
             return;
         }

@@ -1,7 +1,8 @@
 //! A time-varying wind field, deterministic from the seed: a mean velocity plus a few gust
 //! harmonics whose phase also travels along the cloth, so it ripples rather than shakes.
 
-use super::rng::SplitMix64;
+use crate::geom::vec3::norm;
+use crate::rng::SplitMix64;
 
 #[derive(Clone, Debug, PartialEq)]
 pub struct Wind {
@@ -22,12 +23,12 @@ impl Wind {
         let mut rng = SplitMix64::new(seed.wrapping_mul(0xA24B_AED4_963E_E407).wrapping_add(17));
         let gusts = (0..n)
             .map(|_| {
-                let amp = gust * rng.range(0.5, 1.0) / n as f32;
-                let freq = rng.range(0.2, 1.5);
-                let phase = rng.range(0.0, std::f32::consts::TAU);
-                let kx = rng.range(-3.0, 3.0);
-                let d = [rng.range(-0.5, 0.5), rng.range(-0.3, 0.3), 1.0];
-                let l = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+                let amp = gust * rng.uniform_in(0.5, 1.0) / n as f32;
+                let freq = rng.uniform_in(0.2, 1.5);
+                let phase = rng.uniform_in(0.0, std::f32::consts::TAU);
+                let kx = rng.uniform_in(-3.0, 3.0);
+                let d = [rng.uniform_in(-0.5, 0.5), rng.uniform_in(-0.3, 0.3), 1.0];
+                let l = norm(d);
                 (amp, freq, phase, kx, [d[0] / l, d[1] / l, d[2] / l])
             })
             .collect();
@@ -36,8 +37,7 @@ impl Wind {
 
     /// Wind velocity (m/s) at time `t` (s) and position `p` (m).
     pub fn velocity(&self, t: f32, p: [f32; 3]) -> [f32; 3] {
-        let speed =
-            (self.mean[0] * self.mean[0] + self.mean[1] * self.mean[1] + self.mean[2] * self.mean[2]).sqrt();
+        let speed = norm(self.mean);
         let mut w = self.mean;
         for &(amp, freq, phase, kx, dir) in &self.gusts {
             let s = amp * speed * (std::f32::consts::TAU * freq * t + phase + kx * p[0]).sin();

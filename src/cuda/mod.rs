@@ -12,6 +12,11 @@
 //! small element-wise ops). The kernels themselves work on device buffers (`Cuda::*_dev`
 //! methods on `DevBuf`): that is the seam for a device-resident training loop.
 //!
+//! Files: `device.rs` (context, kernel loading, `DevBuf`, transfers), one file per kernel
+//! family mirroring `kernels/*.cu` (`conv2d.rs`, `elementwise.rs`, `pixel_shuffle.rs`,
+//! `resample.rs`, `loss.rs`, `adam.rs`: the `Cuda::*_dev` methods), `table.rs` (the [`Ops`]
+//! table over host tensors), `stub.rs` (the build without the feature).
+//!
 //! Checking without a GPU: `python3 kernels/emu/check_kernels.py` compiles the same kernel
 //! sources with g++ (a CPU emulation of blocks, threads, shared memory and barriers), launches
 //! them with this module's grid geometry and compares with NumPy references; the parity tests
@@ -20,10 +25,22 @@
 use crate::error::{Error, Result};
 use crate::ops::{Cpu, Ops};
 
-pub mod taps;
-
+#[cfg(feature = "cuda")]
+mod adam;
+#[cfg(feature = "cuda")]
+mod conv2d;
 #[cfg(feature = "cuda")]
 mod device;
+#[cfg(feature = "cuda")]
+mod elementwise;
+#[cfg(feature = "cuda")]
+mod loss;
+#[cfg(feature = "cuda")]
+mod pixel_shuffle;
+#[cfg(feature = "cuda")]
+mod resample;
+#[cfg(feature = "cuda")]
+mod table;
 #[cfg(feature = "cuda")]
 pub use device::{Cuda, DevBuf};
 

@@ -4,7 +4,10 @@
 //! in f64. Notation: `p_v` predicted, `g_v` ground-truth position, `N` vertices, `T` frames.
 
 use crate::error::{Error, Result};
+use crate::geom::mesh::vertex_normals;
+use crate::geom::vec3::{cross, dot, norm, sub};
 use crate::geom::GridMesh;
+use crate::io::json::{Object, Value};
 use crate::tensor::Tensor;
 use rayon::prelude::*;
 
@@ -202,10 +205,7 @@ pub fn surface_area(mesh: &GridMesh) -> f32 {
     let mut s = 0.0f64;
     for t in mesh.triangles() {
         let (a, b, c) = (p(t[0]), p(t[1]), p(t[2]));
-        let u = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
-        let w = [c[0] - a[0], c[1] - a[1], c[2] - a[2]];
-        let x = [u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2], u[0] * w[1] - u[1] * w[0]];
-        s += 0.5 * (x[0] * x[0] + x[1] * x[1] + x[2] * x[2]).sqrt();
+        s += 0.5 * norm(cross(sub(b, a), sub(c, a)));
     }
     s as f32
 }
@@ -214,16 +214,14 @@ pub fn surface_area(mesh: &GridMesh) -> f32 {
 /// `(1/N) Σ_v ∠(n_v(p), n_v(g))`, the angle computed as `atan2(|a × b|, a · b)`.
 pub fn normal_angle_deg(pred: &GridMesh, gt: &GridMesh) -> Result<f32> {
     same_grid(pred, gt)?;
-    let (a, b) = (super::render::vertex_normals(pred), super::render::vertex_normals(gt));
+    let (a, b) = (vertex_normals(pred), vertex_normals(gt));
     let s: f64 = a
         .iter()
         .zip(&b)
         .map(|(x, y)| {
             // atan2(|x × y|, x · y) = acos(x · y), accurate near 0° where acos is not.
             let (x, y) = (x.map(f64::from), y.map(f64::from));
-            let c = [x[1] * y[2] - x[2] * y[1], x[2] * y[0] - x[0] * y[2], x[0] * y[1] - x[1] * y[0]];
-            let s = (c[0] * c[0] + c[1] * c[1] + c[2] * c[2]).sqrt();
-            s.atan2(x[0] * y[0] + x[1] * y[1] + x[2] * y[2]).to_degrees()
+            norm(cross(x, y)).atan2(dot(x, y)).to_degrees()
         })
         .sum();
     Ok((s / a.len() as f64) as f32)
@@ -239,10 +237,7 @@ pub fn mean_curvature(mesh: &GridMesh) -> Vec<f32> {
     let mut area = vec![0.0f64; n];
     for t in mesh.triangles() {
         let (a, b, c) = (p[t[0]], p[t[1]], p[t[2]]);
-        let u = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
-        let w = [c[0] - a[0], c[1] - a[1], c[2] - a[2]];
-        let x = [u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2], u[0] * w[1] - u[1] * w[0]];
-        let tri = 0.5 * (x[0] * x[0] + x[1] * x[1] + x[2] * x[2]).sqrt();
+        let tri = 0.5 * norm(cross(sub(b, a), sub(c, a)));
         for k in 0..3 {
             // The angle at corner k weighs the opposite edge (i, j).
             let (o, i, j) = (t[k], t[(k + 1) % 3], t[(k + 2) % 3]);
@@ -259,8 +254,7 @@ pub fn mean_curvature(mesh: &GridMesh) -> Vec<f32> {
             if mesh.is_border(v % mesh.w, v / mesh.w) || area[v] <= 0.0 {
                 return 0.0;
             }
-            let l = lap[v];
-            ((l[0] * l[0] + l[1] * l[1] + l[2] * l[2]).sqrt() / (4.0 * area[v])) as f32
+            (norm(lap[v]) / (4.0 * area[v])) as f32
         })
         .collect()
 }
@@ -370,19 +364,15 @@ impl FrameMetrics {
         }
     }
 
-    /// A JSON object with the [`FrameMetrics::NAMES`] keys.
-    pub fn to_json(&self) -> String {
-        let body: Vec<String> =
-            Self::NAMES.iter().zip(self.values()).map(|(k, v)| format!("\"{k}\": {}", json_num(v))).collect();
-        format!("{{{}}}", body.join(", "))
+    /// A JSON object with the [`FrameMetrics::NAMES`] keys (non-finite values as `null`).
+    pub fn to_value(&self) -> Value {
+        let o =
+            Self::NAMES.iter().zip(self.values()).fold(Object::new(), |o, (k, v)| o.val(k, Value::finite(v)));
+        o.into()
     }
-}
 
-fn json_num(v: f32) -> String {
-    if v.is_finite() {
-        format!("{v}")
-    } else {
-        "null".into()
+    pub fn to_json(&self) -> String {
+        self.to_value().to_json()
     }
 }
 
@@ -424,17 +414,21 @@ impl SequenceMetrics {
 
     /// JSON: `{"mean": {...}, "worst": {...}, "flicker": x, "per_frame": [{...}, ...],
     /// "flicker_per_step": [...]}`.
+    pub fn to_value(&self) -> Value {
+        Object::new()
+            .val("mean", self.mean.to_value())
+            .val("worst", self.worst.to_value())
+            .val("flicker", Value::finite(self.flicker))
+            .val("per_frame", Value::Arr(self.per_frame.iter().map(FrameMetrics::to_value).collect()))
+            .val(
+                "flicker_per_step",
+                Value::Arr(self.flicker_per_step.iter().map(|&v| Value::finite(v)).collect()),
+            )
+            .into()
+    }
+
     pub fn to_json(&self) -> String {
-        let frames: Vec<String> = self.per_frame.iter().map(|f| f.to_json()).collect();
-        let steps: Vec<String> = self.flicker_per_step.iter().map(|&v| json_num(v)).collect();
-        format!(
-            "{{\"mean\": {}, \"worst\": {}, \"flicker\": {}, \"per_frame\": [{}], \"flicker_per_step\": [{}]}}",
-            self.mean.to_json(),
-            self.worst.to_json(),
-            json_num(self.flicker),
-            frames.join(", "),
-            steps.join(", ")
-        )
+        self.to_value().to_json()
     }
 }
 

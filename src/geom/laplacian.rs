@@ -16,6 +16,7 @@
 //! clamp never acts. Computed in f64.
 
 use super::mesh::GridMesh;
+use super::vec3::{cross, dot, norm, sub};
 
 /// Cotangent of the angle at `a` in triangle (a, b, c): (u·v)/|u×v|, u = b−a, v = c−a.
 /// Degenerate triangles (|u×v| = 0) contribute 0.
@@ -23,8 +24,7 @@ use super::mesh::GridMesh;
 pub fn cot_at(a: [f64; 3], b: [f64; 3], c: [f64; 3]) -> f64 {
     let u = sub(b, a);
     let v = sub(c, a);
-    let cr = cross(u, v);
-    let n = (cr[0] * cr[0] + cr[1] * cr[1] + cr[2] * cr[2]).sqrt();
+    let n = norm(cross(u, v));
     if n > 0.0 {
         dot(u, v) / n
     } else {
@@ -69,19 +69,6 @@ pub fn cotan_laplacian(mesh: &GridMesh) -> Vec<[f64; 3]> {
 pub fn smooth(mesh: &GridMesh, lambda: f64) -> Vec<[f64; 3]> {
     let l = cotan_laplacian(mesh);
     mesh.pos.iter().zip(&l).map(|(p, l)| std::array::from_fn(|q| p[q] as f64 + lambda * l[q])).collect()
-}
-
-#[inline]
-fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-#[inline]
-fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-#[inline]
-fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
 }
 
 #[cfg(test)]

@@ -1,6 +1,8 @@
 //! A cloth is a regular grid of `w × h` vertices (columns × rows). Vertex (i, j) — column i,
 //! row j — is stored at `j * w + i`; in a geometry image it is pixel (row j, col i).
 
+use super::vec3::{cross, normalize_or, sub};
+
 /// Positions in metres.
 #[derive(Clone, Debug, PartialEq)]
 pub struct GridMesh {
@@ -88,6 +90,21 @@ pub fn rest_uv(i: usize, j: usize, w: usize, h: usize) -> (f32, f32) {
     let u = if w > 1 { i as f32 / (w - 1) as f32 } else { 0.0 };
     let v = if h > 1 { j as f32 / (h - 1) as f32 } else { 0.0 };
     (u, v)
+}
+
+/// Area-weighted vertex normals of the grid's triangulation (unit length; (0,0,1) if isolated).
+pub fn vertex_normals(mesh: &GridMesh) -> Vec<[f32; 3]> {
+    let mut n = vec![[0.0f32; 3]; mesh.pos.len()];
+    for t in mesh.triangles() {
+        let (a, b, c) = (mesh.pos[t[0]], mesh.pos[t[1]], mesh.pos[t[2]]);
+        let f = cross(sub(b, a), sub(c, a));
+        for &v in &t {
+            for k in 0..3 {
+                n[v][k] += f[k];
+            }
+        }
+    }
+    n.into_iter().map(|v| normalize_or(v, [0.0, 0.0, 1.0])).collect()
 }
 
 #[inline]

@@ -1,10 +1,12 @@
-//! Geometry: grid meshes, OBJ, geometry images (Eq 1, 2), Laplacian, anisotropic boundary maps.
+//! Geometry: grid meshes, OBJ, geometry images (Eq 1, 2), Laplacian, anisotropic boundary maps,
+//! and the 3-vector helpers ([`vec3`]) everything geometric shares.
 
 pub mod anisotropy;
 pub mod geometry_image;
 pub mod laplacian;
 pub mod mesh;
 pub mod obj;
+pub mod vec3;
 
 pub use geometry_image::Domain;
 pub use mesh::GridMesh;

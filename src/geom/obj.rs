@@ -14,6 +14,7 @@
 //! for quads.
 
 use super::mesh::GridMesh;
+use super::vec3::{cross, dot, norm};
 use crate::error::{Error, Result};
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -116,9 +117,7 @@ fn pair_triangles(m: &ObjMesh, path: &Path) -> Result<Vec<[u32; 4]>> {
         let (pa, pb, pc) = (m.pos[a as usize], m.pos[b as usize], m.pos[c as usize]);
         let u: [f64; 3] = std::array::from_fn(|k| (pb[k] - pa[k]) as f64);
         let v: [f64; 3] = std::array::from_fn(|k| (pc[k] - pa[k]) as f64);
-        let d = u[0] * v[0] + u[1] * v[1] + u[2] * v[2];
-        let cr = [u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]];
-        (cr[0] * cr[0] + cr[1] * cr[1] + cr[2] * cr[2]).sqrt().atan2(d)
+        norm(cross(u, v)).atan2(dot(u, v))
     };
     // For each triangle, the edge (as index k: edge f[k]–f[k+1]) it proposes as the diagonal.
     let mut choice = Vec::with_capacity(m.faces.len());

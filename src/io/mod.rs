@@ -1,7 +1,8 @@
-//! File formats and safe writing: `.npy` (via npyz), `.npz` (a stored zip of `.npy`), atomic
-//! temp+rename writes. Every reader checks sizes against the file before allocating.
+//! File formats and safe writing: `.npy` (via npyz), `.npz` (a stored zip of `.npy`), JSON,
+//! atomic temp+rename writes. Every reader checks sizes against the file before allocating.
 
 pub mod atomic;
+pub mod json;
 pub mod npy;
 pub mod npz;
 

@@ -9,8 +9,8 @@
 //! All presets use zero padding (the paper's "padding 1"); replicate padding is a per-config
 //! option (`with_padding`).
 
-use super::json::Object;
 use crate::error::{Error, Result};
+use crate::io::json::Object;
 use crate::ops::Padding;
 
 /// The three networks. GeometryNet predicts the 3-channel residual `R`; BoundaryNet and

@@ -10,8 +10,8 @@
 //! stride 1, "same" size, with bias. Every op goes through `&dyn Ops`.
 
 use super::config::{NetConfig, NetKind, IN_CHANNELS, KERNEL, TAIL_CONVS};
-use super::rng::Rng;
 use crate::ops::{Ops, Padding};
+use crate::rng::{mix_seed, Rng};
 use crate::tensor::Tensor;
 
 /// A 3×3 convolution: weight (O, I, 3, 3) OIHW, bias (O).
@@ -125,7 +125,7 @@ impl Trunk {
     /// last conv of GeometryNet gets gain 0.1 so training starts near `R = 0`, i.e. from the
     /// bicubic baseline. Biases start at 0.
     pub fn init(kind: NetKind, config: NetConfig, seed: u64) -> Trunk {
-        let mut rng = Rng::new(super::rng::mix_seed(&[seed, kind as u64]));
+        let mut rng = Rng::new(mix_seed(&[seed, kind as u64]));
         let c = config.channels;
         let relu_gain = std::f32::consts::SQRT_2;
         let conv2_gain = if kind.residual() { 1.0 / (config.blocks.max(1) as f32).sqrt() } else { 1.0 };

@@ -1,7 +1,6 @@
 //! The three networks of AnisoCBConvNet, written against the op table [`crate::ops::Ops`].
 //!
 //! - [`config`]: [`NetKind`], [`NetConfig`] and its presets (`paper`, `small`, `tiny`).
-//! - [`rng`]: the deterministic PRNG (xoshiro256** seeded by splitmix64) and weight init.
 //! - [`layers`]: [`layers::Conv`] and the shared [`layers::Trunk`] (forward with or without a
 //!   tape of activations, backward that adds into gradients).
 //! - [`geometry_net`]: GeometryNet (residual trunk predicting `R` over bicubic `U`, MSE).
@@ -9,16 +8,13 @@
 //! - [`bundle`]: [`bundle::AnisoCb`], the three nets together, `forward → (U, R, Γb, Γe)`.
 //! - [`weights`]: `.npz` in and out with PyTorch-style names (see `weights/README.md`).
 //! - [`audit`]: every layer's activation as `.npy`, named after the layer.
-//! - [`json`]: the tiny flat JSON used for `config.json` entries.
 
 pub mod audit;
 pub mod boundary_net;
 pub mod bundle;
 pub mod config;
 pub mod geometry_net;
-pub mod json;
 pub mod layers;
-pub mod rng;
 pub mod weights;
 
 pub use boundary_net::MapNet;
@@ -26,4 +22,3 @@ pub use bundle::{AnisoCb, SrOutputs};
 pub use config::{NetConfig, NetKind};
 pub use geometry_net::GeometryNet;
 pub use layers::{Conv, Tape, Trunk};
-pub use rng::Rng;

@@ -126,32 +126,9 @@ pub fn sigmoid(x: &Tensor) -> Tensor {
 }
 
 #[cfg(test)]
-pub(crate) mod tests {
+mod tests {
     use super::*;
-
-    /// Tiny deterministic PRNG for tests (SplitMix64).
-    pub(crate) struct TestRng(pub u64);
-    impl TestRng {
-        pub(crate) fn next_u64(&mut self) -> u64 {
-            self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-            let mut z = self.0;
-            z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-            z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-            z ^ (z >> 31)
-        }
-        /// Uniform in [lo, hi).
-        pub(crate) fn uniform(&mut self, lo: f32, hi: f32) -> f32 {
-            lo + (hi - lo) * ((self.next_u64() >> 40) as f32 / (1u64 << 24) as f32)
-        }
-        /// Integer in lo..=hi.
-        pub(crate) fn range(&mut self, lo: usize, hi: usize) -> usize {
-            lo + (self.next_u64() % (hi - lo + 1) as u64) as usize
-        }
-        pub(crate) fn tensor(&mut self, shape: &[usize], lo: f32, hi: f32) -> Tensor {
-            let n = shape.iter().product();
-            Tensor { shape: shape.to_vec(), data: (0..n).map(|_| self.uniform(lo, hi)).collect() }
-        }
-    }
+    use crate::rng::testing::TestRng;
 
     /// Lengths around the thread threshold and SIMD tails.
     fn lengths() -> Vec<usize> {
@@ -160,7 +137,7 @@ pub(crate) mod tests {
 
     #[test]
     fn fast_elementwise_ops_match_ref_bitwise() {
-        let mut rng = TestRng(1);
+        let mut rng = TestRng::new(1);
         for n in lengths() {
             let x = rng.tensor(&[n], -3.0, 3.0);
             let dy = rng.tensor(&[n], -1.0, 1.0);

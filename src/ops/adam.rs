@@ -67,11 +67,11 @@ pub fn adam_update(p: &mut [f32], g: &[f32], m: &mut [f32], v: &mut [f32], step:
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::ops::activation::tests::TestRng;
+    use crate::rng::testing::TestRng;
 
     #[test]
     fn fast_adam_matches_ref_bitwise() {
-        let mut rng = TestRng(8);
+        let mut rng = TestRng::new(8);
         let hp = AdamParams { lr: 1e-3, ..Default::default() };
         for n in [1, 5, 16, 33, PAR_MIN + 7, 2 * CHUNK + 1] {
             let mut pa = rng.tensor(&[n], -1.0, 1.0).data;

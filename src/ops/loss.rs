@@ -118,11 +118,11 @@ pub fn bce_with_logits(logits: &Tensor, target: &Tensor, pos_weight: f32) -> (f3
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::ops::activation::tests::TestRng;
+    use crate::rng::testing::TestRng;
 
     #[test]
     fn fast_losses_match_ref() {
-        let mut rng = TestRng(6);
+        let mut rng = TestRng::new(6);
         for n in [1, 3, 17, 1001, PAR_MIN - 1, PAR_MIN + 3, 3 * CHUNK + 11] {
             let p = rng.tensor(&[n], -2.0, 2.0);
             let t = rng.tensor(&[n], 0.0, 1.0);
@@ -153,7 +153,7 @@ mod tests {
 
     #[test]
     fn loss_gradients_match_finite_differences() {
-        let mut rng = TestRng(7);
+        let mut rng = TestRng::new(7);
         let p = rng.tensor(&[2, 3, 4, 5], -2.0, 2.0);
         let t = rng.tensor(&[2, 3, 4, 5], 0.0, 1.0);
         for which in 0..2 {

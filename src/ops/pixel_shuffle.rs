@@ -124,11 +124,11 @@ pub fn pixel_unshuffle(x: &Tensor, r: usize) -> Tensor {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::ops::activation::tests::TestRng;
+    use crate::rng::testing::TestRng;
 
     #[test]
     fn fast_pixel_shuffle_matches_ref_and_unshuffle_inverts_it() {
-        let mut rng = TestRng(2);
+        let mut rng = TestRng::new(2);
         for case in 0..24 {
             let r = [1, 2, 3, 4][case % 4];
             let (n, c) = (rng.range(1, 3), rng.range(1, 5));

@@ -22,12 +22,25 @@ const CUBIC_A: f32 = -0.75;
 /// Work (output elements) below which threading is skipped.
 const PAR_MIN: usize = 1 << 14;
 
-/// Per-output-index taps along one axis: `k` source indices and weights per output index.
-#[derive(Clone, Debug)]
-struct Taps {
-    k: usize,
-    idx: Vec<usize>,
-    w: Vec<f32>,
+/// Taps along one axis: output index d reads source `idx[d·k + a]` with weight `w[d·k + a]`,
+/// a < k. The CPU fast path and the GPU kernels (`kernels/resample.cu`) both apply these, so
+/// every path interpolates with identical weights.
+#[derive(Clone, Debug, PartialEq)]
+pub struct AxisTaps {
+    /// Taps per output index (2 bilinear, 4 bicubic).
+    pub k: usize,
+    pub idx: Vec<usize>,
+    pub w: Vec<f32>,
+}
+
+/// Transposed taps (CSR), for backends that only gather: source index i is read by outputs
+/// `o[ptr[i]..ptr[i + 1]]` with the weights `w[..]` (taps of one output that clamp onto the
+/// same source are merged), entries ordered by output index.
+#[derive(Clone, Debug, PartialEq)]
+pub struct AxisCsr {
+    pub ptr: Vec<usize>,
+    pub o: Vec<usize>,
+    pub w: Vec<f32>,
 }
 
 /// Align-corners scale, f32 as PyTorch computes it.
@@ -71,16 +84,46 @@ fn taps_at(d: usize, in_n: usize, sc: f32, mode: Interp) -> ([usize; 4], [f32; 4
     }
 }
 
-fn axis_taps(in_n: usize, out_n: usize, mode: Interp) -> Taps {
+/// Taps of every output index along an axis of `in_n` (≥ 1) source samples.
+pub fn axis_taps(in_n: usize, out_n: usize, mode: Interp) -> AxisTaps {
+    assert!(in_n >= 1, "resize: empty axis");
     let sc = scale(in_n, out_n);
-    let mut t = Taps { k: 0, idx: Vec::new(), w: Vec::new() };
+    let k = match mode {
+        Interp::Bilinear => 2,
+        Interp::Bicubic => 4,
+    };
+    let mut t = AxisTaps { k, idx: Vec::with_capacity(out_n * k), w: Vec::with_capacity(out_n * k) };
     for d in 0..out_n {
-        let (idx, w, k) = taps_at(d, in_n, sc, mode);
-        t.k = k;
+        let (idx, w, _) = taps_at(d, in_n, sc, mode);
         t.idx.extend_from_slice(&idx[..k]);
         t.w.extend_from_slice(&w[..k]);
     }
     t
+}
+
+/// Transpose forward taps over `in_n` source indices.
+pub fn transpose(t: &AxisTaps, in_n: usize) -> AxisCsr {
+    let out_n = t.idx.len().checked_div(t.k).unwrap_or(0);
+    let mut cols: Vec<Vec<(usize, f32)>> = vec![Vec::new(); in_n];
+    for d in 0..out_n {
+        for a in 0..t.k {
+            let (i, w) = (t.idx[d * t.k + a], t.w[d * t.k + a]);
+            match cols[i].last_mut() {
+                Some(last) if last.0 == d => last.1 += w,
+                _ => cols[i].push((d, w)),
+            }
+        }
+    }
+    let mut csr = AxisCsr { ptr: Vec::with_capacity(in_n + 1), o: Vec::new(), w: Vec::new() };
+    csr.ptr.push(0);
+    for col in cols {
+        for (o, w) in col {
+            csr.o.push(o);
+            csr.w.push(w);
+        }
+        csr.ptr.push(csr.o.len());
+    }
+    csr
 }
 
 /// Reference forward, per output pixel: interpolate along x in each of the source rows, then
@@ -224,7 +267,7 @@ pub fn resize_backward(dy: &Tensor, mode: Interp, dx: &mut Tensor) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::ops::activation::tests::TestRng;
+    use crate::rng::testing::TestRng;
 
     fn close(a: &Tensor, b: &Tensor, atol: f32, rtol: f32) -> Result<(), String> {
         assert_eq!(a.shape, b.shape);
@@ -247,7 +290,7 @@ mod tests {
 
     #[test]
     fn fast_resize_matches_ref_on_odd_shapes() {
-        let mut rng = TestRng(3);
+        let mut rng = TestRng::new(3);
         for case in 0..40 {
             let mode = if case % 2 == 0 { Interp::Bilinear } else { Interp::Bicubic };
             let (n, c) = (rng.range(1, 2), rng.range(1, 4));
@@ -273,7 +316,7 @@ mod tests {
 
     #[test]
     fn resize_keeps_corners_and_constants() {
-        let mut rng = TestRng(4);
+        let mut rng = TestRng::new(4);
         let x = rng.tensor(&[1, 2, 5, 7], -1.0, 1.0);
         for mode in [Interp::Bilinear, Interp::Bicubic] {
             let y = resize(&x, 15, 21, mode);
@@ -289,7 +332,7 @@ mod tests {
     #[test]
     fn resize_backward_is_the_adjoint_of_forward() {
         // <resize(x), g> == <x, resize_backward(g)>
-        let mut rng = TestRng(5);
+        let mut rng = TestRng::new(5);
         for mode in [Interp::Bilinear, Interp::Bicubic] {
             let x = rng.tensor(&[2, 3, 6, 5], -1.0, 1.0);
             let g = rng.tensor(&[2, 3, 18, 15], -1.0, 1.0);
@@ -299,6 +342,73 @@ mod tests {
             let lhs: f64 = y.data.iter().zip(&g.data).map(|(a, b)| (a * b) as f64).sum();
             let rhs: f64 = x.data.iter().zip(&dx.data).map(|(a, b)| (a * b) as f64).sum();
             assert!((lhs - rhs).abs() < 1e-4 * lhs.abs().max(1.0), "{mode:?}: {lhs} vs {rhs}");
+        }
+    }
+
+    /// `resize_fwd` of kernels/resample.cu, run on the host.
+    fn gather_fwd(x: &Tensor, oh: usize, ow: usize, mode: Interp) -> Tensor {
+        let (n, c, h, w) = x.dims4();
+        let (ty, tx) = (axis_taps(h, oh, mode), axis_taps(w, ow, mode));
+        let mut y = Tensor::zeros(&[n, c, oh, ow]);
+        for (e, out) in y.data.iter_mut().enumerate() {
+            let (ox, oy, p) = (e % ow, (e / ow) % oh, e / (ow * oh));
+            let mut acc = 0.0f32;
+            for a in 0..ty.k {
+                let row = p * h * w + ty.idx[oy * ty.k + a] * w;
+                let mut s = 0.0f32;
+                for b in 0..tx.k {
+                    s += tx.w[ox * tx.k + b] * x.data[row + tx.idx[ox * tx.k + b]];
+                }
+                acc += ty.w[oy * ty.k + a] * s;
+            }
+            *out = acc;
+        }
+        y
+    }
+
+    /// `resize_bwd` of kernels/resample.cu, run on the host.
+    fn gather_bwd(dy: &Tensor, mode: Interp, dx: &mut Tensor) {
+        let (_, _, oh, ow) = dy.dims4();
+        let (_, _, h, w) = dx.dims4();
+        let cy = transpose(&axis_taps(h, oh, mode), h);
+        let cx = transpose(&axis_taps(w, ow, mode), w);
+        for (e, out) in dx.data.iter_mut().enumerate() {
+            let (ix, iy, p) = (e % w, (e / w) % h, e / (w * h));
+            let mut acc = 0.0f32;
+            for a in cy.ptr[iy]..cy.ptr[iy + 1] {
+                let row = p * oh * ow + cy.o[a] * ow;
+                let mut s = 0.0f32;
+                for b in cx.ptr[ix]..cx.ptr[ix + 1] {
+                    s += cx.w[b] * dy.data[row + cx.o[b]];
+                }
+                acc += cy.w[a] * s;
+            }
+            *out += acc;
+        }
+    }
+
+    #[test]
+    fn gpu_resize_taps_reproduce_the_cpu_reference() {
+        let mut rng = TestRng::new(0x9e37_79b9_7f4a_7c15);
+        for case in 0..30 {
+            let mode = if case % 2 == 0 { Interp::Bilinear } else { Interp::Bicubic };
+            let (n, c, h, w) = (rng.range(1, 2), rng.range(1, 3), rng.range(1, 9), rng.range(1, 9));
+            let (oh, ow) = if case % 3 == 0 { (rng.range(1, 20), rng.range(1, 20)) } else { (2 * h, 2 * w) };
+            let x = rng.tensor(&[n, c, h, w], -1.0, 1.0);
+            // Same weights, same summation order as the reference: bitwise equal.
+            assert_eq!(
+                gather_fwd(&x, oh, ow, mode),
+                resize_ref(&x, oh, ow, mode),
+                "{mode:?} {:?}→{oh}x{ow}",
+                x.shape
+            );
+            let dy = rng.tensor(&[n, c, oh, ow], -1.0, 1.0);
+            let mut a = rng.tensor(&[n, c, h, w], -1.0, 1.0);
+            let mut b = a.clone();
+            gather_bwd(&dy, mode, &mut a);
+            resize_backward_ref(&dy, mode, &mut b);
+            let worst = a.max_abs_diff(&b);
+            assert!(worst < 1e-5, "{mode:?} {:?}→{oh}x{ow}: backward differs by {worst}", x.shape);
         }
     }
 }

@@ -58,6 +58,13 @@ pub struct Upscaled {
     pub enhance: Tensor,
 }
 
+impl Upscaled {
+    /// Γfinal for another enhancement factor `eta`, from the same network outputs (Eq 12).
+    pub fn with_eta(&self, eta: f32) -> Result<Tensor> {
+        compose(&self.interpolated, &self.residual, Some(&self.boundary), Some(&self.enhance), eta)
+    }
+}
+
 /// Upscale LR geometry images. `on_frames(k)` is called after each batch with the number of
 /// frames done so far.
 pub fn upscale_images(

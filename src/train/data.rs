@@ -12,9 +12,9 @@
 use crate::error::{Error, Result};
 use crate::io::read_npz;
 use crate::nn::geometry_net::interpolate;
-use crate::nn::rng::{mix_seed, Rng};
 use crate::nn::NetKind;
 use crate::ops::Ops;
+use crate::rng::{mix_seed, Rng};
 use crate::tensor::Tensor;
 use std::path::Path;
 

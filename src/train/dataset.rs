@@ -3,7 +3,8 @@
 //!
 //! Input: simulated run pairs as written by `anisocb simulate --pair --out DIR`, i.e. `DIR/lr/`
 //! and `DIR/hr/`, each with `geometry.npy` (T, 3, H, W) f32, `domain.npy` (2, 3) = [bmin; bmax]
-//! and `meta.json` (its `scenario` and `seed` fields are read when present).
+//! and `meta.json` (its `scenario` and `seed` fields are read when present), read by
+//! [`crate::cloth::run_io::read_pair`].
 //!
 //! Output (`data.npz`, a stored zip readable by `numpy.load`), N frames over all runs in
 //! command-line order, frame order inside a run:
@@ -17,120 +18,29 @@
 //! - `frames.json` — per frame `{"run", "scenario", "seed", "frame"}`;
 //! - `params.json` — γ, λ, radius factor, Canny σ/low/high, upscale factor, held-out names.
 //!
-//! If a run's LR and HR domains differ, the LR images are re-encoded into the HR domain
-//! (decode with the LR domain, encode with the HR one) so that `lr`, `hr` and `domain` agree.
+//! If a run's LR and HR domains differ, `read_pair` has re-encoded the LR images into the HR
+//! domain, so that `lr`, `hr` and `domain` agree.
 
+use crate::cloth::run_io::RunPair;
 use crate::error::{Error, Result};
 use crate::geom::anisotropy::{boundary_map, BoundaryParams};
 use crate::geom::geometry_image::image_to_mesh;
 use crate::geom::Domain;
 use crate::imgproc::{enhance_map, CannyParams};
-use crate::io::{read_npy, NpzEntries};
+use crate::io::json::{Layout, Object, Value};
+use crate::io::NpzEntries;
 use crate::tensor::Tensor;
+use crate::viz::image::{image_rgb8, resize_nearest, upscale_nearest};
+use crate::viz::sheet::{evenly_spaced, sheet};
+use crate::viz::Rgb8;
 use rayon::prelude::*;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 /// Parameters of both ground-truth maps.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct MapParams {
     pub boundary: BoundaryParams,
     pub canny: CannyParams,
-}
-
-/// One simulated LR/HR run pair, loaded.
-#[derive(Clone, Debug)]
-pub struct RunPair {
-    /// The pair directory as given (shown in `frames.json`).
-    pub name: String,
-    pub scenario: String,
-    pub seed: Option<u64>,
-    /// (T, 3, H, W), already in `domain`.
-    pub lr: Tensor,
-    /// (T, 3, sH, sW).
-    pub hr: Tensor,
-    /// The HR run's domain.
-    pub domain: Domain,
-}
-
-/// The pair directory of `dir`: `dir` itself when it holds `lr/` and `hr/`, its parent when
-/// `dir` is one of them.
-pub fn pair_dir(dir: &Path) -> Result<PathBuf> {
-    let has =
-        |d: &Path| d.join("lr").join("geometry.npy").is_file() && d.join("hr").join("geometry.npy").is_file();
-    if has(dir) {
-        return Ok(dir.to_path_buf());
-    }
-    let leaf = dir.file_name().and_then(|n| n.to_str());
-    if matches!(leaf, Some("lr" | "hr")) {
-        if let Some(parent) = dir.parent() {
-            if has(parent) {
-                return Ok(parent.to_path_buf());
-            }
-        }
-    }
-    Err(Error::format(
-        dir,
-        "not a simulated run pair: expected lr/geometry.npy and hr/geometry.npy (from `anisocb simulate --pair`)",
-    ))
-}
-
-/// A string or number field of a flat JSON object, without a JSON parser: enough for the
-/// `scenario` and `seed` of a run's `meta.json`.
-pub fn json_field(text: &str, key: &str) -> Option<String> {
-    let pat = format!("\"{key}\"");
-    let at = text.find(&pat)? + pat.len();
-    let rest = text[at..].trim_start().strip_prefix(':')?.trim_start();
-    if let Some(s) = rest.strip_prefix('"') {
-        let end = s.find('"')?;
-        Some(s[..end].to_string())
-    } else {
-        let end = rest
-            .find(|c: char| !(c.is_ascii_alphanumeric() || c == '.' || c == '-' || c == '+'))
-            .unwrap_or(rest.len());
-        (end > 0).then(|| rest[..end].to_string())
-    }
-}
-
-fn load_half(dir: &Path) -> Result<(Tensor, Domain)> {
-    let g = crate::io::npy::read_geometry_images(&dir.join("geometry.npy"))?;
-    let dpath = dir.join("domain.npy");
-    let dom = Domain::from_tensor(&read_npy(&dpath)?).map_err(|e| e.in_file(&dpath))?;
-    Ok((g, dom))
-}
-
-/// Load one run pair (`dir` = the pair directory or its `lr/` or `hr/`).
-pub fn load_run(dir: &Path) -> Result<RunPair> {
-    let pd = pair_dir(dir)?;
-    let (mut lr, lr_dom) = load_half(&pd.join("lr"))?;
-    let (hr, domain) = load_half(&pd.join("hr"))?;
-    let (tl, _, hl, wl) = lr.dims4();
-    let (th, _, hh, wh) = hr.dims4();
-    if tl != th {
-        return Err(Error::format(&pd, format!("LR has {tl} frames but HR has {th}")));
-    }
-    if hh % hl != 0 || wh % wl != 0 || hh / hl != wh / wl || hh / hl < 1 {
-        return Err(Error::format(
-            &pd,
-            format!("HR size {hh}×{wh} is not an integer multiple of LR size {hl}×{wl} on both axes"),
-        ));
-    }
-    if lr_dom != domain {
-        for px in 0..tl * hl * wl {
-            let (f, v) = (px / (hl * wl), px % (hl * wl));
-            let base = f * 3 * hl * wl + v;
-            let c = [lr.data[base], lr.data[base + hl * wl], lr.data[base + 2 * hl * wl]];
-            let e = domain.encode(lr_dom.decode(c));
-            for (k, ek) in e.iter().enumerate() {
-                lr.data[base + k * hl * wl] = *ek;
-            }
-        }
-    }
-    let meta = std::fs::read_to_string(pd.join("hr").join("meta.json"))
-        .or_else(|_| std::fs::read_to_string(pd.join("lr").join("meta.json")))
-        .unwrap_or_default();
-    let scenario = json_field(&meta, "scenario").unwrap_or_else(|| "unknown".into());
-    let seed = json_field(&meta, "seed").and_then(|s| s.parse().ok());
-    Ok(RunPair { name: pd.display().to_string(), scenario, seed, lr, hr, domain })
 }
 
 /// True if `run` matches one of the held-out names: its scenario, its directory name, its
@@ -258,20 +168,6 @@ pub fn build(
     Ok(ds)
 }
 
-fn json_str(s: &str) -> String {
-    let mut o = String::from("\"");
-    for ch in s.chars() {
-        match ch {
-            '"' => o.push_str("\\\""),
-            '\\' => o.push_str("\\\\"),
-            c if (c as u32) < 0x20 => o.push_str(&format!("\\u{:04x}", c as u32)),
-            c => o.push(c),
-        }
-    }
-    o.push('"');
-    o
-}
-
 impl Dataset {
     pub fn len(&self) -> usize {
         self.frames.len()
@@ -281,38 +177,59 @@ impl Dataset {
         self.frames.is_empty()
     }
 
+    /// Rows of (LR, HR, boundary map, edge map) for up to `count` evenly spaced frames, to check
+    /// the maps by eye: geometry images as RGB clamped to [0,1], maps white on black, nearest
+    /// upscaling (LR to the HR size, then all to about 128 px).
+    pub fn contact_sheet(&self, count: usize) -> Result<Rgb8> {
+        if self.is_empty() || count == 0 {
+            return Err(Error::config("contact sheet needs at least one frame"));
+        }
+        let (hh, wh) = (self.hr.shape[2], self.hr.shape[3]);
+        let zoom = (128 / wh.max(hh)).max(1);
+        let rows = evenly_spaced(count.min(self.len()), self.len())
+            .into_iter()
+            .map(|f| {
+                let lr = resize_nearest(&image_rgb8(&self.lr.slice_batch(f, 1))?, wh, hh);
+                let hr = image_rgb8(&self.hr.slice_batch(f, 1))?;
+                let b = image_rgb8(&self.boundary.slice_batch(f, 1))?;
+                let e = image_rgb8(&self.edges.slice_batch(f, 1))?;
+                Ok([lr, hr, b, e].iter().map(|t| upscale_nearest(t, zoom)).collect())
+            })
+            .collect::<Result<Vec<Vec<Rgb8>>>>()?;
+        Ok(sheet(&rows, 4, 4, [40; 3]))
+    }
+
+    /// `frames.json`: one object per frame, one per line.
     pub fn frames_json(&self) -> String {
-        let rows: Vec<String> = self
+        let rows = self
             .frames
             .iter()
             .map(|f| {
-                let seed = f.seed.map_or("null".to_string(), |s| s.to_string());
-                format!(
-                    "  {{\"run\": {}, \"scenario\": {}, \"seed\": {seed}, \"frame\": {}}}",
-                    json_str(&f.run),
-                    json_str(&f.scenario),
-                    f.frame
-                )
+                Object::new()
+                    .str("run", &f.run)
+                    .str("scenario", &f.scenario)
+                    .val("seed", f.seed.map(Value::num))
+                    .num("frame", f.frame)
+                    .into()
             })
             .collect();
-        format!("[\n{}\n]\n", rows.join(",\n"))
+        Value::Arr(rows).to_json_with(Layout::Indented) + "\n"
     }
 
+    /// `params.json`: the map parameters, the upscale factor and the held-out names.
     pub fn params_json(&self) -> String {
         let (b, c) = (&self.params.boundary, &self.params.canny);
-        let hold: Vec<String> = self.holdout.iter().map(|h| json_str(h)).collect();
-        format!(
-            "{{\n  \"gamma\": {},\n  \"lambda\": {},\n  \"radius_factor\": {},\n  \"canny_sigma\": {},\n  \
-             \"canny_low\": {},\n  \"canny_high\": {},\n  \"upscale\": {},\n  \"holdout\": [{}]\n}}\n",
-            b.gamma,
-            b.lambda,
-            b.radius_factor,
-            c.sigma,
-            c.low,
-            c.high,
-            self.upscale,
-            hold.join(", ")
-        )
+        let hold = self.holdout.iter().map(|h| Value::from(h.as_str())).collect::<Vec<_>>();
+        let o = Object::new()
+            .num("gamma", b.gamma)
+            .num("lambda", b.lambda)
+            .num("radius_factor", b.radius_factor)
+            .num("canny_sigma", c.sigma)
+            .num("canny_low", c.low)
+            .num("canny_high", c.high)
+            .num("upscale", self.upscale)
+            .val("holdout", hold);
+        Value::from(o).to_json_with(Layout::Indented) + "\n"
     }
 
     pub fn to_npz(&self) -> NpzEntries {
@@ -325,19 +242,5 @@ impl Dataset {
         e.push_file("frames.json", self.frames_json().into_bytes());
         e.push_file("params.json", self.params_json().into_bytes());
         e
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn json_field_reads_strings_and_numbers() {
-        let t = r#"{"scenario": "flag", "seed":42, "dt": 0.005}"#;
-        assert_eq!(json_field(t, "scenario").as_deref(), Some("flag"));
-        assert_eq!(json_field(t, "seed").as_deref(), Some("42"));
-        assert_eq!(json_field(t, "dt").as_deref(), Some("0.005"));
-        assert_eq!(json_field(t, "missing"), None);
     }
 }

@@ -3,5 +3,4 @@
 pub mod adam;
 pub mod data;
 pub mod dataset;
-pub mod plot;
 pub mod trainer;

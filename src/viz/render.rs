@@ -1,16 +1,19 @@
 //! A small software rasterizer for grid cloth meshes: fixed camera fitted to a bounding box
 //! (orthographic or perspective), z-buffer, smooth per-vertex normals, two-sided Lambert
 //! shading with ambient + key light + headlight, optional per-vertex scalar colouring (heat
-//! map, e.g. per-vertex error), supersampled edges. Deterministic, single-threaded, no crates.
+//! map, e.g. per-vertex error, see [`super::heat`]), supersampled edges. Deterministic,
+//! single-threaded, no crates.
 //!
 //! World up is +y (the simulator's gravity is −y); the default view is a 3/4 view from the
 //! front (+z) right and slightly above, which shows wrinkles as bands of light and shade.
 //! Tiles meant to be compared (LR / bicubic / anisocb / HR) share one [`Camera`], fitted to
 //! the union of their bounding boxes: see [`Camera::fit_meshes`] and [`render_row`].
 
+use super::heat::{heat_color, ScalarColors};
 use super::image::{hstack, Rgb8, BLACK, WHITE};
-use super::plot::format_number;
 use crate::error::{Error, Result};
+use crate::geom::mesh::vertex_normals;
+use crate::geom::vec3::{cross, dot, normalize_or, sub, V3};
 use crate::geom::GridMesh;
 
 /// Where the camera looks from. Angles in degrees.
@@ -33,29 +36,10 @@ impl Default for View {
     }
 }
 
-/// A 3-vector (metres for positions, unit for directions, sRGB in [0,1] for colours).
-pub type V3 = [f32; 3];
-
-#[inline]
-fn sub(a: V3, b: V3) -> V3 {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-#[inline]
-fn dot(a: V3, b: V3) -> f32 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-#[inline]
-fn cross(a: V3, b: V3) -> V3 {
-    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
-}
+/// Unit vector along `a`; +z for a zero vector.
 #[inline]
 fn normalize(a: V3) -> V3 {
-    let n = dot(a, a).sqrt();
-    if n > 0.0 {
-        [a[0] / n, a[1] / n, a[2] / n]
-    } else {
-        [0.0, 0.0, 1.0]
-    }
+    normalize_or(a, [0.0, 0.0, 1.0])
 }
 
 /// A camera fitted to a box: orthonormal basis (right, up, back = towards the camera), the
@@ -231,25 +215,6 @@ impl Default for Shading {
     }
 }
 
-/// Per-vertex scalars shown with [`heat_color`]: `lo` maps to blue, `hi` to red.
-#[derive(Clone, Copy, Debug)]
-pub struct ScalarColors<'a> {
-    pub values: &'a [f32],
-    pub lo: f32,
-    pub hi: f32,
-}
-
-/// Heat-map colour scale (sRGB, blue → cyan → green → yellow → red) for t ∈ [0,1] (clamped).
-pub fn heat_color(t: f32) -> V3 {
-    const STOPS: [V3; 5] =
-        [[0.10, 0.20, 0.70], [0.10, 0.65, 0.90], [0.35, 0.80, 0.35], [1.00, 0.85, 0.15], [0.85, 0.12, 0.08]];
-    let t = if t.is_finite() { t.clamp(0.0, 1.0) } else { 0.0 };
-    let x = t * (STOPS.len() - 1) as f32;
-    let i = (x as usize).min(STOPS.len() - 2);
-    let f = x - i as f32;
-    std::array::from_fn(|k| STOPS[i][k] + f * (STOPS[i + 1][k] - STOPS[i][k]))
-}
-
 #[inline]
 fn to_linear(c: f32) -> f32 {
     c.max(0.0).powf(2.2)
@@ -257,21 +222,6 @@ fn to_linear(c: f32) -> f32 {
 #[inline]
 fn to_srgb8(c: f32) -> u8 {
     (c.clamp(0.0, 1.0).powf(1.0 / 2.2) * 255.0 + 0.5) as u8
-}
-
-/// Area-weighted vertex normals of the grid's triangulation (unit length; (0,0,1) if isolated).
-pub fn vertex_normals(mesh: &GridMesh) -> Vec<V3> {
-    let mut n = vec![[0.0f32; 3]; mesh.pos.len()];
-    for t in mesh.triangles() {
-        let (a, b, c) = (mesh.pos[t[0]], mesh.pos[t[1]], mesh.pos[t[2]]);
-        let f = cross(sub(b, a), sub(c, a));
-        for &v in &t {
-            for k in 0..3 {
-                n[v][k] += f[k];
-            }
-        }
-    }
-    n.into_iter().map(normalize).collect()
 }
 
 /// One mesh of a picture: the cloth (optionally heat-coloured) or a prop such as a collision
@@ -474,27 +424,4 @@ pub fn render_row_with_props(
         pics.push(p);
     }
     Ok(hstack(&pics, gap, WHITE))
-}
-
-/// A vertical colour bar for [`heat_color`], `h` px tall, with `lo`, middle and `hi` values
-/// written beside it (and an optional `title` above, e.g. "err mm").
-pub fn colorbar(h: usize, lo: f32, hi: f32, title: &str) -> Rgb8 {
-    let labels = [format_number(hi), format_number(0.5 * (lo + hi)), format_number(lo)];
-    let text_w =
-        labels.iter().chain(std::iter::once(&title.to_string())).map(|s| s.len() * 6).max().unwrap_or(0);
-    let (bar_w, top) = (14usize, if title.is_empty() { 4 } else { 14 });
-    let w = bar_w + 6 + text_w + 4;
-    let mut img = Rgb8::new(w, h, WHITE);
-    let bar_h = h.saturating_sub(top + 4).max(2);
-    for y in 0..bar_h {
-        let t = 1.0 - y as f32 / (bar_h - 1) as f32;
-        let c = heat_color(t).map(|v| (v * 255.0 + 0.5) as u8);
-        img.fill_rect(2, (top + y) as i64, bar_w, 1, c);
-    }
-    img.text(2, 2, title, 1, BLACK);
-    let tx = (bar_w + 6) as i64;
-    img.text(tx, top as i64, &labels[0], 1, BLACK);
-    img.text(tx, (top + bar_h / 2) as i64 - 3, &labels[1], 1, BLACK);
-    img.text(tx, (top + bar_h) as i64 - 7, &labels[2], 1, BLACK);
-    img
 }

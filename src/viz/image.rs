@@ -1,6 +1,7 @@
-//! Plain 8-bit RGB pictures (row-major, `w·h·3` bytes, the layout `app::ui::save_png_rgb`
-//! writes) and the small helpers the reports need: geometry images and maps to pixels,
-//! nearest-neighbour upscaling, side-by-side tiling, text labels with the built-in font.
+//! Plain 8-bit RGB pictures (row-major, `w·h·3` bytes, the layout `app::ui::save_png` writes)
+//! and the small helpers every picture needs: geometry images and maps to pixels,
+//! nearest-neighbour resampling, tiling side by side and top to bottom, text labels with the
+//! built-in font.
 
 use super::font::{glyph, text_width, ADVANCE, GLYPH_H, GLYPH_W};
 use crate::error::{Error, Result};
@@ -102,6 +103,12 @@ impl Rgb8 {
     }
 }
 
+/// A value in [0, 1] (clamped) as an 8-bit channel, rounded to nearest.
+#[inline]
+pub fn to_u8(v: f32) -> u8 {
+    (v.clamp(0.0, 1.0) * 255.0 + 0.5) as u8
+}
+
 /// A geometry image (3, H, W) or (1, 3, H, W) → RGB (x→R, y→G, z→B, values clamped to [0,1]),
 /// or a map (1, H, W) / (1, 1, H, W) / (H, W) → grey. Image row j = geometry image row j.
 pub fn image_rgb8(img: &Tensor) -> Result<Rgb8> {
@@ -117,13 +124,12 @@ pub fn image_rgb8(img: &Tensor) -> Result<Rgb8> {
             "image_rgb8: expected a (3, H, W) geometry image or a 1-channel map, got {s:?}"
         )));
     }
-    let q = |v: f32| (v.clamp(0.0, 1.0) * 255.0 + 0.5) as u8;
     let mut out = Rgb8::new(w, h, BLACK);
     for p in 0..h * w {
         let px = if c == 3 {
-            [q(img.data[p]), q(img.data[h * w + p]), q(img.data[2 * h * w + p])]
+            [to_u8(img.data[p]), to_u8(img.data[h * w + p]), to_u8(img.data[2 * h * w + p])]
         } else {
-            let g = q(img.data[p]);
+            let g = to_u8(img.data[p]);
             [g, g, g]
         };
         out.data[3 * p..3 * p + 3].copy_from_slice(&px);
@@ -181,5 +187,12 @@ pub fn vstack(rows: &[Rgb8], gap: usize, bg: [u8; 3]) -> Rgb8 {
         out.blit(t, 0, y as i64);
         y += t.h + gap;
     }
+    out
+}
+
+/// `img` with a border of `margin` px of `bg` on every side.
+pub fn pad(img: &Rgb8, margin: usize, bg: [u8; 3]) -> Rgb8 {
+    let mut out = Rgb8::new(img.w + 2 * margin, img.h + 2 * margin, bg);
+    out.blit(img, margin as i64, margin as i64);
     out
 }

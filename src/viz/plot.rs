@@ -1,6 +1,6 @@
-//! A minimal line plot into an RGB picture: axes, ticks with numbers (built-in font), several
-//! series in distinct colours, a legend, optional logarithmic y axis. Used for loss curves
-//! (trainer) and per-frame error plots (eval). Non-finite points (and y ≤ 0 on a log axis)
+//! The line plot, into an RGB picture: axes, ticks with numbers (built-in font), several
+//! series in distinct colours (or each its own), a legend, optional logarithmic y axis. Used
+//! for loss curves (`train::trainer::loss_plot`) and per-frame error plots (eval). Non-finite points (and y ≤ 0 on a log axis)
 //! break the line instead of failing.
 
 use super::font::{text_width, GLYPH_H};
@@ -24,6 +24,8 @@ pub const PALETTE: [[u8; 3]; 8] = [
 pub struct Series {
     pub name: String,
     pub points: Vec<(f32, f32)>,
+    /// Its colour; `None` = the next [`PALETTE`] colour (by the series' position).
+    pub color: Option<[u8; 3]>,
 }
 
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -84,7 +86,13 @@ impl LinePlot {
     }
 
     pub fn series(mut self, name: &str, points: Vec<(f32, f32)>) -> LinePlot {
-        self.series.push(Series { name: name.into(), points });
+        self.series.push(Series { name: name.into(), points, color: None });
+        self
+    }
+
+    /// A series drawn in `color` instead of the palette's.
+    pub fn series_colored(mut self, name: &str, points: Vec<(f32, f32)>, color: [u8; 3]) -> LinePlot {
+        self.series.push(Series { name: name.into(), points, color: Some(color) });
         self
     }
 
@@ -179,7 +187,7 @@ impl LinePlot {
         }
         let mut drawn: Vec<(f32, f32)> = Vec::new();
         for (k, s) in self.series.iter().enumerate() {
-            let c = PALETTE[k % PALETTE.len()];
+            let c = s.color.unwrap_or(PALETTE[k % PALETTE.len()]);
             let mut prev: Option<(f32, f32)> = None;
             for &p in &s.points {
                 if !self.usable(p) {
@@ -226,7 +234,7 @@ impl LinePlot {
             img.fill_rect(lx, ly, lw, lh, WHITE);
             for (k, s) in self.series.iter().enumerate() {
                 let y = ly + 4 + 11 * k as i64;
-                let c = PALETTE[k % PALETTE.len()];
+                let c = s.color.unwrap_or(PALETTE[k % PALETTE.len()]);
                 img.fill_rect(lx + 4, y + 2, 16, 3, c);
                 img.text(lx + 24, y, &s.name, 1, BLACK);
             }

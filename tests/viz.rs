@@ -1,17 +1,18 @@
 //! Software renders, picture helpers and plots. Set ANISOCB_SAVE_PICTURES=DIR to write the
 //! pictures these tests draw as PNG files for a look (needs the default `cli` feature).
 
-use anisocb::eval::image::{hstack, image_rgb8, resize_nearest, upscale_nearest, vstack, Rgb8, WHITE};
-use anisocb::eval::plot::{format_number, LinePlot};
-use anisocb::eval::render::{colorbar, render_mesh, render_row, Camera, ScalarColors, Shading, Tile, View};
 use anisocb::geom::GridMesh;
+use anisocb::viz::heat::{colorbar, ScalarColors};
+use anisocb::viz::image::{hstack, image_rgb8, resize_nearest, upscale_nearest, vstack, Rgb8, WHITE};
+use anisocb::viz::plot::{format_number, LinePlot};
+use anisocb::viz::render::{render_mesh, render_row, Camera, Shading, Tile, View};
 use anisocb::Tensor;
 
 fn save(name: &str, img: &Rgb8) {
     #[cfg(feature = "cli")]
     if let Ok(dir) = std::env::var("ANISOCB_SAVE_PICTURES") {
         let path = std::path::Path::new(&dir).join(name);
-        anisocb::app::ui::save_png_rgb(&path, img.w, img.h, &img.data).unwrap();
+        anisocb::app::ui::save_png(&path, img).unwrap();
     }
     #[cfg(not(feature = "cli"))]
     let _ = (name, img);
@@ -155,7 +156,7 @@ fn line_plot_draws_series_legend_and_log_axis() {
         .series_y("validation", &val);
     let img = p.render(480, 300).unwrap();
     let has = |c: [u8; 3]| img.data.chunks(3).any(|px| px == c);
-    assert!(has(anisocb::eval::plot::PALETTE[0]) && has(anisocb::eval::plot::PALETTE[1]));
+    assert!(has(anisocb::viz::plot::PALETTE[0]) && has(anisocb::viz::plot::PALETTE[1]));
     let lin = LinePlot::new("per-frame RMSE")
         .labels("frame", "m")
         .series_y("bicubic", &[0.02, 0.025, f32::NAN, 0.03, 0.028])
@@ -171,7 +172,7 @@ fn line_plot_draws_series_legend_and_log_axis() {
 
 #[test]
 fn sphere_prop_renders_as_a_disc_and_hides_cloth_behind_it() {
-    use anisocb::eval::render::{render_layers, sphere_mesh, Layer};
+    use anisocb::viz::render::{render_layers, sphere_mesh, Layer};
     // Radius 0.5 m in a 1 m box, head-on, 10% margin on 100 px: a disc of 40 px radius.
     let s = sphere_mesh([0.0, 0.0, 0.0], 0.5, 32);
     let view = View { azimuth_deg: 0.0, elevation_deg: 0.0, fov_deg: 0.0, margin: 0.1 };

@@ -1,0 +1,100 @@
+//! The markdown metric tables of the reports (`demo`'s `metrics.md`, `eval`'s `results.md`):
+//! one row per method, the chosen columns, lengths in mm.
+
+use super::metrics::SequenceMetrics;
+
+/// A column of a metrics table.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Column {
+    Rmse,
+    BoundaryRmse,
+    Hausdorff,
+    BorderLengthRatio,
+    AreaRatio,
+    NormalAngle,
+    CurvatureErr,
+    Flicker,
+}
+
+impl Column {
+    /// Every column (the `eval` table).
+    pub const ALL: [Column; 8] = [
+        Column::Rmse,
+        Column::BoundaryRmse,
+        Column::Hausdorff,
+        Column::BorderLengthRatio,
+        Column::AreaRatio,
+        Column::NormalAngle,
+        Column::CurvatureErr,
+        Column::Flicker,
+    ];
+
+    pub fn header(self) -> &'static str {
+        match self {
+            Column::Rmse => "vertex RMSE (mm)",
+            Column::BoundaryRmse => "boundary RMSE (mm)",
+            Column::Hausdorff => "Hausdorff (mm)",
+            Column::BorderLengthRatio => "border length ratio",
+            Column::AreaRatio => "area ratio",
+            Column::NormalAngle => "normal angle (°)",
+            Column::CurvatureErr => "mean-curvature err (1/m)",
+            Column::Flicker => "flicker (mm/frame)",
+        }
+    }
+
+    /// The cell of `m`: its mean over frames (flicker: over steps), lengths in mm.
+    pub fn cell(self, m: &SequenceMetrics) -> String {
+        let f = &m.mean;
+        match self {
+            Column::Rmse => format!("{:.3}", 1e3 * f.rmse),
+            Column::BoundaryRmse => format!("{:.3}", 1e3 * f.boundary_rmse),
+            Column::Hausdorff => format!("{:.3}", 1e3 * f.hausdorff),
+            Column::BorderLengthRatio => format!("{:.4}", f.boundary_length_ratio),
+            Column::AreaRatio => format!("{:.4}", f.area_ratio),
+            Column::NormalAngle => format!("{:.2}", f.normal_angle_deg),
+            Column::CurvatureErr => format!("{:.3}", f.curvature_err),
+            Column::Flicker => format!("{:.3}", 1e3 * m.flicker),
+        }
+    }
+}
+
+/// A markdown table: a `method` column, then `columns`, one row per (method, metrics).
+pub fn metrics_table<'a>(
+    rows: impl IntoIterator<Item = (&'a str, &'a SequenceMetrics)>,
+    columns: &[Column],
+) -> String {
+    let mut s = String::from("| method |");
+    for c in columns {
+        s.push_str(&format!(" {} |", c.header()));
+    }
+    s.push_str("\n|---|");
+    s.push_str(&"---:|".repeat(columns.len()));
+    s.push('\n');
+    for (method, m) in rows {
+        s.push_str(&format!("| {method} |"));
+        for c in columns {
+            s.push_str(&format!(" {} |", c.cell(m)));
+        }
+        s.push('\n');
+    }
+    s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn table_has_one_row_per_method_in_mm() {
+        let mut m = SequenceMetrics::default();
+        m.mean.rmse = 0.0012345;
+        m.mean.boundary_length_ratio = 1.0;
+        m.flicker = 0.002;
+        let t = metrics_table([("bicubic", &m)], &[Column::Rmse, Column::BorderLengthRatio, Column::Flicker]);
+        assert_eq!(
+            t,
+            "| method | vertex RMSE (mm) | border length ratio | flicker (mm/frame) |\n|---|---:|---:|---:|\n\
+             | bicubic | 1.234 | 1.0000 | 2.000 |\n"
+        );
+    }
+}
