@@ -21,10 +21,26 @@ fn sheet(w: usize, h: usize, angle: f32, amp: f32) -> GridMesh {
 }
 
 fn write_pair(dir: &Path, scenario: &str, seed: u64, frames: usize) {
+    write_moved_pair(dir, scenario, seed, frames, &|p| p);
+}
+
+/// [`write_pair`] with every vertex of frame f moved by `moved(p)`.
+fn write_moved_pair(
+    dir: &Path,
+    scenario: &str,
+    seed: u64,
+    frames: usize,
+    moved: &dyn Fn([f32; 3]) -> [f32; 3],
+) {
     for (sub, w, h, amp) in [("lr", 16, 12, 0.0), ("hr", 32, 24, 0.01)] {
         let d = dir.join(sub);
         std::fs::create_dir_all(&d).unwrap();
-        let seq: Vec<GridMesh> = (0..frames).map(|f| sheet(w, h, 0.6 * f as f32, amp)).collect();
+        let seq: Vec<GridMesh> = (0..frames)
+            .map(|f| {
+                let m = sheet(w, h, 0.6 * f as f32, amp);
+                GridMesh::new(w, h, m.pos.iter().map(|&p| moved(p)).collect())
+            })
+            .collect();
         let dom = Domain::enclosing(&seq, if sub == "lr" { 0.05 } else { 0.1 });
         write_npy(&d.join("geometry.npy"), &sequence_to_images(&seq, &dom)).unwrap();
         write_npy(&d.join("domain.npy"), &dom.to_tensor()).unwrap();
@@ -62,6 +78,8 @@ fn dataset_pairs_lr_with_hr_and_maps_in_the_documented_layout() {
         out.to_str().unwrap(),
         "--holdout",
         "drape",
+        "--input-frame",
+        "domain",
     ]);
     assert_eq!(code, 0);
     let z = read_npz(&out).unwrap();
@@ -124,5 +142,26 @@ fn dataset_names_the_directory_that_is_not_a_run() {
     assert_eq!(run(&["dataset", "--runs", root.to_str().unwrap(), "--out", out.to_str().unwrap()]), 1);
     let r = anisocb::cloth::run_io::read_pair(&root);
     assert!(r.is_err_and(|e| e.to_string().contains(root.to_str().unwrap())));
+    let _ = std::fs::remove_dir_all(&root);
+}
+
+#[test]
+fn cloth_frame_dataset_does_not_depend_on_where_the_run_is() {
+    let root = scratch("cloth-frame");
+    write_pair(&root.join("a"), "fold", 1, 3);
+    // The same run turned 90° about y, moved 5 m and scaled ×2.
+    write_moved_pair(&root.join("b"), "fold", 1, 3, &|p| [2.0 * p[2] + 5.0, 2.0 * p[1] - 3.0, -2.0 * p[0]]);
+    let read = |name: &str| {
+        let out = root.join(format!("{name}.npz"));
+        let dir = root.join(name);
+        assert_eq!(run(&["dataset", "--runs", dir.to_str().unwrap(), "--out", out.to_str().unwrap()]), 0);
+        read_npz(&out).unwrap()
+    };
+    let (a, b) = (read("a"), read("b"));
+    for name in ["lr", "hr", "boundary", "edges"] {
+        let (x, y) = (a.require(Path::new("a"), name).unwrap(), b.require(Path::new("b"), name).unwrap());
+        let d = x.max_abs_diff(y);
+        assert!(d < 1e-4, "{name}: moved run differs by {d}");
+    }
     let _ = std::fs::remove_dir_all(&root);
 }

@@ -36,7 +36,7 @@ fn all_boundary_map_keeps_the_interpolated_input_exactly() {
     let d = Domain::enclosing(&frames, 0.05);
     let lr = sequence_to_images(&frames, &d);
     let up =
-        upscale_images(&Cpu, &all_boundary_model(), &lr, &UpscaleParams::default(), &mut |_| {}).unwrap();
+        upscale_images(&Cpu, &all_boundary_model(), &lr, &d, &UpscaleParams::default(), &mut |_| {}).unwrap();
     let (t, _, h, w) = lr.dims4();
     let u = Cpu.resize(&lr, 2 * h, 2 * w, Interp::Bicubic);
     assert_eq!(up.hr.shape, vec![t, 3, 2 * h, 2 * w]);
@@ -165,4 +165,73 @@ fn demo_and_eval_write_their_tables_and_pictures() {
         "runs are labelled by directory"
     );
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Upscale `frames` moved frame by frame by `t(k)` with the shipped model and return the
+/// largest distance (in LR edge lengths) between that output and the unmoved output moved
+/// the same way.
+fn moved_deviation(frames: &[GridMesh], t: &dyn Fn(usize, [f64; 3]) -> [f64; 3]) -> f64 {
+    let model = embedded_model().unwrap();
+    let p = UpscaleParams::default();
+    let up = |seq: &[GridMesh]| {
+        let d = Domain::enclosing(seq, 0.05);
+        upscale_meshes(&Cpu, &model, seq, &d, &p, &mut |_| {}).unwrap().0
+    };
+    let moved: Vec<GridMesh> = frames
+        .iter()
+        .enumerate()
+        .map(|(k, m)| {
+            GridMesh::new(
+                m.w,
+                m.h,
+                m.pos.iter().map(|q| t(k, q.map(|v| v as f64)).map(|v| v as f32)).collect(),
+            )
+        })
+        .collect();
+    let (a, b) = (up(frames), up(&moved));
+    let mut worst = 0.0f64;
+    for (k, (a, b)) in a.iter().zip(&b).enumerate() {
+        let edge = anisocb::geom::cloth_frame::ClothFrame::of_mesh(&moved[k]).unit / (moved[k].w - 1) as f64;
+        for (pa, pb) in a.pos.iter().zip(&b.pos) {
+            let want = t(k, pa.map(|v| v as f64));
+            let d = (0..3).map(|i| (pb[i] as f64 - want[i]).powi(2)).sum::<f64>().sqrt();
+            worst = worst.max(d / edge);
+        }
+    }
+    worst
+}
+
+/// Rotation by `angle` about `axis` (Rodrigues).
+fn rotate(axis: [f64; 3], angle: f64, p: [f64; 3]) -> [f64; 3] {
+    let n = (axis[0] * axis[0] + axis[1] * axis[1] + axis[2] * axis[2]).sqrt();
+    let a = axis.map(|v| v / n);
+    let (s, c) = angle.sin_cos();
+    let d = a[0] * p[0] + a[1] * p[1] + a[2] * p[2];
+    let x = [a[1] * p[2] - a[2] * p[1], a[2] * p[0] - a[0] * p[2], a[0] * p[1] - a[1] * p[0]];
+    std::array::from_fn(|i| p[i] * c + x[i] * s + a[i] * d * (1.0 - c))
+}
+
+// The bound: within 1e-3 of an LR edge length (the shipped model sees each frame in
+// its own cloth frame, so only f32 rounding of the geometry images remains).
+const INVARIANCE_TOL: f64 = 1e-3;
+
+#[test]
+fn shipped_model_output_moves_with_a_falling_cloth() {
+    let frames = small_run(6);
+    let dev = moved_deviation(&frames, &|k, p| [p[0] + 1.0, p[1] - 0.8 * (k * k) as f64, p[2] + 2.0]);
+    assert!(dev < INVARIANCE_TOL, "translation: {dev} LR edges");
+}
+
+#[test]
+fn shipped_model_output_turns_with_the_cloth_about_any_axis() {
+    let frames = small_run(6);
+    let dev = moved_deviation(&frames, &|k, p| rotate([0.3, 1.0, -0.4], 1.3 + 0.4 * k as f64, p));
+    assert!(dev < INVARIANCE_TOL, "rotation: {dev} LR edges");
+}
+
+#[test]
+fn shipped_model_output_scales_with_the_cloth() {
+    let frames = small_run(6);
+    let dev = moved_deviation(&frames, &|k, p| p.map(|v| v * (1.4 + 0.1 * k as f64)));
+    assert!(dev < INVARIANCE_TOL, "scale: {dev} LR edges");
 }

@@ -1,33 +1,45 @@
 #!/usr/bin/env bash
-# Rebuild the shipped ×2 model (weights/anisocb-x2.npz) and the prior-method baseline used by
-# `anisocb eval` (weights/prior-x2.npz) from scratch: simulate the training scenarios, build the
-# dataset, train. Run through `make weights` (≈ 25 min on 2 cores).
-# Held out of training (used by `anisocb demo` and the README's evaluation): flag-sphere,
-# twist-zero-g, and seeds ≥ 7 of every scenario.
+# Rebuild the shipped ×2 model (weights/anisocb-x2.npz) and the yardsticks `anisocb eval`
+# compares it with, from scratch: simulate randomised training scenes, build the datasets,
+# train. Run through `make weights` (≈ 35 min on 2 cores).
+#
+#   anisocb-x2.npz   GeometryNet + BoundaryNet + EnhanceNet, cloth-frame input (shipped, embedded)
+#   domain-x2.npz    GeometryNet alone, trained the same way but on the paper's Eq 1 domain
+#                    normalisation (`eval --prior`): what the cloth frame changes
+#   linear-x2.npz    the learned linear upsampler (`eval --linear`): what any net must beat
+#
+# Held out of training, chosen before training (used by `anisocb demo`, the README's
+# evaluation and `eval`): the scenarios flag-sphere and twist-zero-g, seeds ≥ 7 of every
+# scenario, and every Blender scene (tests/blender/make_scenes.py).
 set -euo pipefail
 BIN=${BIN:-target/release/anisocb}
 WORK=${WORK:-target/weights-work}
-GEO_STEPS=${GEO_STEPS:-6000}   # GeometryNet (and the prior baseline)
+GEO_STEPS=${GEO_STEPS:-6000}   # GeometryNet (both input frames)
 MAP_STEPS=${MAP_STEPS:-1500}   # BoundaryNet, EnhanceNet
 FRAMES=${FRAMES:-150}
-TRACKING=${TRACKING:-100}
-SEEDS=${SEEDS:-"1 2 3"}
-TRAIN=(--data "$WORK/data.npz" --config small --lr 5e-4 --patch 16 --batch 32 --seed 1)
+TRACKING=${TRACKING:-1000}     # as the held-out runs: detail the LR frame can predict
+SEEDS=${SEEDS:-"1 2 3 4 5"}
+EDGE=${EDGE:-1.0}              # weight of the edge-vector loss term
+TRAIN=(--config small --lr 5e-4 --patch 16 --batch 32 --seed 1 --edge-weight "$EDGE")
+MAPS=(--gamma 0.3 --canny-low 0.12 --canny-high 0.16)
 rm -rf "$WORK"
 mkdir -p "$WORK/runs"
+# Every seed is its own randomised scene (--vary): size, material, wind, obstacle, speeds.
 for scen in flag drape twist twist-materials; do
   for seed in $SEEDS; do
-    "$BIN" simulate --scenario "$scen" --res 32x32 --pair --frames "$FRAMES" --seed "$seed" \
+    "$BIN" simulate --scenario "$scen" --res 32x32 --pair --frames "$FRAMES" --seed "$seed" --vary "$seed" \
       --tracking "$TRACKING" --out "$WORK/runs/$scen-$seed"
   done
 done
-"$BIN" dataset --runs "$WORK"/runs/* --out "$WORK/data.npz" --gamma 0.2 --canny-low 0.12 --canny-high 0.16
+"$BIN" dataset --runs "$WORK"/runs/* --out "$WORK/data.npz" "${MAPS[@]}" --input-frame cloth-frame
+"$BIN" dataset --runs "$WORK"/runs/* --out "$WORK/data-domain.npz" "${MAPS[@]}" --input-frame domain
 # GeometryNet gets more steps than the map nets; `--net all --resume` then trains the map nets
 # and bundles the three (a net already at its step count is kept as it is).
-"$BIN" train "${TRAIN[@]}" --net geometry --steps "$GEO_STEPS" --out "$WORK/train/geometry"
-"$BIN" train "${TRAIN[@]}" --net all --steps "$MAP_STEPS" --resume --out "$WORK/train"
+"$BIN" train --data "$WORK/data.npz" "${TRAIN[@]}" --net geometry --steps "$GEO_STEPS" --out "$WORK/train/geometry"
+"$BIN" train --data "$WORK/data.npz" "${TRAIN[@]}" --net all --steps "$MAP_STEPS" --resume --out "$WORK/train"
 cp "$WORK/train/weights.npz" weights/anisocb-x2.npz
-# The prior method (Chen et al. 2018 style): one residual SR net with replicate padding.
-"$BIN" train "${TRAIN[@]}" --net geometry --padding replicate --steps "$GEO_STEPS" --out "$WORK/prior"
-cp "$WORK/prior/weights.npz" weights/prior-x2.npz
-sha256sum weights/anisocb-x2.npz weights/prior-x2.npz
+"$BIN" train --data "$WORK/data.npz" --net linear --out "$WORK/linear"
+cp "$WORK/linear/weights.npz" weights/linear-x2.npz
+"$BIN" train --data "$WORK/data-domain.npz" "${TRAIN[@]}" --net geometry --steps "$GEO_STEPS" --out "$WORK/domain"
+cp "$WORK/domain/weights.npz" weights/domain-x2.npz
+sha256sum weights/anisocb-x2.npz weights/domain-x2.npz weights/linear-x2.npz

@@ -5,6 +5,7 @@
 use crate::cloth::run_io::{pair_dir, read_pair};
 use crate::error::Result;
 use crate::geom::anisotropy::BoundaryParams;
+use crate::geom::cloth_frame::InputFrame;
 use crate::imgproc::CannyParams;
 use crate::tensor::Tensor;
 use crate::train::dataset::{build, is_held_out, MapParams};
@@ -36,6 +37,11 @@ pub struct Args {
     /// Leave out runs whose scenario, directory name or `seed=N` matches (for evaluation).
     #[arg(long, num_args = 1.., value_name = "NAME")]
     pub holdout: Vec<String>,
+    /// Coordinates the nets will see: `cloth-frame` (each frame in its own frame, moving with
+    /// the cloth: translation, rotation and scale removed) or `domain` (the paper's Eq 1 box of
+    /// the whole sequence, kept for comparison).
+    #[arg(long, default_value = "cloth-frame", value_name = "FRAME")]
+    pub input_frame: String,
     /// Contact sheet PNG [default: --out with extension .png].
     #[arg(long, value_name = "FILE")]
     pub png: Option<PathBuf>,
@@ -61,6 +67,7 @@ pub fn run(a: Args) -> Result<()> {
     };
     params.boundary.validate()?;
     params.canny.validate()?;
+    let input_frame = InputFrame::parse(&a.input_frame)?;
     let mut runs = Vec::new();
     let mut seen = Vec::new();
     for dir in &a.runs {
@@ -78,7 +85,7 @@ pub fn run(a: Args) -> Result<()> {
     }
     let total: u64 = runs.iter().map(|r| r.hr.shape[0] as u64).sum();
     let pb = super::ui::progress(total, "maps");
-    let ds = build(&runs, &params, &a.holdout, &|| pb.inc(1))?;
+    let ds = build(&runs, &params, input_frame, &a.holdout, &|| pb.inc(1))?;
     pb.finish_and_clear();
     crate::io::write_npz(&a.out, &ds.to_npz())?;
     let png = a.png.clone().unwrap_or_else(|| a.out.with_extension("png"));

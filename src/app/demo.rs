@@ -68,13 +68,14 @@ pub struct Row {
 }
 
 /// The columns of the demo's table (lengths in mm).
-pub const COLUMNS: [Column; 6] = [
+pub const COLUMNS: [Column; 7] = [
     Column::Rmse,
     Column::BoundaryRmse,
     Column::Hausdorff,
     Column::BorderLengthRatio,
     Column::NormalAngle,
     Column::Flicker,
+    Column::StedTemporal,
 ];
 
 pub fn run(a: Args) -> Result<()> {
@@ -104,7 +105,8 @@ pub fn run(a: Args) -> Result<()> {
     let t1 = Instant::now();
     let pb = progress(spec.frames as u64, "upscale");
     let params = UpscaleParams { eta: a.eta, ..UpscaleParams::default() };
-    let up = upscale_images(ops.as_ref(), &model, &pair.lr, &params, &mut |k| pb.set_position(k as u64))?;
+    let up =
+        upscale_images(ops.as_ref(), &model, &pair.lr, &domain, &params, &mut |k| pb.set_position(k as u64))?;
     pb.finish_and_clear();
     let up_s = t1.elapsed().as_secs_f64();
     let ours = images_to_sequence(&up.hr, &domain);

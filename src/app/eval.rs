@@ -7,8 +7,10 @@ use super::ui::{progress, save_png};
 use crate::cloth::run_io::read_pair;
 use crate::cloth::scenarios::{run_single, Scenario, ScenarioSpec};
 use crate::error::{Error, Result};
-use crate::eval::metrics::{border_mask, sequence_metrics, vertex_errors, SequenceMetrics};
+use crate::eval::linear::LinearUpsampler;
+use crate::eval::metrics::{border_band, sequence_metrics, vertex_errors, SequenceMetrics};
 use crate::eval::report::{metrics_table, Column};
+use crate::geom::cloth_frame::{Affine, InputFrame};
 use crate::geom::geometry_image::images_to_sequence;
 use crate::geom::GridMesh;
 use crate::io::atomic::ensure_dir;
@@ -32,7 +34,10 @@ use std::time::Instant;
 #[derive(clap::Args, Debug)]
 #[command(after_help = "Methods compared (all on the same held-out runs, against their HR run):
   bicubic            U, the LR geometry image interpolated x2 (align corners)
-  prior              Chen et al. 2018 style: one residual SR net, replicate-padded, U + R (--prior FILE)
+  linear             learned linear upsampler (Kavan et al. 2011 spirit), U + ridge regression (--linear FILE)
+  GeometryNet [NAME] one residual SR net alone, U + R (--prior FILE): the prior method (Chen et al. 2018
+                     style), or weights/domain-x2.npz, GeometryNet trained in the paper's domain frame
+  anisocb [NAME]     another anisocb bundle, e.g. one trained in the paper's domain frame (--also FILE)
   anisocb -boundary  anisocb without BoundaryNet: U + (1 + eta Ge) R
   anisocb eta=E      anisocb in full, Eq 12, for each --eta value
   anisocb paper      the paper-size config (--paper FILE), eta = default
@@ -40,7 +45,7 @@ use std::time::Instant;
 Example (the README's headline table):
   anisocb simulate --scenario flag-sphere --pair --seed 1000 --frames 120 --tracking 1000 --out runs/flag-sphere
   anisocb simulate --scenario twist-zero-g --res 32x32 --pair --seed 1000 --frames 120 --tracking 1000 --out runs/twist-zero-g
-  anisocb eval --runs runs/* --prior weights/prior-x2.npz --out eval-out")]
+  anisocb eval --runs runs/* --prior weights/domain-x2.npz --linear weights/linear-x2.npz --moved --out eval-out")]
 pub struct Args {
     /// Held-out run pairs (`anisocb simulate --pair --out DIR`).
     #[arg(long, required = true, num_args = 1..)]
@@ -51,12 +56,25 @@ pub struct Args {
     /// anisocb weights (default: the embedded model).
     #[arg(long)]
     pub weights: Option<PathBuf>,
-    /// The prior-method baseline: a GeometryNet weights file trained with replicate padding.
+    /// A GeometryNet used alone (U + R): the prior method's setup, e.g. weights/domain-x2.npz
+    /// (trained on the paper's Eq 1 normalisation).
     #[arg(long)]
     pub prior: Option<PathBuf>,
     /// A paper-size (C=64, 10 blocks) anisocb bundle to compare with the small one.
     #[arg(long)]
     pub paper: Option<PathBuf>,
+    /// The learned linear upsampler (`anisocb train --net linear`), the cheap yardstick.
+    #[arg(long)]
+    pub linear: Option<PathBuf>,
+    /// More anisocb bundles to compare (e.g. trained with `dataset --input-frame domain`),
+    /// labelled by file name.
+    #[arg(long, num_args = 1..)]
+    pub also: Vec<PathBuf>,
+    /// Also upscale each run moved (falling 4 m), turned (about a tilted axis, by a different
+    /// angle each frame) and scaled (differently each frame), and report how far the output
+    /// is from the unmoved output transformed the same way (invariance.md).
+    #[arg(long)]
+    pub moved: bool,
     /// Enhancement factors η to evaluate, comma-separated.
     #[arg(long, value_delimiter = ',', default_values_t = vec![0.0, DEFAULT_ETA, 1.0])]
     pub eta: Vec<f32>,
@@ -97,28 +115,58 @@ fn load_prior(path: &Path) -> Result<GeometryNet> {
     }
 }
 
+/// The models a run is upscaled with besides the main one.
+struct Others {
+    prior: Option<(String, GeometryNet)>,
+    paper: Option<AnisoCb>,
+    linear: Option<LinearUpsampler>,
+    also: Vec<(String, AnisoCb)>,
+}
+
+/// `U + residual(frame in the residual's coordinates)` for every frame, in `domain`.
+fn plus_residual(
+    u: &Tensor,
+    lr: &Tensor,
+    domain: &crate::geom::Domain,
+    input: InputFrame,
+    residual: &mut dyn FnMut(&Tensor) -> Result<Tensor>,
+) -> Result<Tensor> {
+    let mut r = Tensor::zeros(&u.shape);
+    let per = r.len() / r.shape[0];
+    for k in 0..lr.shape[0] {
+        let (to_net, from_net) = input.image_maps(lr, k, domain);
+        let mut x = lr.slice_batch(k, 1);
+        to_net.apply_image(&mut x.data, true);
+        let mut rk = residual(&x)?;
+        from_net.apply_image(&mut rk.data, false);
+        r.data[k * per..(k + 1) * per].copy_from_slice(&rk.data);
+    }
+    compose(u, &r, None, None, 0.0)
+}
+
 fn methods_for_run(
     ops: &dyn Ops,
     model: &AnisoCb,
-    prior: Option<&GeometryNet>,
-    paper: Option<&AnisoCb>,
+    others: &Others,
     lr: &Tensor,
     domain: &crate::geom::Domain,
     etas: &[f32],
 ) -> Result<Vec<Method>> {
     let p = UpscaleParams::default();
-    let up = upscale_images(ops, model, lr, &p, &mut |_| {})?;
+    let up = upscale_images(ops, model, lr, domain, &p, &mut |_| {})?;
     let mut out =
         vec![Method { name: "bicubic".into(), meshes: images_to_sequence(&up.interpolated, domain) }];
-    if let Some(g) = prior {
-        let mut r = Tensor::zeros(&up.residual.shape);
-        let per = r.len() / r.shape[0];
-        for k in 0..lr.shape[0] {
-            let (_, rk) = g.forward(ops, &lr.slice_batch(k, 1))?;
-            r.data[k * per..(k + 1) * per].copy_from_slice(&rk.data);
-        }
-        let hr = compose(&up.interpolated, &r, None, None, 0.0)?;
-        out.push(Method { name: "prior (Chen 2018 style)".into(), meshes: images_to_sequence(&hr, domain) });
+    if let Some(l) = &others.linear {
+        let hr = plus_residual(&up.interpolated, lr, domain, l.input_frame, &mut |x| l.residual(x))?;
+        out.push(Method { name: "linear upsampler".into(), meshes: images_to_sequence(&hr, domain) });
+    }
+    if let Some((name, g)) = &others.prior {
+        let input = g.trunk.config.input_frame;
+        let hr = plus_residual(&up.interpolated, lr, domain, input, &mut |x| Ok(g.forward(ops, x)?.1))?;
+        out.push(Method {
+            name: format!("GeometryNet only [{name}]"),
+            meshes: images_to_sequence(&hr, domain),
+        });
     }
     let no_b = compose(&up.interpolated, &up.residual, None, Some(&up.enhance), DEFAULT_ETA)?;
     out.push(Method {
@@ -131,10 +179,17 @@ fn methods_for_run(
             meshes: images_to_sequence(&up.with_eta(eta)?, domain),
         });
     }
-    if let Some(pm) = paper {
-        let pu = upscale_images(ops, pm, lr, &p, &mut |_| {})?;
+    if let Some(pm) = &others.paper {
+        let pu = upscale_images(ops, pm, lr, domain, &p, &mut |_| {})?;
         out.push(Method {
             name: format!("anisocb paper config, eta={DEFAULT_ETA}"),
+            meshes: images_to_sequence(&pu.hr, domain),
+        });
+    }
+    for (name, m) in &others.also {
+        let pu = upscale_images(ops, m, lr, domain, &p, &mut |_| {})?;
+        out.push(Method {
+            name: format!("anisocb [{name}], eta={DEFAULT_ETA}"),
             meshes: images_to_sequence(&pu.hr, domain),
         });
     }
@@ -157,8 +212,13 @@ pub fn run(a: Args) -> Result<()> {
     set_threads(a.threads)?;
     let ops = crate::cuda::ops_for_device(&a.device)?;
     let model = load_model(a.weights.as_deref())?;
-    let prior = a.prior.as_deref().map(load_prior).transpose()?;
-    let paper = a.paper.as_deref().map(AnisoCb::load).transpose()?;
+    let others = Others {
+        prior: a.prior.as_deref().map(|p| Ok((stem(p), load_prior(p)?))).transpose()?,
+        paper: a.paper.as_deref().map(AnisoCb::load).transpose()?,
+        linear: a.linear.as_deref().map(load_linear).transpose()?,
+        also: a.also.iter().map(|p| Ok((stem(p), AnisoCb::load(p)?))).collect::<Result<_>>()?,
+    };
+    let mut invariance = Vec::new();
     ensure_dir(&a.out)?;
     let mut cells = Vec::new();
     let pb = progress(a.runs.len() as u64, "eval");
@@ -169,9 +229,13 @@ pub fn run(a: Args) -> Result<()> {
         let scenario = run_label(Path::new(&pair.name));
         let hr = images_to_sequence(&pair.hr, domain);
         let lr_m = images_to_sequence(lr, domain);
-        let methods =
-            methods_for_run(ops.as_ref(), &model, prior.as_ref(), paper.as_ref(), lr, domain, &a.eta)?;
-        let mask = border_mask(hr[0].w, hr[0].h);
+        let methods = methods_for_run(ops.as_ref(), &model, &others, lr, domain, &a.eta)?;
+        if a.moved {
+            let ours =
+                &methods.iter().find(|m| m.name == format!("anisocb, eta={DEFAULT_ETA}")).unwrap().meshes;
+            invariance.extend(invariance_rows(ops.as_ref(), &model, &scenario, &lr_m, ours, &hr)?);
+        }
+        let mask = border_band(hr[0].w, hr[0].h, BAND_ROWS);
         let mut rows = Vec::new();
         for m in &methods {
             let metrics = sequence_metrics(&m.meshes, &hr, Some(&mask))?;
@@ -184,11 +248,16 @@ pub fn run(a: Args) -> Result<()> {
     }
     pb.finish_and_clear();
     let md = format!(
-        "# anisocb evaluation\n\nHeld-out runs: {}. Means over frames; boundary = the grid's border vertices.\n{}",
+        "# anisocb evaluation\n\nHeld-out runs: {}. Means over frames; boundary = the border band (vertices within {BAND_ROWS} rows of the grid's border).\n{}",
         a.runs.iter().map(|p| p.display().to_string()).collect::<Vec<_>>().join(", "),
         results_markdown(&cells)
     );
     write_atomic_bytes(&a.out.join("results.md"), md.as_bytes())?;
+    if a.moved {
+        let inv = invariance_markdown(&invariance);
+        write_atomic_bytes(&a.out.join("invariance.md"), inv.as_bytes())?;
+        println!("{inv}");
+    }
     let json = cells
         .iter()
         .map(|c| {
@@ -247,7 +316,7 @@ fn write_worst_renders(
     let frames = rows[idx].metrics.worst_frames(worst);
     let shown: Vec<&Method> = methods
         .iter()
-        .filter(|m| m.name == "bicubic" || m.name.starts_with("prior") || m.name == target)
+        .filter(|m| m.name == "bicubic" || m.name.starts_with("linear") || m.name == target)
         .collect();
     let (view, shade) = (View::default(), Shading::default());
     let mut pics = Vec::new();
@@ -299,9 +368,9 @@ pub fn speed_study(ops: &dyn Ops, small: &AnisoCb) -> Result<String> {
         let img = crate::geom::geometry_image::sequence_to_images(&lr[..4], &d);
         let time_up = |m: &AnisoCb| -> Result<f64> {
             let p = UpscaleParams { batch: 1, ..UpscaleParams::default() };
-            upscale_images(ops, m, &img.slice_batch(0, 1), &p, &mut |_| {})?; // warm-up
+            upscale_images(ops, m, &img.slice_batch(0, 1), &d, &p, &mut |_| {})?; // warm-up
             let t = Instant::now();
-            upscale_images(ops, m, &img, &p, &mut |_| {})?;
+            upscale_images(ops, m, &img, &d, &p, &mut |_| {})?;
             Ok(1e3 * t.elapsed().as_secs_f64() / 4.0)
         };
         let (us, up) = (time_up(small)?, time_up(&paper)?);
@@ -319,4 +388,124 @@ pub fn speed_study(ops: &dyn Ops, small: &AnisoCb) -> Result<String> {
     }
     s.push_str(&format!("\n(device: {}, {} threads)\n", ops.name(), rayon::current_num_threads()));
     Ok(s)
+}
+
+/// Rows of vertices counted as the border band of the tables (the border and the next row).
+pub const BAND_ROWS: usize = 2;
+
+fn stem(p: &Path) -> String {
+    p.file_stem().unwrap_or_default().to_string_lossy().into_owned()
+}
+
+fn load_linear(path: &Path) -> Result<LinearUpsampler> {
+    LinearUpsampler::from_npz(&crate::io::read_npz(path)?, path)
+}
+
+/// One line of `invariance.md`.
+struct InvarianceRow {
+    run: String,
+    transform: &'static str,
+    /// max over frames and vertices of |out(T·lr) − T·out(lr)|, in LR mean edge lengths of the
+    /// transformed input.
+    max_dev_edges: f32,
+    /// vertex RMSE against T·HR, and the unmoved run's RMSE against HR (metres).
+    rmse_moved: f32,
+    rmse_unmoved: f32,
+}
+
+/// A per-frame similarity `p ↦ s·Q·p + d` as an [`Affine`].
+fn similarity(axis: [f64; 3], angle_rad: f64, s: f64, d: [f64; 3]) -> Affine {
+    let a = crate::geom::vec3::normalize_or(axis, [0.0, 1.0, 0.0]);
+    let (sn, c) = angle_rad.sin_cos();
+    let k = [[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]];
+    let m = std::array::from_fn(|r| {
+        std::array::from_fn(|q| {
+            let kk: f64 = (0..3).map(|i| k[r][i] * k[i][q]).sum();
+            s * ((r == q) as u8 as f64 + sn * k[r][q] + (1.0 - c) * kk)
+        })
+    });
+    Affine { m, t: d }
+}
+
+fn apply_mesh(t: &Affine, m: &GridMesh) -> GridMesh {
+    GridMesh::new(m.w, m.h, m.pos.iter().map(|p| t.point(p.map(|v| v as f64)).map(|v| v as f32)).collect())
+}
+
+/// Upscale the run moved, turned and scaled (each frame its own transform) and compare with the
+/// unmoved output transformed the same way.
+fn invariance_rows(
+    ops: &dyn Ops,
+    model: &AnisoCb,
+    run: &str,
+    lr: &[GridMesh],
+    ours: &[GridMesh],
+    hr: &[GridMesh],
+) -> Result<Vec<InvarianceRow>> {
+    let n = lr.len().max(2) as f64 - 1.0;
+    type PerFrame = Box<dyn Fn(f64) -> Affine>;
+    let transforms: [(&'static str, PerFrame); 3] = [
+        (
+            "falling 4 m (translation)",
+            Box::new(|t| similarity([0.0, 1.0, 0.0], 0.0, 1.0, [1.0, -4.0 * t * t, 2.0])),
+        ),
+        (
+            "turned 90°..150° about a tilted axis",
+            Box::new(|t| similarity([0.3, 1.0, 0.2], (90.0 + 60.0 * t).to_radians(), 1.0, [0.0; 3])),
+        ),
+        (
+            "scaled ×1.3..×1.7",
+            Box::new(|t| similarity([0.0, 1.0, 0.0], 0.0, 1.5 + 0.2 * (6.0 * t).sin(), [0.0; 3])),
+        ),
+    ];
+    let rmse_unmoved = sequence_metrics(ours, hr, None)?.mean.rmse;
+    let mut rows = Vec::new();
+    for (name, tf) in &transforms {
+        let ts: Vec<Affine> = (0..lr.len()).map(|k| tf(k as f64 / n)).collect();
+        let lr_t: Vec<GridMesh> = lr.iter().zip(&ts).map(|(m, t)| apply_mesh(t, m)).collect();
+        let dom = crate::geom::Domain::enclosing(&lr_t, 0.05);
+        let img = crate::geom::geometry_image::sequence_to_images(&lr_t, &dom);
+        let up = upscale_images(ops, model, &img, &dom, &UpscaleParams::default(), &mut |_| {})?;
+        let out = images_to_sequence(&up.hr, &dom);
+        let (mut dev, mut rmse) = (0.0f32, 0.0f64);
+        for k in 0..lr.len() {
+            let want = apply_mesh(&ts[k], &ours[k]);
+            let edge = crate::geom::cloth_frame::ClothFrame::of_mesh(&lr_t[k]).unit
+                / (lr_t[k].w.max(lr_t[k].h) - 1) as f64;
+            for (a, b) in out[k].pos.iter().zip(&want.pos) {
+                let d = crate::geom::vec3::norm(crate::geom::vec3::sub(*a, *b));
+                dev = dev.max((d as f64 / edge) as f32);
+            }
+            rmse += crate::eval::metrics::vertex_rmse(&out[k], &apply_mesh(&ts[k], &hr[k]))? as f64
+                / lr.len() as f64;
+        }
+        rows.push(InvarianceRow {
+            run: run.to_string(),
+            transform: name,
+            max_dev_edges: dev,
+            rmse_moved: rmse as f32,
+            rmse_unmoved,
+        });
+    }
+    Ok(rows)
+}
+
+fn invariance_markdown(rows: &[InvarianceRow]) -> String {
+    let mut s = String::from(
+        "# Moved, turned and scaled inputs\n\nEach held-out run's LR frames transformed (a different transform per frame) and \
+         upscaled; `max deviation` = largest distance between that output and the unmoved output transformed the same way, \
+         in LR edge lengths; RMSE against the transformed truth (scaled runs: in scaled metres).\n\n\
+         | run | transform | max deviation (LR edges) | RMSE moved (mm) | RMSE unmoved (mm) | ratio |\n|---|---|---:|---:|---:|---:|\n",
+    );
+    for r in rows {
+        s.push_str(&format!(
+            "| {} | {} | {:.2e} | {:.3} | {:.3} | {:.3} |\n",
+            r.run,
+            r.transform,
+            r.max_dev_edges,
+            1e3 * r.rmse_moved,
+            1e3 * r.rmse_unmoved,
+            r.rmse_moved / r.rmse_unmoved.max(f32::MIN_POSITIVE)
+        ));
+    }
+    s
 }

@@ -25,6 +25,11 @@ pub struct Args {
     /// Seed of the wind gusts.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
+    /// Randomise the scene with this seed (cloth size, material, wind, flapping, sphere size
+    /// and place, drape and twist speeds); 0 = the scenario as in the paper. Overrides
+    /// --material.
+    #[arg(long, default_value_t = 0)]
+    pub vary: u64,
     /// Material preset: silk, cotton, denim, rubber.
     #[arg(long, default_value = "cotton")]
     pub material: String,
@@ -71,6 +76,7 @@ pub fn spec_from_args(a: &Args) -> Result<ScenarioSpec> {
     }
     spec.frames = a.frames;
     spec.seed = a.seed;
+    spec.vary = a.vary;
     spec.material = Material::from_name(&a.material)?;
     spec.scale = a.scale;
     spec.tracking = a.tracking;

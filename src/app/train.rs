@@ -2,10 +2,11 @@
 
 use super::ui::{progress, save_png};
 use crate::error::Result;
+use crate::eval::linear::LinearUpsampler;
 use crate::nn::config::parse_padding;
 use crate::nn::{NetConfig, NetKind};
 use crate::ops::AdamParams;
-use crate::train::data::Dataset;
+use crate::train::data::{gather, interpolate_all, split, Dataset};
 use crate::train::trainer::{loss_plot, train, train_all, Event, TrainOptions};
 use std::path::PathBuf;
 
@@ -14,7 +15,9 @@ pub struct Args {
     /// Training set written by `anisocb dataset` (data.npz).
     #[arg(long)]
     pub data: PathBuf,
-    /// Which network: geometry, boundary, enhance, or all (one after another, into one bundle).
+    /// Which network: geometry, boundary, enhance, all (one after another, into one bundle),
+    /// or linear (the learned linear upsampler baseline of `anisocb eval --linear`: one ridge
+    /// regression, seconds).
     #[arg(long, default_value = "geometry")]
     pub net: String,
     /// Net size: small (C=32, 4 blocks; CPU), paper (C=64, 10 blocks) or tiny (tests).
@@ -51,6 +54,14 @@ pub struct Args {
     /// BCE weight of positive pixels for boundary/enhance (1 = plain BCE, calibrated maps).
     #[arg(long, default_value_t = 1.0)]
     pub pos_weight: f32,
+    /// GeometryNet: weight of the edge-vector term (error of every mesh edge vector, which
+    /// punishes swimming edge lengths and noisy normals) added to the position MSE; 0 = the
+    /// paper's loss alone.
+    #[arg(long, default_value_t = 1.0)]
+    pub edge_weight: f32,
+    /// Ridge strength λ of `--net linear` (relative to the features' mean variance).
+    #[arg(long, default_value_t = 1e-3)]
+    pub ridge: f64,
     /// Continue from OUT/checkpoint.npz, bit-identically to an uninterrupted run (same device).
     #[arg(long)]
     pub resume: bool,
@@ -64,6 +75,10 @@ pub fn run(a: Args) -> Result<()> {
     let which = if a.net == "all" { None } else { Some(NetKind::parse(&a.net)?) };
     let ops = crate::cuda::ops_for_device(&a.device)?;
     let data = Dataset::load(&a.data)?;
+    if a.net == "linear" {
+        return fit_linear(ops.as_ref(), &data, &a);
+    }
+    let config = config.with_input_frame(data.input_frame);
     let opts = TrainOptions {
         config,
         steps: a.steps,
@@ -75,6 +90,7 @@ pub fn run(a: Args) -> Result<()> {
         val_every: a.val_every,
         checkpoint_every: a.checkpoint_every,
         pos_weight: a.pos_weight,
+        edge_weight: a.edge_weight,
         resume: a.resume,
         out: a.out.clone(),
     };
@@ -153,5 +169,40 @@ pub fn run(a: Args) -> Result<()> {
         return Err(e);
     }
     println!("{summary}");
+    Ok(())
+}
+
+/// `--net linear`: fit [`LinearUpsampler`] on the training frames, report its validation MSE
+/// next to bicubic's, write `OUT/weights.npz`.
+fn fit_linear(ops: &dyn crate::ops::Ops, data: &Dataset, a: &Args) -> Result<()> {
+    let (train_idx, val_idx) = split(data.len(), a.val_frac)?;
+    let u = interpolate_all(ops, data);
+    let mut resid = data.hr.clone();
+    for (r, u) in resid.data.iter_mut().zip(&u.data) {
+        *r -= u;
+    }
+    let fit = LinearUpsampler::fit(
+        &gather(&data.lr, &train_idx),
+        &gather(&resid, &train_idx),
+        a.ridge,
+        data.input_frame,
+    )?;
+    if !val_idx.is_empty() {
+        let (uv, hv) = (gather(&u, &val_idx), gather(&data.hr, &val_idx));
+        let mut est = fit.residual(&gather(&data.lr, &val_idx))?;
+        for (e, u) in est.data.iter_mut().zip(&uv.data) {
+            *e += u;
+        }
+        eprintln!(
+            "linear: validation MSE {:.4e} (bicubic alone {:.4e}) on {} frames",
+            ops.mse(&est, &hv).0,
+            ops.mse(&uv, &hv).0,
+            val_idx.len()
+        );
+    }
+    crate::io::atomic::ensure_dir(&a.out)?;
+    let path = a.out.join("weights.npz");
+    crate::io::write_npz(&path, &fit.to_npz())?;
+    eprintln!("linear upsampler (λ = {}, {} input) → {}", a.ridge, data.input_frame.name(), path.display());
     Ok(())
 }

@@ -171,7 +171,9 @@ pub fn run(a: Args) -> Result<()> {
                 upscale_meshes(ops.as_ref(), &model, m, &input.domain, &params, &mut on_frames)?;
             (up, Some(meshes))
         }
-        LrFrames::Images(img) => (upscale_images(ops.as_ref(), &model, img, &params, &mut on_frames)?, None),
+        LrFrames::Images(img) => {
+            (upscale_images(ops.as_ref(), &model, img, &input.domain, &params, &mut on_frames)?, None)
+        }
     };
     let secs = start.elapsed().as_secs_f64();
     pb.finish_and_clear();

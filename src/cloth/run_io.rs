@@ -17,6 +17,7 @@
 use super::scenarios::ScenarioSpec;
 use crate::error::{Error, Result};
 use crate::geom::geometry_image::sequence_to_images;
+use crate::geom::obj::{list_obj_files, read_obj_sequence};
 use crate::geom::{Domain, GridMesh};
 use crate::io::json::{read_json, write_json, Layout, Object, Value};
 use crate::io::npy::read_geometry_images;
@@ -89,6 +90,16 @@ pub fn read_run_at(geometry: &Path) -> Result<Run> {
     Ok(Run { images, domain, meta })
 }
 
+/// A run directory, or a directory of OBJ frames (domain: bounding box + 5 % margin).
+fn read_run_or_obj(dir: &Path) -> Result<Run> {
+    if dir.join("geometry.npy").is_file() {
+        return read_run(dir);
+    }
+    let (frames, _) = read_obj_sequence(&list_obj_files(dir)?)?;
+    let domain = Domain::enclosing(&frames, 0.05);
+    Ok(Run { images: sequence_to_images(&frames, &domain), domain, meta: None })
+}
+
 /// One LR/HR run pair, loaded.
 #[derive(Clone, Debug)]
 pub struct RunPair {
@@ -105,11 +116,18 @@ pub struct RunPair {
     pub domain: Domain,
 }
 
+/// True if `d` holds a run: `geometry.npy`, or at least one `.obj` file (an exported sequence).
+fn holds_run(d: &Path) -> bool {
+    d.join("geometry.npy").is_file()
+        || std::fs::read_dir(d).is_ok_and(|mut it| {
+            it.any(|e| e.is_ok_and(|e| e.path().extension().is_some_and(|x| x.eq_ignore_ascii_case("obj"))))
+        })
+}
+
 /// The pair directory of `dir`: `dir` itself when it holds `lr/` and `hr/`, its parent when
 /// `dir` is one of them.
 pub fn pair_dir(dir: &Path) -> Result<PathBuf> {
-    let has =
-        |d: &Path| d.join("lr").join("geometry.npy").is_file() && d.join("hr").join("geometry.npy").is_file();
+    let has = |d: &Path| holds_run(&d.join("lr")) && holds_run(&d.join("hr"));
     if has(dir) {
         return Ok(dir.to_path_buf());
     }
@@ -123,7 +141,7 @@ pub fn pair_dir(dir: &Path) -> Result<PathBuf> {
     }
     Err(Error::format(
         dir,
-        "not a simulated run pair: expected lr/geometry.npy and hr/geometry.npy (from `anisocb simulate --pair`)",
+        "not a run pair: expected lr/ and hr/, each with geometry.npy (from `anisocb simulate --pair`) or an OBJ sequence (e.g. exported from Blender)",
     ))
 }
 
@@ -131,10 +149,14 @@ pub fn pair_dir(dir: &Path) -> Result<PathBuf> {
 /// domains differ (pairs not written by [`write_pair`]), the LR images are re-encoded into the
 /// HR domain (decode with the LR domain, encode with the HR one), so `lr`, `hr` and `domain`
 /// agree.
+///
+/// An `lr/` or `hr/` with OBJ files instead of `geometry.npy` is read as an OBJ sequence (frames
+/// in natural name order, grids recovered from connectivity); its domain is its bounding box
+/// plus the simulator's 5 % margin.
 pub fn read_pair(dir: &Path) -> Result<RunPair> {
     let pd = pair_dir(dir)?;
-    let Run { images: mut lr, domain: lr_dom, meta: lr_meta } = read_run(&pd.join("lr"))?;
-    let Run { images: hr, domain, meta: hr_meta } = read_run(&pd.join("hr"))?;
+    let Run { images: mut lr, domain: lr_dom, meta: lr_meta } = read_run_or_obj(&pd.join("lr"))?;
+    let Run { images: hr, domain, meta: hr_meta } = read_run_or_obj(&pd.join("hr"))?;
     let (tl, _, hl, wl) = lr.dims4();
     let (th, _, hh, wh) = hr.dims4();
     if tl != th {
@@ -197,6 +219,7 @@ pub fn meta_json(spec: &ScenarioSpec, role: &str, w: usize, h: usize, domain: &D
         .num("scale", spec.scale)
         .num("frames", spec.frames)
         .num("seed", spec.seed)
+        .num("vary", spec.vary)
         .val("rest_size_m", Value::reals(&[sx, sy]))
         .val("dt_s", Value::real(p.dt))
         .num("substeps", p.substeps)

@@ -110,7 +110,67 @@ pub struct ScenarioSpec {
     pub tracking: f32,
     /// Upscale factor of the HR run (vertices per side).
     pub scale: usize,
+    /// Seed of a randomised variant of the scene ([`Variation`]); 0 = the scenario as given.
+    pub vary: u64,
     pub params: SimParams,
+}
+
+/// A seeded variant of a scenario, so a model learns cloth rather than six clips: cloth size,
+/// material, wind, flapping, obstacle size and place, drape and twist speeds. Seed 0 is the
+/// identity (every factor 1, every offset 0, the spec's material).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Variation {
+    /// Cloth width factor (rest rectangle; the LR cells stay square).
+    pub width: f32,
+    /// Mean wind and gust strength factor.
+    pub wind: f32,
+    /// Flap amplitude factor (flag scenarios) and frequency factor.
+    pub flap: f32,
+    pub flap_freq: f32,
+    /// Sphere radius factor and centre offset (metres, x and z).
+    pub sphere_radius: f32,
+    pub sphere_offset: [f32; 2],
+    /// Drape: inward squeeze (fraction, default 0.3) and drop factor.
+    pub squeeze: f32,
+    pub drop: f32,
+    /// Twist: angular speed factor.
+    pub twist: f32,
+    /// Material (None = the spec's).
+    pub material: Option<Material>,
+}
+
+impl Variation {
+    pub const NONE: Variation = Variation {
+        width: 1.0,
+        wind: 1.0,
+        flap: 1.0,
+        flap_freq: 1.0,
+        sphere_radius: 1.0,
+        sphere_offset: [0.0; 2],
+        squeeze: 0.3,
+        drop: 1.0,
+        twist: 1.0,
+        material: None,
+    };
+
+    pub fn from_seed(seed: u64) -> Variation {
+        if seed == 0 {
+            return Variation::NONE;
+        }
+        let mut r = crate::rng::Rng::new(crate::rng::mix_seed(&[0x5CE7E, seed]));
+        Variation {
+            width: r.uniform_in(0.7, 1.4),
+            wind: r.uniform_in(0.4, 1.6),
+            flap: r.uniform_in(0.4, 1.6),
+            flap_freq: r.uniform_in(0.6, 1.5),
+            sphere_radius: r.uniform_in(0.7, 1.4),
+            sphere_offset: [r.uniform_in(-0.15, 0.15), r.uniform_in(-0.1, 0.1)],
+            squeeze: r.uniform_in(0.1, 0.4),
+            drop: r.uniform_in(0.6, 1.2),
+            twist: r.uniform_in(0.5, 1.5),
+            material: Some(Material::ALL[r.below(Material::ALL.len())]),
+        }
+    }
 }
 
 /// Default tracking strength (1/s²): attachment natural frequency ≈ 1.6 Hz, soft enough for
@@ -134,6 +194,7 @@ impl ScenarioSpec {
             material: Material::COTTON,
             tracking: DEFAULT_TRACKING,
             scale: 2,
+            vary: 0,
             params,
         }
     }
@@ -172,13 +233,14 @@ impl ScenarioSpec {
 
     /// Rest rectangle (width, height) in metres, fixed by the LR resolution.
     pub fn size(&self) -> (f32, f32) {
-        let wd = self.scenario.width();
+        let wd = self.scenario.width() * Variation::from_seed(self.vary).width;
         (wd, wd * (self.h - 1) as f32 / (self.w - 1) as f32)
     }
 
     /// Build the cloth and its scene at a `w × h` resolution over this spec's rest rectangle.
     pub fn setup(&self, w: usize, h: usize) -> (Cloth, Scene) {
         let (sx, sy) = self.size();
+        let var = Variation::from_seed(self.vary);
         let uv: Vec<(f32, f32)> = (0..h).flat_map(|j| (0..w).map(move |i| rest_uv(i, j, w, h))).collect();
         let corner = |i: usize, j: usize| (i == 0 || i + 1 == w) && (j == 0 || j + 1 == h);
         let calm = Wind::none();
@@ -188,11 +250,20 @@ impl ScenarioSpec {
                     // Vertical in the xy plane, top row pinned at y = 1.5 m; wind blows +z.
                     let pos = uv.iter().map(|&(u, v)| [(u - 0.5) * sx, 1.5 - v * sy, 0.0]).collect();
                     let pins = (0..w).map(|i| (i, 0.0)).collect();
-                    let kin = Kinematics::Flap { amplitude: 0.25, freq: 0.6, dir: [0.0, 0.0, 1.0] };
-                    let wind = Wind::gusty([0.5, 0.0, 1.8], 1.2, 4, self.seed);
+                    let kin = Kinematics::Flap {
+                        amplitude: 0.25 * var.flap,
+                        freq: 0.6 * var.flap_freq,
+                        dir: [0.0, 0.0, 1.0],
+                    };
+                    let wind =
+                        Wind::gusty([0.5 * var.wind, 0.0, 1.8 * var.wind], 1.2 * var.wind, 4, self.seed);
                     let col = if self.scenario == Scenario::FlagSphere {
+                        let [ox, oz] = var.sphere_offset;
                         Colliders {
-                            sphere: Some(Sphere { center: [0.1, 1.5 - 0.75 * sy, 0.45], radius: 0.25 }),
+                            sphere: Some(Sphere {
+                                center: [0.1 + ox, 1.5 - 0.75 * sy, 0.45 + oz],
+                                radius: 0.25 * var.sphere_radius,
+                            }),
                             ground: None,
                         }
                     } else {
@@ -207,9 +278,11 @@ impl ScenarioSpec {
                     let pins =
                         (0..h).flat_map(|j| (0..w).map(move |i| (i, j))).filter(|&(i, j)| corner(i, j));
                     let pins = pins.map(|(i, j)| (j * w + i, 0.0)).collect();
-                    let kin = Kinematics::Drape { squeeze: 0.3, drop: 0.45, ramp: 2.0 };
+                    let kin = Kinematics::Drape { squeeze: var.squeeze, drop: 0.45 * var.drop, ramp: 2.0 };
+                    let [ox, oz] = var.sphere_offset;
+                    let radius = 0.3 * var.sphere_radius;
                     let col = Colliders {
-                        sphere: Some(Sphere { center: [0.0, 0.45, 0.0], radius: 0.3 }),
+                        sphere: Some(Sphere { center: [ox, 0.75 - radius, oz], radius }),
                         ground: Some(0.0),
                     };
                     (pos, pins, kin, calm, col)
@@ -222,7 +295,7 @@ impl ScenarioSpec {
                     let kin = Kinematics::Twist {
                         center_y: 1.0,
                         center_z: 0.0,
-                        omega: 0.5,
+                        omega: 0.5 * var.twist,
                         inward_speed: 0.03,
                         max_inward: 0.06 * sx,
                     };
@@ -232,7 +305,7 @@ impl ScenarioSpec {
         let rest = GridMesh::new(w, h, pos);
         let pins: Vec<Pin> =
             pins_of.iter().map(|&(v, side)| Pin { vertex: v, anchor: rest.pos[v], side }).collect();
-        let base = self.material;
+        let base = var.material.unwrap_or(self.material);
         let banded = self.scenario == Scenario::TwistMaterials;
         let material = move |v: usize| {
             if banded {

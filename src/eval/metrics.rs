@@ -41,7 +41,13 @@ pub fn vertex_rmse(pred: &GridMesh, gt: &GridMesh) -> Result<f32> {
 
 /// The topological border of a `w × h` grid as a vertex mask (index `j·w + i`).
 pub fn border_mask(w: usize, h: usize) -> Vec<bool> {
-    (0..w * h).map(|v| v % w == 0 || v / w == 0 || v % w + 1 == w || v / w + 1 == h).collect()
+    border_band(w, h, 1)
+}
+
+/// Vertices within `rows` rows (or columns) of the grid's border: `rows = 1` is the border
+/// itself ([`border_mask`]), 2 adds the next ring, where shrinkage and fold errors show first.
+pub fn border_band(w: usize, h: usize, rows: usize) -> Vec<bool> {
+    (0..w * h).map(|v| v % w < rows || v / w < rows || w - v % w <= rows || h - v / w <= rows).collect()
 }
 
 /// A boundary map ((H, W), (1, H, W) or (1, 1, H, W), pixel (j, i) = vertex (i, j), e.g. the
@@ -309,6 +315,72 @@ pub fn flicker(pred: &[GridMesh], gt: &[GridMesh]) -> Result<(Vec<f32>, f32)> {
     Ok((steps, overall))
 }
 
+/// Lengths of the grid's row and column edges (row edges first, then column edges).
+fn grid_edge_lengths(m: &GridMesh) -> Vec<f64> {
+    let (w, h) = (m.w, m.h);
+    let len = |a: usize, b: usize| {
+        let d: [f64; 3] = std::array::from_fn(|k| m.pos[a][k] as f64 - m.pos[b][k] as f64);
+        (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt()
+    };
+    let mut out = Vec::with_capacity(2 * w * h);
+    for j in 0..h {
+        for i in 0..w.saturating_sub(1) {
+            out.push(len(j * w + i + 1, j * w + i));
+        }
+    }
+    for j in 0..h.saturating_sub(1) {
+        for i in 0..w {
+            out.push(len((j + 1) * w + i, j * w + i));
+        }
+    }
+    out
+}
+
+/// STED (Vasa & Skala 2011), on the grid's row and column edges, as two dimensionless numbers.
+/// Spatial: per frame, the standard deviation over edges of the relative edge-length
+/// deviation `(l_pred − l_gt)/l_gt` (a uniform scale costs nothing; uneven stretching, the
+/// "swimming" a texture shows, does), averaged over frames. Temporal: with per-step relative
+/// edge-length changes `δ = (l_{t+1} − l_t)/l_gt,t`, `√(mean over steps and edges of
+/// (δ_pred − δ_gt)²)`: edges that lengthen and shorten from frame to frame where the truth's
+/// do not (flicker of the surface itself, independent of where it is). Degenerate truth
+/// edges (length ≤ 1e-9 m) are skipped.
+pub fn sted(pred: &[GridMesh], gt: &[GridMesh]) -> Result<(f32, f32)> {
+    if pred.len() != gt.len() || pred.is_empty() {
+        return Err(Error::shape(format!(
+            "sted: {} predicted frames vs {} ground truth",
+            pred.len(),
+            gt.len()
+        )));
+    }
+    for (p, g) in pred.iter().zip(gt) {
+        same_grid(p, g)?;
+    }
+    let lp: Vec<Vec<f64>> = pred.iter().map(grid_edge_lengths).collect();
+    let lg: Vec<Vec<f64>> = gt.iter().map(grid_edge_lengths).collect();
+    let mut spatial = 0.0f64;
+    for (a, b) in lp.iter().zip(&lg) {
+        let dev: Vec<f64> = a.iter().zip(b).filter(|(_, g)| **g > 1e-9).map(|(p, g)| (p - g) / g).collect();
+        let n = dev.len().max(1) as f64;
+        let mean = dev.iter().sum::<f64>() / n;
+        spatial += (dev.iter().map(|d| (d - mean).powi(2)).sum::<f64>() / n).sqrt();
+    }
+    spatial /= pred.len() as f64;
+    let (mut s, mut n) = (0.0f64, 0usize);
+    for t in 0..pred.len() - 1 {
+        for e in 0..lg[t].len() {
+            let g = lg[t][e];
+            if g > 1e-9 {
+                let dp = (lp[t + 1][e] - lp[t][e]) / g;
+                let dg = (lg[t + 1][e] - lg[t][e]) / g;
+                s += (dp - dg).powi(2);
+                n += 1;
+            }
+        }
+    }
+    let temporal = if n == 0 { 0.0 } else { (s / n as f64).sqrt() };
+    Ok((spatial as f32, temporal as f32))
+}
+
 /// The per-frame metrics of one predicted frame against its ground truth.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct FrameMetrics {
@@ -401,6 +473,9 @@ pub struct SequenceMetrics {
     /// [`flicker`] per step (T − 1 values) and overall, metres per frame.
     pub flicker_per_step: Vec<f32>,
     pub flicker: f32,
+    /// [`sted`]: spatial and temporal edge-length distortion (dimensionless).
+    pub sted_spatial: f32,
+    pub sted_temporal: f32,
 }
 
 impl SequenceMetrics {
@@ -419,6 +494,8 @@ impl SequenceMetrics {
             .val("mean", self.mean.to_value())
             .val("worst", self.worst.to_value())
             .val("flicker", Value::finite(self.flicker))
+            .val("sted_spatial", Value::finite(self.sted_spatial))
+            .val("sted_temporal", Value::finite(self.sted_temporal))
             .val("per_frame", Value::Arr(self.per_frame.iter().map(FrameMetrics::to_value).collect()))
             .val(
                 "flicker_per_step",
@@ -475,11 +552,14 @@ pub fn sequence_metrics(
         }
     }
     let (flicker_per_step, flicker) = flicker(pred, gt)?;
+    let (sted_spatial, sted_temporal) = sted(pred, gt)?;
     Ok(SequenceMetrics {
         per_frame,
         mean: FrameMetrics::from_values(mean.map(|v| v as f32)),
         worst: FrameMetrics::from_values(worst),
         flicker_per_step,
         flicker,
+        sted_spatial,
+        sted_temporal,
     })
 }

@@ -15,5 +15,6 @@
 //! ```
 
 pub mod baseline;
+pub mod linear;
 pub mod metrics;
 pub mod report;

@@ -14,11 +14,13 @@ pub enum Column {
     NormalAngle,
     CurvatureErr,
     Flicker,
+    StedSpatial,
+    StedTemporal,
 }
 
 impl Column {
     /// Every column (the `eval` table).
-    pub const ALL: [Column; 8] = [
+    pub const ALL: [Column; 10] = [
         Column::Rmse,
         Column::BoundaryRmse,
         Column::Hausdorff,
@@ -27,6 +29,8 @@ impl Column {
         Column::NormalAngle,
         Column::CurvatureErr,
         Column::Flicker,
+        Column::StedSpatial,
+        Column::StedTemporal,
     ];
 
     pub fn header(self) -> &'static str {
@@ -39,6 +43,8 @@ impl Column {
             Column::NormalAngle => "normal angle (°)",
             Column::CurvatureErr => "mean-curvature err (1/m)",
             Column::Flicker => "flicker (mm/frame)",
+            Column::StedSpatial => "STED spatial (%)",
+            Column::StedTemporal => "STED temporal (%)",
         }
     }
 
@@ -54,6 +60,8 @@ impl Column {
             Column::NormalAngle => format!("{:.2}", f.normal_angle_deg),
             Column::CurvatureErr => format!("{:.3}", f.curvature_err),
             Column::Flicker => format!("{:.3}", 1e3 * m.flicker),
+            Column::StedSpatial => format!("{:.3}", 100.0 * m.sted_spatial),
+            Column::StedTemporal => format!("{:.3}", 100.0 * m.sted_temporal),
         }
     }
 }

@@ -38,6 +38,18 @@ pub fn sub<T: Real>(a: [T; 3], b: [T; 3]) -> [T; 3] {
     [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
 }
 
+/// `a + b`
+#[inline]
+pub fn add<T: Real>(a: [T; 3], b: [T; 3]) -> [T; 3] {
+    [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
+}
+
+/// `s·a`
+#[inline]
+pub fn scale<T: Real>(a: [T; 3], s: T) -> [T; 3] {
+    [a[0] * s, a[1] * s, a[2] * s]
+}
+
 /// `a · b`
 #[inline]
 pub fn dot<T: Real>(a: [T; 3], b: [T; 3]) -> T {

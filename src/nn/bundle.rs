@@ -5,6 +5,7 @@ use super::config::{NetConfig, NetKind};
 use super::geometry_net::{check_input, GeometryNet};
 use super::layers::Trunk;
 use crate::error::{Error, Result};
+use crate::geom::cloth_frame::InputFrame;
 use crate::ops::Ops;
 use crate::tensor::Tensor;
 
@@ -51,6 +52,13 @@ impl AnisoCb {
         if geometry.config.scale != boundary.config.scale || geometry.config.scale != enhance.config.scale {
             return Err(Error::config("the three nets have different upscale factors"));
         }
+        let frames = [&geometry, &boundary, &enhance].map(|t| t.config.input_frame.name());
+        if frames[1..].iter().any(|f| *f != frames[0]) {
+            return Err(Error::config(format!(
+                "the three nets were trained in different input frames (geometry, boundary, enhance: {})",
+                frames.join(", ")
+            )));
+        }
         Ok(AnisoCb {
             geometry: GeometryNet { trunk: geometry },
             boundary: MapNet { trunk: boundary },
@@ -60,6 +68,11 @@ impl AnisoCb {
 
     pub fn scale(&self) -> usize {
         self.geometry.trunk.config.scale
+    }
+
+    /// The coordinates the nets expect their input in (shared by all three).
+    pub fn input_frame(&self) -> InputFrame {
+        self.geometry.trunk.config.input_frame
     }
 
     pub fn trunks(&self) -> [&Trunk; 3] {

@@ -10,6 +10,7 @@
 //! option (`with_padding`).
 
 use crate::error::{Error, Result};
+use crate::geom::cloth_frame::InputFrame;
 use crate::io::json::Object;
 use crate::ops::Padding;
 
@@ -67,6 +68,10 @@ pub struct NetConfig {
     pub scale: usize,
     /// How every 3×3 conv reads outside the image.
     pub padding: Padding,
+    /// The coordinates the net's input (and GeometryNet's residual) are in: the paper's
+    /// sequence box, or the per-frame cloth frame (`geom::cloth_frame`). `config.json` key
+    /// `input`; a file without it is a `domain` net (every model before the cloth frame).
+    pub input_frame: InputFrame,
 }
 
 /// Input channels of every net (x, y, z of the geometry image).
@@ -79,15 +84,33 @@ pub const KERNEL: usize = 3;
 impl NetConfig {
     /// The paper's model: C = 64, 10 blocks, ×2.
     pub fn paper() -> Self {
-        NetConfig { channels: 64, blocks: 10, scale: 2, padding: Padding::Zero }
+        NetConfig {
+            channels: 64,
+            blocks: 10,
+            scale: 2,
+            padding: Padding::Zero,
+            input_frame: InputFrame::Domain,
+        }
     }
     /// The CPU preset: C = 32, 4 blocks, ×2.
     pub fn small() -> Self {
-        NetConfig { channels: 32, blocks: 4, scale: 2, padding: Padding::Zero }
+        NetConfig {
+            channels: 32,
+            blocks: 4,
+            scale: 2,
+            padding: Padding::Zero,
+            input_frame: InputFrame::Domain,
+        }
     }
     /// For tests and fixtures: C = 4, 2 blocks, ×2.
     pub fn tiny() -> Self {
-        NetConfig { channels: 4, blocks: 2, scale: 2, padding: Padding::Zero }
+        NetConfig {
+            channels: 4,
+            blocks: 2,
+            scale: 2,
+            padding: Padding::Zero,
+            input_frame: InputFrame::Domain,
+        }
     }
 
     pub fn preset(name: &str) -> Result<Self> {
@@ -101,6 +124,11 @@ impl NetConfig {
 
     pub fn with_padding(mut self, padding: Padding) -> Self {
         self.padding = padding;
+        self
+    }
+
+    pub fn with_input_frame(mut self, input_frame: InputFrame) -> Self {
+        self.input_frame = input_frame;
         self
     }
 
@@ -137,6 +165,7 @@ impl NetConfig {
             .num("out_channels", kind.out_channels())
             .num("tail_convs", TAIL_CONVS)
             .num("kernel", KERNEL)
+            .str("input", self.input_frame.name())
             .to_json()
     }
 
@@ -164,7 +193,18 @@ impl NetConfig {
                 }
             }
         }
-        let cfg = NetConfig { channels: n("channels")?, blocks: n("blocks")?, scale: n("scale")?, padding };
+        let input_frame = match o.get("input") {
+            None => InputFrame::Domain,
+            Some(v) => InputFrame::parse(v.as_str().ok_or("config.json: 'input' must be a string")?)
+                .map_err(|e| format!("config.json: {e}"))?,
+        };
+        let cfg = NetConfig {
+            channels: n("channels")?,
+            blocks: n("blocks")?,
+            scale: n("scale")?,
+            padding,
+            input_frame,
+        };
         cfg.validate().map_err(|e| e.to_string())?;
         Ok((kind, cfg))
     }
@@ -181,6 +221,7 @@ impl NetConfig {
         f("blocks", self.blocks.to_string(), other.blocks.to_string());
         f("scale", self.scale.to_string(), other.scale.to_string());
         f("padding", padding_name(self.padding).into(), padding_name(other.padding).into());
+        f("input", self.input_frame.name().into(), other.input_frame.name().into());
         d
     }
 }
@@ -189,11 +230,12 @@ impl std::fmt::Display for NetConfig {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         write!(
             f,
-            "C={}, {} blocks, x{}, {} padding",
+            "C={}, {} blocks, x{}, {} padding, {} input",
             self.channels,
             self.blocks,
             self.scale,
-            padding_name(self.padding)
+            padding_name(self.padding),
+            self.input_frame.name()
         )
     }
 }
@@ -221,6 +263,8 @@ mod tests {
     fn config_json_round_trips_and_diff_names_fields() {
         for kind in NetKind::ALL {
             let c = NetConfig::small().with_padding(Padding::Replicate);
+            assert_eq!(NetConfig::from_json(&c.to_json(kind)).unwrap(), (kind, c));
+            let c = c.with_input_frame(InputFrame::Cloth);
             assert_eq!(NetConfig::from_json(&c.to_json(kind)).unwrap(), (kind, c));
         }
         let d = NetConfig::small().diff(&NetConfig::paper());

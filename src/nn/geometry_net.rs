@@ -5,6 +5,7 @@
 use super::config::{NetConfig, NetKind, IN_CHANNELS};
 use super::layers::Trunk;
 use crate::error::{Error, Result};
+use crate::ops::loss::edge_mse;
 use crate::ops::{Interp, Ops};
 use crate::tensor::Tensor;
 
@@ -71,17 +72,35 @@ impl GeometryNet {
         hr: &Tensor,
         grads: Option<&mut Trunk>,
     ) -> Result<f32> {
-        geometry_loss(ops, &self.trunk, lr, u, hr, grads)
+        geometry_loss(ops, &self.trunk, lr, u, hr, 0.0, grads)
     }
 }
 
+/// The loss of an HR estimate `est = U + R` against `hr`, and its gradient w.r.t. `est` (= the
+/// gradient w.r.t. R): `mse + edge_weight · edge_mse`.
+pub fn estimate_loss(ops: &dyn Ops, est: &Tensor, hr: &Tensor, edge_weight: f32) -> (f32, Tensor) {
+    let (mut loss, mut grad) = ops.mse(est, hr);
+    if edge_weight != 0.0 {
+        let (le, ge) = edge_mse(est, hr);
+        loss += edge_weight * le;
+        for (d, e) in grad.data.iter_mut().zip(&ge.data) {
+            *d += edge_weight * e;
+        }
+    }
+    (loss, grad)
+}
+
 /// [`GeometryNet::loss`] on a bare trunk (of kind Geometry).
+///
+/// `edge_weight` adds `edge_weight · edge_mse(U + R, HR)` ([`crate::ops::loss::edge_mse`],
+/// computed on the host whatever the op table) to the paper's MSE (Eq 3); 0 = Eq 3 alone.
 pub fn geometry_loss(
     ops: &dyn Ops,
     trunk: &Trunk,
     lr: &Tensor,
     u: &Tensor,
     hr: &Tensor,
+    edge_weight: f32,
     grads: Option<&mut Trunk>,
 ) -> Result<f32> {
     let r = trunk.config.scale;
@@ -91,12 +110,12 @@ pub fn geometry_loss(
         None => {
             let mut est = trunk.forward(ops, lr);
             ops.add_assign(&mut est, u);
-            ops.mse(&est, hr).0
+            estimate_loss(ops, &est, hr, edge_weight).0
         }
         Some(g) => {
             let (mut est, tape) = trunk.forward_train(ops, lr);
             ops.add_assign(&mut est, u);
-            let (loss, d_est) = ops.mse(&est, hr);
+            let (loss, d_est) = estimate_loss(ops, &est, hr, edge_weight);
             drop(est);
             // d(U + R)/dR = identity; U is not trained.
             trunk.backward(ops, &tape, &d_est, g);

@@ -1,10 +1,14 @@
-//! The upscale pipeline: LR geometry images → the three nets → Eq 12 → HR geometry images →
-//! HR meshes (Eq 2, with the input's domain).
+//! The upscale pipeline: LR geometry images → the nets' input frame → the three nets → Eq 12
+//! → back to the geometry image's domain → HR meshes (Eq 2, with the input's domain).
 //!
-//! lr: (T, 3, H, W) → hr: (T, 3, rH, rW), maps (T, 1, rH, rW).
+//! lr: (T, 3, H, W) → hr: (T, 3, rH, rW), maps (T, 1, rH, rW). Inputs and outputs are geometry
+//! images in the sequence's domain (Eq 1, the format on disk); a model trained in the cloth
+//! frame ([`InputFrame::Cloth`]) gets each frame re-expressed in its own frame first, and its
+//! output mapped back, so the result moves, turns and scales with the input frame by frame.
 
 use super::compose::compose;
 use crate::error::{Error, Result};
+use crate::geom::cloth_frame::{Affine, InputFrame};
 use crate::geom::geometry_image::{images_to_sequence, sequence_to_images};
 use crate::geom::{Domain, GridMesh};
 use crate::io::npz::npz_from_bytes;
@@ -65,12 +69,13 @@ impl Upscaled {
     }
 }
 
-/// Upscale LR geometry images. `on_frames(k)` is called after each batch with the number of
-/// frames done so far.
+/// Upscale LR geometry images in `domain` (the box they were encoded with, Eq 1). `on_frames(k)`
+/// is called after each batch with the number of frames done so far.
 pub fn upscale_images(
     ops: &dyn Ops,
     model: &AnisoCb,
     lr: &Tensor,
+    domain: &Domain,
     params: &UpscaleParams,
     on_frames: &mut dyn FnMut(usize),
 ) -> Result<Upscaled> {
@@ -88,6 +93,7 @@ pub fn upscale_images(
     if params.batch == 0 {
         return Err(Error::config("batch must be ≥ 1"));
     }
+    domain.validate()?;
     let r = model.scale();
     let (hh, hw) = (r * h, r * w);
     let mut out = Upscaled {
@@ -101,11 +107,25 @@ pub fn upscale_images(
     let mut done = 0;
     while done < t {
         let n = params.batch.min(t - done);
-        let mut o = model.forward(ops, &lr.slice_batch(done, n))?;
+        let maps: Vec<(Affine, Affine)> =
+            (done..done + n).map(|f| model.input_frame().image_maps(lr, f, domain)).collect();
+        let mut x = lr.slice_batch(done, n);
+        for (img, m) in x.data.chunks_exact_mut(3 * h * w).zip(&maps) {
+            m.0.apply_image(img, true);
+        }
+        let mut o = model.forward(ops, &x)?;
         if params.pin_border {
             set_border(&mut o.boundary, 1.0);
         }
-        let g = compose(&o.u, &o.r, Some(&o.boundary), Some(&o.enhance), params.eta)?;
+        let mut g = compose(&o.u, &o.r, Some(&o.boundary), Some(&o.enhance), params.eta)?;
+        if model.input_frame() != InputFrame::Domain {
+            for (k, m) in maps.iter().enumerate() {
+                let at = k * px3..(k + 1) * px3;
+                m.1.apply_image(&mut g.data[at.clone()], true);
+                m.1.apply_image(&mut o.u.data[at.clone()], true);
+                m.1.apply_image(&mut o.r.data[at], false);
+            }
+        }
         out.hr.data[done * px3..(done + n) * px3].copy_from_slice(&g.data);
         out.interpolated.data[done * px3..(done + n) * px3].copy_from_slice(&o.u.data);
         out.residual.data[done * px3..(done + n) * px3].copy_from_slice(&o.r.data);
@@ -138,7 +158,7 @@ pub fn upscale_meshes(
         return Err(Error::shape("no frames to upscale"));
     }
     let lr = sequence_to_images(frames, domain);
-    let up = upscale_images(ops, model, &lr, params, on_frames)?;
+    let up = upscale_images(ops, model, &lr, domain, params, on_frames)?;
     let meshes = images_to_sequence(&up.hr, domain);
     Ok((meshes, up))
 }

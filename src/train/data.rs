@@ -10,6 +10,8 @@
 //! uninterrupted run would, with nothing but `(seed, s)` saved.
 
 use crate::error::{Error, Result};
+use crate::geom::cloth_frame::InputFrame;
+use crate::io::json::Value;
 use crate::io::read_npz;
 use crate::nn::geometry_net::interpolate;
 use crate::nn::NetKind;
@@ -31,6 +33,9 @@ pub struct Dataset {
     pub edges: Tensor,
     /// Upscale factor r (from the shapes).
     pub scale: usize,
+    /// The coordinates `lr` and `hr` are in (`params.json` key `input_frame`; a set without
+    /// it was built in the paper's domain).
+    pub input_frame: InputFrame,
 }
 
 impl Dataset {
@@ -38,7 +43,17 @@ impl Dataset {
     pub fn load(path: &Path) -> Result<Dataset> {
         let e = read_npz(path)?;
         let get = |n: &str| e.require(path, n).cloned();
-        Dataset::new(get("lr")?, get("hr")?, get("boundary")?, get("edges")?).map_err(|e| e.in_file(path))
+        let mut d = Dataset::new(get("lr")?, get("hr")?, get("boundary")?, get("edges")?)
+            .map_err(|e| e.in_file(path))?;
+        if let Some(bytes) = e.file("params.json") {
+            let text =
+                std::str::from_utf8(bytes).map_err(|_| Error::format(path, "params.json is not UTF-8"))?;
+            let v = Value::parse(text).map_err(|m| Error::format(path, format!("params.json: {m}")))?;
+            if let Some(f) = v.get("input_frame").and_then(Value::as_str) {
+                d.input_frame = InputFrame::parse(f).map_err(|e| e.in_file(path))?;
+            }
+        }
+        Ok(d)
     }
 
     /// Check shapes (`hr` is r× `lr`, maps have one channel) and values (finite).
@@ -69,7 +84,7 @@ impl Dataset {
                 return Err(Error::numeric(format!("{name}: non-finite value {v} at index {i}")));
             }
         }
-        Ok(Dataset { lr, hr, boundary, edges, scale })
+        Ok(Dataset { lr, hr, boundary, edges, scale, input_frame: InputFrame::Domain })
     }
 
     pub fn len(&self) -> usize {

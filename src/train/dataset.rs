@@ -8,15 +8,20 @@
 //!
 //! Output (`data.npz`, a stored zip readable by `numpy.load`), N frames over all runs in
 //! command-line order, frame order inside a run:
-//! - `lr` (N, 3, H, W) f32 — LR geometry images, expressed in the HR run's domain;
-//! - `hr` (N, 3, sH, sW) f32 — HR geometry images (s = upscale factor, 2 by default);
+//! - `lr` (N, 3, H, W) f32 — LR frames in the nets' input coordinates: the HR run's domain
+//!   (Eq 1, `input_frame = domain`) or each frame's own cloth frame estimated from its LR
+//!   frame (`input_frame = cloth-frame`, [`crate::geom::cloth_frame`]);
+//! - `hr` (N, 3, sH, sW) f32 — HR frames in the same per-frame coordinates as `lr`
+//!   (s = upscale factor, 2 by default);
 //! - `boundary` (N, 1, sH, sW) in {0, 1} — anisotropic-kernel boundary map of the HR mesh
 //!   decoded from the HR image (Eq 2) with its domain; `d` = longest edge of that run's HR
 //!   frame 0;
-//! - `edges` (N, 1, sH, sW) in {0, 1} — per-channel Canny of the HR image, OR-combined;
+//! - `edges` (N, 1, sH, sW) in {0, 1} — per-channel Canny of the HR image (in the nets'
+//!   coordinates, so a cloth-frame map does not depend on where the cloth is), OR-combined;
 //! - `domain` (N, 2, 3) f32 — [bmin; bmax] of the frame (HR domain);
 //! - `frames.json` — per frame `{"run", "scenario", "seed", "frame"}`;
-//! - `params.json` — γ, λ, radius factor, Canny σ/low/high, upscale factor, held-out names.
+//! - `params.json` — γ, λ, radius factor, Canny σ/low/high, upscale factor, input frame,
+//!   held-out names.
 //!
 //! If a run's LR and HR domains differ, `read_pair` has re-encoded the LR images into the HR
 //! domain, so that `lr`, `hr` and `domain` agree.
@@ -24,6 +29,7 @@
 use crate::cloth::run_io::RunPair;
 use crate::error::{Error, Result};
 use crate::geom::anisotropy::{boundary_map, BoundaryParams};
+use crate::geom::cloth_frame::InputFrame;
 use crate::geom::geometry_image::image_to_mesh;
 use crate::geom::Domain;
 use crate::imgproc::{enhance_map, CannyParams};
@@ -64,19 +70,33 @@ pub struct FrameMaps {
 }
 
 /// Both maps for frame `f` of an HR sequence `hr` (T, 3, H, W) in `domain`; `rest_edge` = d.
+/// `net_img` is the same HR frame (3, H, W) in the nets' coordinates (Canny runs on it).
 pub fn frame_maps(
     hr: &Tensor,
     f: usize,
     domain: &Domain,
+    net_img: &[f32],
     rest_edge: f32,
     p: &MapParams,
 ) -> Result<FrameMaps> {
     let (_, c, h, w) = hr.dims4();
     let mesh = image_to_mesh(hr, f, domain);
     let boundary = boundary_map(&mesh, rest_edge, &p.boundary)?.to_image();
-    let img = Tensor { shape: vec![c, h, w], data: hr.data[f * c * h * w..(f + 1) * c * h * w].to_vec() };
+    let img = Tensor { shape: vec![c, h, w], data: net_img.to_vec() };
     let edges = enhance_map(&img, &p.canny)?;
     Ok(FrameMaps { boundary, edges })
+}
+
+/// Frame `f` of a run pair in the nets' coordinates: (LR (3, H, W), HR (3, sH, sW)), both
+/// mapped by the transform estimated from the LR frame.
+pub fn frame_in(run: &RunPair, f: usize, frame: InputFrame) -> (Vec<f32>, Vec<f32>) {
+    let (lrs, hrs) = (run.lr.len() / run.lr.shape[0], run.hr.len() / run.hr.shape[0]);
+    let (to_net, _) = frame.image_maps(&run.lr, f, &run.domain);
+    let mut lr = run.lr.data[f * lrs..(f + 1) * lrs].to_vec();
+    let mut hr = run.hr.data[f * hrs..(f + 1) * hrs].to_vec();
+    to_net.apply_image(&mut lr, true);
+    to_net.apply_image(&mut hr, true);
+    (lr, hr)
 }
 
 /// One entry of `frames.json`.
@@ -97,6 +117,8 @@ pub struct Dataset {
     pub domain: Tensor,
     pub frames: Vec<FrameInfo>,
     pub params: MapParams,
+    /// The coordinates `lr` and `hr` are in.
+    pub input_frame: InputFrame,
     pub upscale: usize,
     pub holdout: Vec<String>,
 }
@@ -107,6 +129,7 @@ pub struct Dataset {
 pub fn build(
     runs: &[RunPair],
     p: &MapParams,
+    input_frame: InputFrame,
     holdout: &[String],
     tick: &(dyn Fn() + Sync),
 ) -> Result<Dataset> {
@@ -129,13 +152,14 @@ pub fn build(
     let rest: Vec<f32> = runs.iter().map(|r| image_to_mesh(&r.hr, 0, &r.domain).longest_edge()).collect();
     let jobs: Vec<(usize, usize)> =
         runs.iter().enumerate().flat_map(|(k, r)| (0..r.hr.shape[0]).map(move |f| (k, f))).collect();
-    let maps: Vec<FrameMaps> = jobs
+    let maps: Vec<(Vec<f32>, Vec<f32>, FrameMaps)> = jobs
         .par_iter()
         .map(|&(k, f)| {
-            let m = frame_maps(&runs[k].hr, f, &runs[k].domain, rest[k], p)
+            let (lr, hr) = frame_in(&runs[k], f, input_frame);
+            let m = frame_maps(&runs[k].hr, f, &runs[k].domain, &hr, rest[k], p)
                 .map_err(|e| Error::numeric(format!("run {} frame {f}: {e}", runs[k].name)))?;
             tick();
-            Ok(m)
+            Ok((lr, hr, m))
         })
         .collect::<Result<_>>()?;
     let n = jobs.len();
@@ -148,13 +172,14 @@ pub fn build(
         domain: Tensor::zeros(&[n, 2, 3]),
         frames: Vec::with_capacity(n),
         params: *p,
+        input_frame,
         upscale: hh / hl,
         holdout: holdout.to_vec(),
     };
-    for (i, (&(k, f), m)) in jobs.iter().zip(&maps).enumerate() {
+    for (i, (&(k, f), (lr, hr, m))) in jobs.iter().zip(&maps).enumerate() {
         let r = &runs[k];
-        ds.lr.data[i * lrs..(i + 1) * lrs].copy_from_slice(&r.lr.data[f * lrs..(f + 1) * lrs]);
-        ds.hr.data[i * hrs..(i + 1) * hrs].copy_from_slice(&r.hr.data[f * hrs..(f + 1) * hrs]);
+        ds.lr.data[i * lrs..(i + 1) * lrs].copy_from_slice(lr);
+        ds.hr.data[i * hrs..(i + 1) * hrs].copy_from_slice(hr);
         ds.boundary.data[i * hh * wh..(i + 1) * hh * wh].copy_from_slice(&m.boundary.data);
         ds.edges.data[i * hh * wh..(i + 1) * hh * wh].copy_from_slice(&m.edges.data);
         ds.domain.data[i * 6..(i + 1) * 6].copy_from_slice(&r.domain.to_tensor().data);
@@ -228,6 +253,7 @@ impl Dataset {
             .num("canny_low", c.low)
             .num("canny_high", c.high)
             .num("upscale", self.upscale)
+            .str("input_frame", self.input_frame.name())
             .val("holdout", hold);
         Value::from(o).to_json_with(Layout::Indented) + "\n"
     }

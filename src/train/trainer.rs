@@ -44,6 +44,9 @@ pub struct TrainOptions {
     pub checkpoint_every: u64,
     /// BCE weight of positive pixels for BoundaryNet/EnhanceNet (1 = plain BCE).
     pub pos_weight: f32,
+    /// GeometryNet: weight of the edge-vector term added to the MSE (`ops::loss::edge_mse`;
+    /// 0 = the paper's Eq 3 alone).
+    pub edge_weight: f32,
     /// Continue from `out/checkpoint.npz`.
     pub resume: bool,
     pub out: PathBuf,
@@ -62,6 +65,7 @@ impl Default for TrainOptions {
             val_every: 100,
             checkpoint_every: 500,
             pos_weight: 1.0,
+            edge_weight: 0.0,
             resume: false,
             out: PathBuf::from("out"),
         }
@@ -132,12 +136,12 @@ fn batch_loss(
     lr: &Tensor,
     u: &Tensor,
     target: &Tensor,
-    pos_weight: f32,
+    o: &TrainOptions,
     grads: Option<&mut Trunk>,
 ) -> Result<f32> {
     match trunk.kind {
-        NetKind::Geometry => geometry_loss(ops, trunk, lr, u, target, grads),
-        _ => map_loss(ops, trunk, lr, target, pos_weight, grads),
+        NetKind::Geometry => geometry_loss(ops, trunk, lr, u, target, o.edge_weight, grads),
+        _ => map_loss(ops, trunk, lr, target, o.pos_weight, grads),
     }
 }
 
@@ -148,7 +152,7 @@ fn validation_loss(
     data: &Dataset,
     u_all: Option<&Tensor>,
     val: &[usize],
-    pos_weight: f32,
+    o: &TrainOptions,
 ) -> Result<Option<f32>> {
     if val.is_empty() {
         return Ok(None);
@@ -158,7 +162,7 @@ fn validation_loss(
         let lr = gather(&data.lr, chunk);
         let u = u_all.map(|u| gather(u, chunk)).unwrap_or_else(|| Tensor::zeros(&[0]));
         let t = gather(data.target(trunk.kind), chunk);
-        sum += batch_loss(ops, trunk, &lr, &u, &t, pos_weight, None)? as f64 * chunk.len() as f64;
+        sum += batch_loss(ops, trunk, &lr, &u, &t, o, None)? as f64 * chunk.len() as f64;
     }
     Ok(Some((sum / val.len() as f64) as f32))
 }
@@ -178,6 +182,7 @@ fn options_json(net: NetKind, o: &TrainOptions, data_fp: u64, step: u64) -> Stri
         .num("eps", o.adam.eps)
         .num("val_frac", o.val_frac)
         .num("pos_weight", o.pos_weight)
+        .num("edge_weight", o.edge_weight)
         .str("data", &format!("{data_fp:016x}"))
         .to_json()
 }
@@ -306,6 +311,13 @@ pub fn train(
             opts.config.scale, data.scale
         )));
     }
+    if opts.config.input_frame != data.input_frame {
+        return Err(Error::config(format!(
+            "the net is configured for {} input but the data is in the {} frame",
+            opts.config.input_frame.name(),
+            data.input_frame.name()
+        )));
+    }
     if !(opts.adam.lr > 0.0 && opts.adam.lr.is_finite()) {
         return Err(Error::config(format!("learning rate must be > 0, got {}", opts.adam.lr)));
     }
@@ -335,7 +347,10 @@ pub fn train(
     let mut sampler = PatchSampler::new(data, train_idx.clone(), opts.seed, opts.batch, opts.patch)?;
     let u_all = (net == NetKind::Geometry).then(|| interpolate_all(ops, data));
     let baseline_val = match &u_all {
-        Some(u) if !val_idx.is_empty() => Some(ops.mse(&gather(u, &val_idx), &gather(&data.hr, &val_idx)).0),
+        Some(u) if !val_idx.is_empty() => {
+            let (uv, hv) = (gather(u, &val_idx), gather(&data.hr, &val_idx));
+            Some(ops.mse(&uv, &hv).0 + opts.edge_weight * crate::ops::loss::edge_mse(&uv, &hv).0)
+        }
         _ => None,
     };
     on_event(Event::Start {
@@ -353,7 +368,7 @@ pub fn train(
     while st.step < opts.steps {
         let b = sampler.batch(data, u_all.as_ref(), net, st.step);
         grads.fill_zero();
-        let loss = batch_loss(ops, &st.trunk, &b.lr, &b.u, &b.target, opts.pos_weight, Some(&mut grads))?;
+        let loss = batch_loss(ops, &st.trunk, &b.lr, &b.u, &b.target, opts, Some(&mut grads))?;
         let bad_grad =
             grads.params().into_iter().find_map(|(n, g)| g.first_non_finite().map(|(_, v)| (n, v)));
         if !loss.is_finite() || bad_grad.is_some() {
@@ -381,9 +396,7 @@ pub fn train(
         let last_step = st.step == opts.steps;
         let mut row = LogRow { step: st.step, train: loss, val: f32::NAN };
         if last_step || (opts.val_every > 0 && st.step % opts.val_every == 0) {
-            if let Some(vl) =
-                validation_loss(ops, &st.trunk, data, u_all.as_ref(), &val_idx, opts.pos_weight)?
-            {
+            if let Some(vl) = validation_loss(ops, &st.trunk, data, u_all.as_ref(), &val_idx, opts)? {
                 if !vl.is_finite() {
                     return Err(Error::numeric(format!(
                         "{} net, step {}: validation loss is {vl}; stopped (last good checkpoint kept at {})",
