@@ -72,12 +72,12 @@ pub struct Args {
 
 pub fn run(a: Args) -> Result<()> {
     let config = NetConfig::preset(&a.config)?.with_padding(parse_padding(&a.padding)?);
-    let which = if a.net == "all" { None } else { Some(NetKind::parse(&a.net)?) };
     let ops = crate::cuda::ops_for_device(&a.device)?;
     let data = Dataset::load(&a.data)?;
     if a.net == "linear" {
         return fit_linear(ops.as_ref(), &data, &a);
     }
+    let which = if a.net == "all" { None } else { Some(NetKind::parse(&a.net)?) };
     let config = config.with_input_frame(data.input_frame);
     let opts = TrainOptions {
         config,
