@@ -242,7 +242,9 @@ pub fn run(a: Args) -> Result<()> {
             rows.push(Cell { method: m.name.clone(), scenario: scenario.clone(), metrics });
         }
         write_plots(&a.out, &scenario, &rows)?;
-        write_worst_renders(&a.out, &scenario, &lr_m, &methods, &hr, &rows, a.worst)?;
+        if a.worst > 0 {
+            write_worst_renders(&a.out, &scenario, &lr_m, &methods, &hr, &rows, a.worst)?;
+        }
         cells.extend(rows);
         pb.inc(1);
     }
@@ -475,8 +477,10 @@ fn invariance_rows(
                 let d = crate::geom::vec3::norm(crate::geom::vec3::sub(*a, *b));
                 dev = dev.max((d as f64 / edge) as f32);
             }
-            rmse += crate::eval::metrics::vertex_rmse(&out[k], &apply_mesh(&ts[k], &hr[k]))? as f64
-                / lr.len() as f64;
+            // In the unmoved run's metres: divide by the frame's scale factor.
+            let scale = ts[k].m.iter().map(|r| r[0] * r[0]).sum::<f64>().sqrt();
+            let err = crate::eval::metrics::vertex_rmse(&out[k], &apply_mesh(&ts[k], &hr[k]))? as f64;
+            rmse += err / scale / lr.len() as f64;
         }
         rows.push(InvarianceRow {
             run: run.to_string(),
@@ -493,7 +497,7 @@ fn invariance_markdown(rows: &[InvarianceRow]) -> String {
     let mut s = String::from(
         "# Moved, turned and scaled inputs\n\nEach held-out run's LR frames transformed (a different transform per frame) and \
          upscaled; `max deviation` = largest distance between that output and the unmoved output transformed the same way, \
-         in LR edge lengths; RMSE against the transformed truth (scaled runs: in scaled metres).\n\n\
+         in LR edge lengths; RMSE against the truth transformed the same way (scaled runs: divided by each frame's scale, so in the unmoved run's metres).\n\n\
          | run | transform | max deviation (LR edges) | RMSE moved (mm) | RMSE unmoved (mm) | ratio |\n|---|---|---:|---:|---:|---:|\n",
     );
     for r in rows {
