@@ -8,7 +8,7 @@ use crate::geom::anisotropy::BoundaryParams;
 use crate::geom::cloth_frame::InputFrame;
 use crate::imgproc::CannyParams;
 use crate::tensor::Tensor;
-use crate::train::dataset::{build, is_held_out, MapParams};
+use crate::train::dataset::{benefit_boundary, build, is_held_out, MapParams};
 use std::path::PathBuf;
 
 #[derive(clap::Args, Debug)]
@@ -42,6 +42,12 @@ pub struct Args {
     /// the whole sequence, kept for comparison).
     #[arg(long, default_value = "cloth-frame", value_name = "FRAME")]
     pub input_frame: String,
+    /// Boundary target from the benefit of a trained GeometryNet's residual (weights .npz, a
+    /// net or a bundle, trained in the same input frame) instead of the anisotropy map: soft
+    /// targets 1 − clamp(⟨HR − U, R⟩ / |R|², 0, 1), i.e. 1 where interpolation is safer than
+    /// the residual; the grid border stays 1.
+    #[arg(long, value_name = "WEIGHTS")]
+    pub boundary_benefit: Option<PathBuf>,
     /// Contact sheet PNG [default: --out with extension .png].
     #[arg(long, value_name = "FILE")]
     pub png: Option<PathBuf>,
@@ -85,8 +91,22 @@ pub fn run(a: Args) -> Result<()> {
     }
     let total: u64 = runs.iter().map(|r| r.hr.shape[0] as u64).sum();
     let pb = super::ui::progress(total, "maps");
-    let ds = build(&runs, &params, input_frame, &a.holdout, &|| pb.inc(1))?;
+    let mut ds = build(&runs, &params, input_frame, &a.holdout, &|| pb.inc(1))?;
     pb.finish_and_clear();
+    if let Some(w) = &a.boundary_benefit {
+        let net = super::setup::load_geometry_net(w)?;
+        if net.trunk.config.input_frame != input_frame {
+            return Err(crate::Error::format(
+                w,
+                format!(
+                    "this GeometryNet takes {} input but the dataset is built in the {} frame",
+                    net.trunk.config.input_frame.name(),
+                    input_frame.name()
+                ),
+            ));
+        }
+        benefit_boundary(&mut ds, &crate::ops::Cpu, &net)?;
+    }
     crate::io::write_npz(&a.out, &ds.to_npz())?;
     let png = a.png.clone().unwrap_or_else(|| a.out.with_extension("png"));
     super::ui::save_png(&png, &ds.contact_sheet(a.sheet_frames)?)?;

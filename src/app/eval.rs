@@ -2,11 +2,11 @@
 //! as numbers (markdown + JSON tables), per-frame plots and error renders; `--speed` adds the
 //! study of (LR simulation + upscaling) vs HR simulation.
 
-use super::setup::{load_model, set_threads};
+use super::setup::{load_geometry_net, load_model, set_threads};
 use super::ui::{progress, save_png};
 use crate::cloth::run_io::read_pair;
 use crate::cloth::scenarios::{run_single, Scenario, ScenarioSpec};
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::eval::linear::LinearUpsampler;
 use crate::eval::metrics::{border_band, sequence_metrics, vertex_errors, SequenceMetrics};
 use crate::eval::report::{metrics_table, Column};
@@ -19,7 +19,6 @@ use crate::io::write_atomic_bytes;
 use crate::nn::bundle::AnisoCb;
 use crate::nn::config::NetConfig;
 use crate::nn::geometry_net::GeometryNet;
-use crate::nn::weights::{load_any, Weights};
 use crate::ops::Ops;
 use crate::sr::compose::{compose, DEFAULT_ETA};
 use crate::sr::upscale::{upscale_images, UpscaleParams};
@@ -105,16 +104,6 @@ pub struct Cell {
     pub metrics: SequenceMetrics,
 }
 
-fn load_prior(path: &Path) -> Result<GeometryNet> {
-    match load_any(path)? {
-        Weights::Net(t) if t.kind == crate::nn::config::NetKind::Geometry => Ok(GeometryNet { trunk: *t }),
-        Weights::Net(t) => {
-            Err(Error::format(path, format!("expected a geometry net, got a {} net", t.kind.name())))
-        }
-        Weights::Bundle(b) => Ok(b.geometry),
-    }
-}
-
 /// The models a run is upscaled with besides the main one.
 struct Others {
     prior: Option<(String, GeometryNet)>,
@@ -173,6 +162,13 @@ fn methods_for_run(
         name: format!("anisocb -boundary, eta={DEFAULT_ETA}"),
         meshes: images_to_sequence(&no_b, domain),
     });
+    if model.input_frame() == InputFrame::Cloth {
+        let pf = upscale_images(ops, model, lr, domain, &UpscaleParams { temporal: 0, ..p }, &mut |_| {})?;
+        out.push(Method {
+            name: format!("anisocb per frame (no temporal smoothing), eta={DEFAULT_ETA}"),
+            meshes: images_to_sequence(&pf.hr, domain),
+        });
+    }
     for &eta in etas {
         out.push(Method {
             name: format!("anisocb, eta={eta}"),
@@ -213,7 +209,7 @@ pub fn run(a: Args) -> Result<()> {
     let ops = crate::cuda::ops_for_device(&a.device)?;
     let model = load_model(a.weights.as_deref())?;
     let others = Others {
-        prior: a.prior.as_deref().map(|p| Ok((stem(p), load_prior(p)?))).transpose()?,
+        prior: a.prior.as_deref().map(|p| Ok((stem(p), load_geometry_net(p)?))).transpose()?,
         paper: a.paper.as_deref().map(AnisoCb::load).transpose()?,
         linear: a.linear.as_deref().map(load_linear).transpose()?,
         also: a.also.iter().map(|p| Ok((stem(p), AnisoCb::load(p)?))).collect::<Result<_>>()?,

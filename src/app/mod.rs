@@ -3,6 +3,7 @@
 
 pub mod audit;
 pub mod bench;
+pub mod bundle;
 pub mod cpu;
 pub mod dataset;
 pub mod demo;
@@ -38,6 +39,8 @@ pub enum Command {
     Dataset(dataset::Args),
     /// Train GeometryNet / BoundaryNet / EnhanceNet with Adam; checkpoints, resume, loss curve.
     Train(train::Args),
+    /// Assemble GeometryNet, BoundaryNet and EnhanceNet from separate weights files into one bundle.
+    Bundle(bundle::Args),
     /// Upscale an OBJ sequence or a geometry.npy to twice the resolution with wrinkles.
     Upscale(upscale::Args),
     /// Simulate a held-out scenario, upscale it with the embedded weights, compare, write pictures.
@@ -68,6 +71,7 @@ where
         Command::Simulate(a) => simulate::run(a),
         Command::Dataset(a) => dataset::run(a),
         Command::Train(a) => train::run(a),
+        Command::Bundle(a) => bundle::run(a),
         Command::Upscale(a) => upscale::run(a),
         Command::Demo(a) => demo::run(a),
         Command::Eval(a) => eval::run(a),

@@ -38,6 +38,12 @@ pub struct Args {
     /// where EnhanceNet sees edges. Smooth cloth and the border are unaffected.
     #[arg(long, default_value_t = DEFAULT_ETA)]
     pub eta: f32,
+    /// Temporal smoothing radius in frames of the predicted detail, in the cloth's own frame
+    /// (1 = weights ¼ ½ ¼ over the previous, this and the next frame; 0 = every frame on its
+    /// own). Removes frame-to-frame flicker of the detail; wrinkles that stay on the cloth are
+    /// kept.
+    #[arg(long, default_value_t = crate::sr::upscale::DEFAULT_TEMPORAL)]
+    pub temporal: usize,
     /// Weights file (.npz bundle of the three nets) instead of the embedded ×2 model.
     #[arg(long)]
     pub weights: Option<PathBuf>,
@@ -163,7 +169,8 @@ pub fn run(a: Args) -> Result<()> {
     eprintln!("{}", input.domain_note);
     let pb = progress(t as u64, "upscale");
     let start = Instant::now();
-    let params = UpscaleParams { eta: a.eta, batch: a.batch, ..UpscaleParams::default() };
+    let params =
+        UpscaleParams { eta: a.eta, batch: a.batch, temporal: a.temporal, ..UpscaleParams::default() };
     let mut on_frames = |k: usize| pb.set_position(k as u64);
     let (up, hr_meshes) = match &input.frames {
         LrFrames::Meshes(m) => {

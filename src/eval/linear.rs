@@ -235,4 +235,21 @@ mod tests {
         let again = fit.residual(&lr).unwrap();
         assert!(again.max_abs_diff(&target) < 1e-5, "{}", again.max_abs_diff(&target));
     }
+
+    #[test]
+    fn linear_weights_round_trip_and_a_wrong_shape_names_the_file() {
+        let m = LinearUpsampler {
+            scale: 2,
+            weight: (0..FEATURES * 12).map(|k| k as f64 * 0.25).collect(),
+            lambda: 1e-3,
+            input_frame: InputFrame::Cloth,
+        };
+        let p = Path::new("lin.npz");
+        assert_eq!(LinearUpsampler::from_npz(&m.to_npz(), p).unwrap(), m);
+        let mut bad = m.to_npz();
+        bad.arrays.retain(|(n, _)| n != "linear.weight");
+        bad.push_array("linear.weight", Tensor::zeros(&[FEATURES, 3]));
+        let e = LinearUpsampler::from_npz(&bad, p).unwrap_err().to_string();
+        assert!(e.contains("lin.npz") && e.contains("linear.weight"), "{e}");
+    }
 }

@@ -109,15 +109,18 @@ impl Dataset {
         }
     }
 
-    /// FNV-1a hash of the shapes and bits of every array: a resumed run must see the same data.
-    pub fn fingerprint(&self) -> u64 {
+    /// FNV-1a hash of the shapes and bits of what training `kind` reads (the LR frames, and
+    /// its target: HR for GeometryNet, the boundary or edge map for the map nets): a resumed run
+    /// must see the same data, while a data set that differs only in another net's target
+    /// (e.g. a benefit-based boundary map) resumes the nets it does not change.
+    pub fn fingerprint(&self, kind: NetKind) -> u64 {
         let mut h = 0xcbf2_9ce4_8422_2325u64;
         let mut eat = |w: u64| {
             for b in w.to_le_bytes() {
                 h = (h ^ b as u64).wrapping_mul(0x0100_0000_01b3);
             }
         };
-        for t in [&self.lr, &self.hr, &self.boundary, &self.edges] {
+        for t in [&self.lr, self.target(kind)] {
             t.shape.iter().for_each(|&d| eat(d as u64));
             t.data.chunks(2).for_each(|c| eat(c.iter().fold(0u64, |a, v| (a << 32) | v.to_bits() as u64)));
         }

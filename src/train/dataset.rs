@@ -15,7 +15,8 @@
 //!   (s = upscale factor, 2 by default);
 //! - `boundary` (N, 1, sH, sW) in {0, 1} — anisotropic-kernel boundary map of the HR mesh
 //!   decoded from the HR image (Eq 2) with its domain; `d` = longest edge of that run's HR
-//!   frame 0;
+//!   frame 0; or, with `--boundary-benefit`, soft targets in [0, 1] saying where a trained
+//!   GeometryNet's residual does not help ([`benefit_boundary`]);
 //! - `edges` (N, 1, sH, sW) in {0, 1} — per-channel Canny of the HR image (in the nets'
 //!   coordinates, so a cloth-frame map does not depend on where the cloth is), OR-combined;
 //! - `domain` (N, 2, 3) f32 — [bmin; bmax] of the frame (HR domain);
@@ -35,6 +36,8 @@ use crate::geom::Domain;
 use crate::imgproc::{enhance_map, CannyParams};
 use crate::io::json::{Layout, Object, Value};
 use crate::io::NpzEntries;
+use crate::nn::geometry_net::GeometryNet;
+use crate::ops::Ops;
 use crate::tensor::Tensor;
 use crate::viz::image::{image_rgb8, resize_nearest, upscale_nearest};
 use crate::viz::sheet::{evenly_spaced, sheet};
@@ -119,6 +122,8 @@ pub struct Dataset {
     pub params: MapParams,
     /// The coordinates `lr` and `hr` are in.
     pub input_frame: InputFrame,
+    /// What `boundary` holds: "anisotropy" (Eq 4–9) or the benefit of a net's residual.
+    pub boundary_source: String,
     pub upscale: usize,
     pub holdout: Vec<String>,
 }
@@ -173,6 +178,7 @@ pub fn build(
         frames: Vec::with_capacity(n),
         params: *p,
         input_frame,
+        boundary_source: "anisotropy (Eq 4-9)".into(),
         upscale: hh / hl,
         holdout: holdout.to_vec(),
     };
@@ -191,6 +197,44 @@ pub fn build(
         });
     }
     Ok(ds)
+}
+
+/// Replace the boundary target by where interpolation is safer than `net`'s residual: per HR
+/// pixel, with `D = HR − U` and the residual `R` (both in the nets' frame), the gain
+/// `g* = clamp(⟨D, R⟩ / |R|², 0, 1)` that brings `U + g·R` closest to HR, and the target
+/// `1 − g*` (soft, for BCE): 0 where the residual is right, 1 where it points the wrong way.
+/// The grid's border stays 1 (it is pinned anyway). Frames in batches of 32.
+pub fn benefit_boundary(ds: &mut Dataset, ops: &dyn Ops, net: &GeometryNet) -> Result<()> {
+    let n = ds.lr.shape[0];
+    let (hh, wh) = (ds.hr.shape[2], ds.hr.shape[3]);
+    let px = hh * wh;
+    for n0 in (0..n).step_by(32) {
+        let cnt = 32.min(n - n0);
+        let (u, r) = net.forward(ops, &ds.lr.slice_batch(n0, cnt))?;
+        for k in 0..cnt {
+            let f = n0 + k;
+            let hr = &ds.hr.data[f * 3 * px..(f + 1) * 3 * px];
+            let (u, r) = (&u.data[k * 3 * px..(k + 1) * 3 * px], &r.data[k * 3 * px..(k + 1) * 3 * px]);
+            let dst = &mut ds.boundary.data[f * px..(f + 1) * px];
+            for (p, d) in dst.iter_mut().enumerate() {
+                let (y, x) = (p / wh, p % wh);
+                if y == 0 || x == 0 || y + 1 == hh || x + 1 == wh {
+                    *d = 1.0;
+                    continue;
+                }
+                let (mut dr, mut rr) = (0.0f64, 0.0f64);
+                for c in 0..3 {
+                    let i = c * px + p;
+                    dr += (hr[i] - u[i]) as f64 * r[i] as f64;
+                    rr += r[i] as f64 * r[i] as f64;
+                }
+                let g = if rr > 0.0 { (dr / rr).clamp(0.0, 1.0) } else { 1.0 };
+                *d = (1.0 - g) as f32;
+            }
+        }
+    }
+    ds.boundary_source = format!("benefit of the residual of {}", net.trunk.config);
+    Ok(())
 }
 
 impl Dataset {
@@ -254,6 +298,7 @@ impl Dataset {
             .num("canny_high", c.high)
             .num("upscale", self.upscale)
             .str("input_frame", self.input_frame.name())
+            .str("boundary", &self.boundary_source)
             .val("holdout", hold);
         Value::from(o).to_json_with(Layout::Indented) + "\n"
     }
@@ -268,5 +313,64 @@ impl Dataset {
         e.push_file("frames.json", self.frames_json().into_bytes());
         e.push_file("params.json", self.params_json().into_bytes());
         e
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::nn::NetConfig;
+    use crate::ops::Cpu;
+
+    /// A tiny GeometryNet whose residual is the constant `bias` per channel.
+    fn constant_residual(bias: [f32; 3]) -> GeometryNet {
+        let mut net = GeometryNet::new(NetConfig::tiny(), 1);
+        let last = net.trunk.tail.last_mut().unwrap();
+        last.weight.data.iter_mut().for_each(|w| *w = 0.0);
+        last.bias.data.copy_from_slice(&bias);
+        net
+    }
+
+    fn dataset_with_hr(net: &GeometryNet, sign: f32) -> Dataset {
+        let (n, h, w) = (2, 5, 6);
+        let lr = Tensor {
+            shape: vec![n, 3, h, w],
+            data: (0..n * 3 * h * w).map(|i| (i as f32 * 0.37).sin()).collect(),
+        };
+        let (u, r) = net.forward(&Cpu, &lr).unwrap();
+        let mut hr = u.clone();
+        for (x, r) in hr.data.iter_mut().zip(&r.data) {
+            *x += sign * r;
+        }
+        let map = Tensor::zeros(&[n, 1, 2 * h, 2 * w]);
+        Dataset {
+            lr,
+            hr,
+            boundary: map.clone(),
+            edges: map,
+            domain: Tensor::zeros(&[n, 2, 3]),
+            frames: Vec::new(),
+            params: MapParams::default(),
+            input_frame: InputFrame::Cloth,
+            boundary_source: String::new(),
+            upscale: 2,
+            holdout: Vec::new(),
+        }
+    }
+
+    #[test]
+    fn benefit_boundary_is_zero_where_the_residual_is_right_and_one_where_it_is_wrong() {
+        let net = constant_residual([0.01, -0.02, 0.005]);
+        for (sign, inside) in [(1.0f32, 0.0f32), (-1.0, 1.0), (0.5, 0.5)] {
+            let mut ds = dataset_with_hr(&net, sign);
+            benefit_boundary(&mut ds, &Cpu, &net).unwrap();
+            let (hh, wh) = (ds.hr.shape[2], ds.hr.shape[3]);
+            for (p, &v) in ds.boundary.data.iter().enumerate() {
+                let (y, x) = ((p / wh) % hh, p % wh);
+                let border = y == 0 || x == 0 || y + 1 == hh || x + 1 == wh;
+                let want = if border { 1.0 } else { inside };
+                assert!((v - want).abs() < 1e-4, "sign {sign}, pixel {p}: {v} vs {want}");
+            }
+        }
     }
 }

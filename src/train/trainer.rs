@@ -327,7 +327,7 @@ pub fn train(
     for f in ["checkpoint.npz", "loss.csv", "loss.png", "weights.npz"] {
         crate::io::atomic::remove_stale_temps(&opts.out.join(f))?;
     }
-    let fp = data.fingerprint();
+    let fp = data.fingerprint(net);
     let mut st = if opts.resume {
         if !ckpt.exists() {
             return Err(Error::format(&ckpt, "--resume given but there is no checkpoint to resume from"));

@@ -1,0 +1,54 @@
+//! `anisocb bundle`: assemble the three nets into one weights file, from separately trained
+//! nets or other bundles (e.g. a GeometryNet from one run with a BoundaryNet trained on
+//! benefit maps of it).
+
+use crate::error::{Error, Result};
+use crate::nn::bundle::AnisoCb;
+use crate::nn::weights::{load_any, Weights};
+use crate::nn::{NetKind, Trunk};
+use std::path::{Path, PathBuf};
+
+#[derive(clap::Args, Debug)]
+#[command(after_help = "Example:
+  anisocb bundle --geometry run/geometry/weights.npz --boundary benefit/boundary/weights.npz \\
+                 --enhance run/enhance/weights.npz --out weights.npz")]
+pub struct Args {
+    /// GeometryNet: a single-net weights file or a bundle (its geometry net is taken).
+    #[arg(long, value_name = "WEIGHTS")]
+    pub geometry: PathBuf,
+    /// BoundaryNet: a single-net weights file or a bundle.
+    #[arg(long, value_name = "WEIGHTS")]
+    pub boundary: PathBuf,
+    /// EnhanceNet: a single-net weights file or a bundle.
+    #[arg(long, value_name = "WEIGHTS")]
+    pub enhance: PathBuf,
+    /// The bundle to write (atomically).
+    #[arg(long, value_name = "FILE")]
+    pub out: PathBuf,
+}
+
+/// The net of `kind` in `path` (a single net of that kind, or a bundle).
+fn net_of(path: &Path, kind: NetKind) -> Result<Trunk> {
+    match load_any(path)? {
+        Weights::Net(t) if t.kind == kind => Ok(*t),
+        Weights::Net(t) => {
+            Err(Error::format(path, format!("expected a {} net, got a {} net", kind.name(), t.kind.name())))
+        }
+        Weights::Bundle(b) => Ok(match kind {
+            NetKind::Geometry => b.geometry.trunk,
+            NetKind::Boundary => b.boundary.trunk,
+            NetKind::Enhance => b.enhance.trunk,
+        }),
+    }
+}
+
+pub fn run(a: Args) -> Result<()> {
+    let b = AnisoCb::from_trunks(
+        net_of(&a.geometry, NetKind::Geometry)?,
+        net_of(&a.boundary, NetKind::Boundary)?,
+        net_of(&a.enhance, NetKind::Enhance)?,
+    )?;
+    b.save(&a.out)?;
+    eprintln!("bundle ({}) → {}", b.geometry.trunk.config, a.out.display());
+    Ok(())
+}
