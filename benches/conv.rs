@@ -11,7 +11,7 @@ fn main() {
         .and_then(|i| args.get(i + 1))
         .and_then(|s| s.parse().ok())
         .unwrap_or(0);
-    if let Err(e) = anisocb::ops::peak::run_conv_bench(threads, quick, with_ref, |l| println!("{l}")) {
+    if let Err(e) = anisocb::perf::run_conv_bench(threads, quick, with_ref, |l| println!("{l}")) {
         eprintln!("conv bench: {e}");
         std::process::exit(1);
     }

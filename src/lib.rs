@@ -1,13 +1,16 @@
 //! # anisocb — geometry-image super-resolution of cloth (AnisoCBConvNet)
 //!
 //! ```text
-//!  PBD cloth sim ──► LR mesh sequence ──► geometry image (Eq 1) ──► U = bicubic ×2 (align corners)
-//!   (cloth/)          (geom/)               3×H×W in [0,1]            │
+//!  PBD cloth sim ──► LR mesh sequence ──► geometry image (Eq 1) ──► each frame in its own
+//!   (cloth/)          (geom/)               3×H×W, on disk           cloth frame (geom/cloth_frame)
+//!                                                                    U = bicubic ×2 (align corners)
+//!                                               │                    │
 //!                                               ├─► GeometryNet ─► R (residual)      (nn/)
 //!                                               ├─► BoundaryNet ─► Γb (prob. map)
 //!                                               └─► EnhanceNet  ─► Γe (prob. map)
-//!        Γfinal = U + (1 − Γb) ⊙ (1 + η Γe) ⊙ R        (our Eq 12, sr/)
-//!                                  HR geometry image ──► HR mesh (Eq 2) ──► OBJ / .npy
+//!        Γfinal = U + (1 − Γb) ⊙ (1 + η Γe) ⊙ R        (our Eq 12, sr/; R smoothed over time
+//!                                                        in the cloth frame)
+//!           back to the sequence's frame ──► HR geometry image ──► HR mesh (Eq 2) ──► OBJ / .npy
 //! ```
 //!
 //! Module map (one folder per stage):
@@ -16,11 +19,15 @@
 //! - [`nn`]: layers, GeometryNet / BoundaryNet / EnhanceNet, weights (`.npz`) in and out.
 //! - [`train`]: Adam, dataset, trainer.
 //! - [`cloth`]: XPBD cloth simulator and the paper's scenarios.
-//! - [`geom`]: grid meshes, OBJ, geometry images, Laplacian, anisotropic boundary maps.
+//! - [`geom`]: grid meshes, OBJ, geometry images, the cloth frame the nets see, Laplacian,
+//!   anisotropic boundary maps, 3-vectors.
 //! - [`imgproc`]: Gaussian, Sobel, Canny.
 //! - [`sr`]: composition (Eq 12) and the upscale pipeline.
-//! - [`eval`]: metrics, baselines, renders.
-//! - [`io`]: `.npy`/`.npz`, atomic writes.
+//! - [`eval`]: metrics (incl. STED), the interpolation and learned-linear baselines, tables.
+//! - [`viz`]: every picture (raster image, font, renderer, plots, heat tiles, sheets).
+//! - [`io`]: `.npy`/`.npz`, JSON, atomic writes.
+//! - [`rng`]: the seeded random number generator everything shares.
+//! - [`perf`]: speed measurement for benchmarks (FMA peak, timers, the conv table).
 //! - [`cuda`]: the GPU backend (feature `cuda`); a stub with the same API otherwise.
 //! - `app` (feature `cli`): the command-line front end.
 
@@ -33,6 +40,7 @@ pub mod imgproc;
 pub mod io;
 pub mod nn;
 pub mod ops;
+pub mod perf;
 pub mod rng;
 pub mod sr;
 pub mod tensor;

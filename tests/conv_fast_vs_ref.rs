@@ -2,29 +2,13 @@
 //! sizes, C_in ≠ C_out, channel counts that are not multiples of 16, 1×1 / 3×3 / 5×5 / 3×5
 //! kernels, both paddings, with and without bias and dx; gradients must accumulate (+=).
 
+use anisocb::rng::Rng;
+#[path = "common/random.rs"]
+mod random;
 use anisocb::ops::conv2d::{conv2d, conv2d_backward, conv2d_backward_ref, conv2d_ref};
 use anisocb::ops::Padding;
 use anisocb::Tensor;
-
-/// Tiny deterministic PRNG (SplitMix64) for test data.
-struct Rng(u64);
-impl Rng {
-    fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-    /// Uniform in [−1, 1).
-    fn f(&mut self) -> f32 {
-        (self.next_u64() >> 40) as f32 / (1u64 << 23) as f32 - 1.0
-    }
-    fn tensor(&mut self, shape: &[usize]) -> Tensor {
-        let n: usize = shape.iter().product();
-        Tensor::from_vec(shape, (0..n).map(|_| self.f()).collect()).unwrap()
-    }
-}
+use random::TestData;
 
 /// |a − b| ≤ atol + rtol·|b| everywhere; prints the largest difference on failure.
 fn assert_close(what: &str, a: &Tensor, b: &Tensor, atol: f32, rtol: f32) {
@@ -65,19 +49,19 @@ fn check_case(
     with_dx: bool,
 ) {
     let what = format!("n{n} c{c} o{o} {h}x{w} k{kh}x{kw} {pad:?} bias={bias} dx={with_dx}");
-    let x = rng.tensor(&[n, c, h, w]);
-    let wt = rng.tensor(&[o, c, kh, kw]);
-    let b = bias.then(|| rng.tensor(&[o]));
+    let x = rng.tensor(&[n, c, h, w], -1.0, 1.0);
+    let wt = rng.tensor(&[o, c, kh, kw], -1.0, 1.0);
+    let b = bias.then(|| rng.tensor(&[o], -1.0, 1.0));
     let tol_scale = ((c * kh * kw) as f32).sqrt();
     let y_fast = conv2d(&x, &wt, b.as_ref(), pad);
     let y_ref = conv2d_ref(&x, &wt, b.as_ref(), pad);
     assert_close(&format!("forward {what}"), &y_fast, &y_ref, 1e-5 * tol_scale, 1e-4);
 
-    let dy = rng.tensor(&[n, o, h, w]);
+    let dy = rng.tensor(&[n, o, h, w], -1.0, 1.0);
     // Gradients accumulate: start from the same non-zero buffers.
-    let dx0 = rng.tensor(&[n, c, h, w]);
-    let dw0 = rng.tensor(&[o, c, kh, kw]);
-    let db0 = rng.tensor(&[o]);
+    let dx0 = rng.tensor(&[n, c, h, w], -1.0, 1.0);
+    let dw0 = rng.tensor(&[o, c, kh, kw], -1.0, 1.0);
+    let db0 = rng.tensor(&[o], -1.0, 1.0);
     let (mut dx_f, mut dw_f, mut db_f) = (dx0.clone(), dw0.clone(), db0.clone());
     let (mut dx_r, mut dw_r, mut db_r) = (dx0.clone(), dw0.clone(), db0.clone());
     conv2d_backward(&x, &wt, &dy, pad, with_dx.then_some(&mut dx_f), &mut dw_f, bias.then_some(&mut db_f));
@@ -107,7 +91,7 @@ fn check_case(
 
 #[test]
 fn conv_fast_matches_ref_on_fixed_edge_shapes() {
-    let mut rng = Rng(1);
+    let mut rng = Rng::new(1);
     for pad in [Padding::Zero, Padding::Replicate] {
         // first layer (C_in = 3), last layers (C_out = 1, 3), the hot 64→64, 64→256 upscaling,
         // channel tails (17, 33, 70), 1×1 / 5×5 / 3×5 kernels, tiny images (1×1, 2×3).
@@ -129,7 +113,7 @@ fn conv_fast_matches_ref_on_fixed_edge_shapes() {
 
 #[test]
 fn conv_fast_matches_ref_on_random_shapes() {
-    let mut rng = Rng(42);
+    let mut rng = Rng::new(42);
     for _ in 0..30 {
         let n = 1 + (rng.next_u64() % 3) as usize;
         let c = 1 + (rng.next_u64() % 40) as usize;
@@ -146,10 +130,10 @@ fn conv_fast_matches_ref_on_random_shapes() {
 
 #[test]
 fn conv_fast_is_deterministic() {
-    let mut rng = Rng(7);
-    let x = rng.tensor(&[2, 19, 13, 17]);
-    let w = rng.tensor(&[23, 19, 3, 3]);
-    let dy = rng.tensor(&[2, 23, 13, 17]);
+    let mut rng = Rng::new(7);
+    let x = rng.tensor(&[2, 19, 13, 17], -1.0, 1.0);
+    let w = rng.tensor(&[23, 19, 3, 3], -1.0, 1.0);
+    let dy = rng.tensor(&[2, 23, 13, 17], -1.0, 1.0);
     let run = || {
         let y = conv2d(&x, &w, None, Padding::Replicate);
         let mut dx = Tensor::zeros(&x.shape);

@@ -5,25 +5,15 @@
 //! fixed-seed PRNG scaled by the measured duration of a clean run, so they land at varied
 //! points (before the first checkpoint, mid-write, after the last) on any machine speed.
 
+use anisocb::rng::Rng;
+#[path = "common/random.rs"]
+mod random;
 use anisocb::io::{read_npz, write_npz, NpzEntries};
 use anisocb::tensor::Tensor;
+use random::TestData;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
-
-struct Rng(u64);
-impl Rng {
-    fn next(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-    fn unit(&mut self) -> f64 {
-        (self.next() >> 11) as f64 / (1u64 << 53) as f64
-    }
-}
 
 fn scratch(test: &str) -> PathBuf {
     let d = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("crash-{test}-{}", std::process::id()));
@@ -176,7 +166,7 @@ fn killed_training_resumes_to_the_same_bits_and_never_leaves_a_partial_checkpoin
 
     let out = d.join("killed");
     let mut rng =
-        Rng(std::env::var("ANISOCB_CRASH_SEED").ok().and_then(|s| s.parse().ok()).unwrap_or(0xC0FFEE));
+        Rng::new(std::env::var("ANISOCB_CRASH_SEED").ok().and_then(|s| s.parse().ok()).unwrap_or(0xC0FFEE));
     let (mut kills, mut done) = (0, false);
     for _ in 0..8 {
         let ckpt = out.join("checkpoint.npz");
@@ -194,7 +184,7 @@ fn killed_training_resumes_to_the_same_bits_and_never_leaves_a_partial_checkpoin
             what = format!("after {after:?}");
             done = run_killed(&argv, after);
         } else {
-            let (target, jitter) = (1 + rng.next() % 4, Duration::from_micros(rng.next() % 15_000));
+            let (target, jitter) = (1 + rng.next_u64() % 4, Duration::from_micros(rng.next_u64() % 15_000));
             what = format!("after {target} checkpoints + {jitter:?}");
             let stamp = || std::fs::metadata(&ckpt).and_then(|m| m.modified()).ok();
             let (mut last, mut seen, mut since) = (stamp(), 0, None::<Duration>);
@@ -231,7 +221,6 @@ fn killed_training_resumes_to_the_same_bits_and_never_leaves_a_partial_checkpoin
         run_ok(&a.iter().map(String::as_str).collect::<Vec<_>>());
     }
     assert!(kills > 0, "no run was interrupted (clean run took {clean:?})");
-    let _ = Rng::unit; // used by the upscale test
     let got = snapshot(&out);
     let names = |s: &[(String, Vec<u8>)]| s.iter().map(|f| f.0.clone()).collect::<Vec<_>>();
     assert_eq!(names(&got), names(&want));
@@ -286,10 +275,10 @@ fn killed_upscale_reruns_to_a_complete_identical_sequence() {
     );
     let out = d.join("killed");
     let outs = out.to_str().unwrap().to_string();
-    let mut rng = Rng(0xBEEF);
+    let mut rng = Rng::new(0xBEEF);
     let mut kills = 0;
     for _ in 0..6 {
-        if run_killed(&["upscale", &inp, "--out", &outs], clean.mul_f64(0.05 + 0.9 * rng.unit())) {
+        if run_killed(&["upscale", &inp, "--out", &outs], clean.mul_f64(0.05 + 0.9 * rng.unit_f64())) {
             break;
         }
         kills += 1;

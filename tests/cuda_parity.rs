@@ -4,32 +4,14 @@
 //! "skipped: no CUDA device (...)" and passes. The same checks also run with the CPU op table
 //! standing in for the device, so the harness itself (shapes, tolerances) is always exercised.
 
+use anisocb::rng::Rng;
+#[path = "common/random.rs"]
+mod random;
 use anisocb::cuda::ops_for_device;
 use anisocb::ops::conv2d::{conv2d_backward_ref, conv2d_ref};
 use anisocb::ops::{AdamParams, Cpu, Interp, Ops, Padding};
 use anisocb::{Error, Tensor};
-
-/// xorshift64*: deterministic test data without extra crates.
-struct Rng(u64);
-
-impl Rng {
-    fn next(&mut self) -> u64 {
-        self.0 ^= self.0 >> 12;
-        self.0 ^= self.0 << 25;
-        self.0 ^= self.0 >> 27;
-        self.0.wrapping_mul(0x2545_f491_4f6c_dd1d)
-    }
-    fn uniform(&mut self, lo: f32, hi: f32) -> f32 {
-        lo + (hi - lo) * ((self.next() >> 40) as f32 / (1u64 << 24) as f32)
-    }
-    fn range(&mut self, lo: usize, hi: usize) -> usize {
-        lo + (self.next() % (hi - lo + 1) as u64) as usize
-    }
-    fn tensor(&mut self, shape: &[usize], lo: f32, hi: f32) -> Tensor {
-        let n = shape.iter().product();
-        Tensor { shape: shape.to_vec(), data: (0..n).map(|_| self.uniform(lo, hi)).collect() }
-    }
-}
+use random::TestData;
 
 /// The device under test, or None (and the skip line) where there is none.
 fn device() -> Option<Box<dyn Ops>> {
@@ -73,7 +55,7 @@ fn assert_close_f32(what: &str, got: f32, want: f32, atol: f32, rtol: f32) {
 // ---------------------------------------------------------------- the checks, device-agnostic
 
 fn check_conv2d(dev: &dyn Ops) {
-    let mut rng = Rng(0x5eed_c0de);
+    let mut rng = Rng::new(0x5eed_c0de);
     for case in 0..12 {
         let (n, c, o) = (rng.range(1, 3), rng.range(1, 9), rng.range(1, 9));
         let (h, w) = (rng.range(1, 13), rng.range(1, 13));
@@ -109,7 +91,7 @@ fn check_conv2d(dev: &dyn Ops) {
 }
 
 fn check_elementwise(dev: &dyn Ops) {
-    let mut rng = Rng(11);
+    let mut rng = Rng::new(11);
     for len in [1usize, 7, 255, 257, 4099] {
         let shape = [1, 1, 1, len];
         let mut x = rng.tensor(&shape, -3.0, 3.0);
@@ -132,7 +114,7 @@ fn check_elementwise(dev: &dyn Ops) {
 }
 
 fn check_pixel_shuffle(dev: &dyn Ops) {
-    let mut rng = Rng(12);
+    let mut rng = Rng::new(12);
     for _ in 0..6 {
         let (n, c, h, w, r) =
             (rng.range(1, 2), rng.range(1, 5), rng.range(1, 7), rng.range(1, 7), rng.range(1, 3));
@@ -150,7 +132,7 @@ fn check_pixel_shuffle(dev: &dyn Ops) {
 }
 
 fn check_resize(dev: &dyn Ops) {
-    let mut rng = Rng(13);
+    let mut rng = Rng::new(13);
     for case in 0..12 {
         let mode = if case % 2 == 0 { Interp::Bilinear } else { Interp::Bicubic };
         let (n, c, h, w) = (rng.range(1, 2), rng.range(1, 3), rng.range(1, 11), rng.range(1, 11));
@@ -168,7 +150,7 @@ fn check_resize(dev: &dyn Ops) {
 }
 
 fn check_losses(dev: &dyn Ops) {
-    let mut rng = Rng(14);
+    let mut rng = Rng::new(14);
     for len in [1usize, 300, 5001] {
         let shape = [1, 1, 1, len];
         let (p, t) = (rng.tensor(&shape, -1.0, 1.0), rng.tensor(&shape, -1.0, 1.0));
@@ -244,7 +226,7 @@ impl Net {
 }
 
 fn check_network(dev: &dyn Ops) {
-    let mut rng = Rng(15);
+    let mut rng = Rng::new(15);
     let net = Net::new(&mut rng);
     let x = rng.tensor(&[2, 3, 7, 9], 0.0, 1.0);
     let target = rng.tensor(&[2, 3, 14, 18], 0.0, 1.0);
@@ -259,7 +241,7 @@ fn check_network(dev: &dyn Ops) {
 }
 
 fn check_adam_training(dev: &dyn Ops) {
-    let mut rng = Rng(16);
+    let mut rng = Rng::new(16);
     let net0 = Net::new(&mut rng);
     let x = rng.tensor(&[2, 3, 5, 6], 0.0, 1.0);
     let target = rng.tensor(&[2, 3, 10, 12], 0.0, 1.0);

@@ -3,17 +3,8 @@
 
 use anisocb::eval::metrics::*;
 use anisocb::geom::GridMesh;
+use anisocb::rng::Rng;
 use anisocb::Tensor;
-
-struct Rng(u64);
-impl Rng {
-    fn next(&mut self) -> f32 {
-        self.0 ^= self.0 >> 12;
-        self.0 ^= self.0 << 25;
-        self.0 ^= self.0 >> 27;
-        ((self.0.wrapping_mul(0x2545F4914F6CDD1D) >> 40) as f32) / (1u64 << 24) as f32
-    }
-}
 
 fn wavy(w: usize, h: usize, phase: f32) -> GridMesh {
     let mut m = GridMesh::flat(w, h, 1.2, 0.8);
@@ -95,12 +86,12 @@ fn flicker_is_zero_for_constant_offset_and_equals_velocity_error() {
 
 #[test]
 fn hausdorff_matches_brute_force_on_random_meshes() {
-    let mut rng = Rng(42);
+    let mut rng = Rng::new(42);
     for (w, h) in [(3, 2), (9, 7), (31, 17), (64, 40)] {
         let rand_mesh = |rng: &mut Rng| {
             let mut m = GridMesh::flat(w, h, 1.0, 1.0);
             for p in &mut m.pos {
-                *p = [p[0] + 0.3 * rng.next(), p[1] + 0.3 * rng.next(), 0.5 * rng.next()];
+                *p = [p[0] + 0.3 * rng.uniform(), p[1] + 0.3 * rng.uniform(), 0.5 * rng.uniform()];
             }
             m
         };

@@ -11,6 +11,7 @@
 
 use anisocb::io::npz::{npz_bytes, npz_from_bytes};
 use anisocb::io::{npy_bytes, tensor_from_npy_bytes, NpzEntries};
+use anisocb::rng::Rng;
 use anisocb::tensor::Tensor;
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::time::{Duration, Instant};
@@ -21,22 +22,6 @@ use alloc::largest_alloc;
 
 // ---------------------------------------------------------------------------------------------
 // PRNG and mutator.
-
-struct Rng(u64);
-
-impl Rng {
-    fn next(&mut self) -> u64 {
-        // splitmix64
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-    fn below(&mut self, n: usize) -> usize {
-        (self.next() % n.max(1) as u64) as usize
-    }
-}
 
 const INTERESTING: [u64; 12] =
     [0, 1, 2, 0x7F, 0x80, 0xFF, 0xFFFF, 0x7FFF_FFFF, 0xFFFF_FFFF, 1 << 31, 1 << 40, u64::MAX];
@@ -95,7 +80,7 @@ fn mutate(rng: &mut Rng, seed: &[u8], other: &[u8]) -> Vec<u8> {
             8 => {
                 let n = rng.below(64);
                 for _ in 0..n {
-                    v.push(rng.next() as u8);
+                    v.push(rng.next_u64() as u8);
                 }
             }
             _ if len > 1 => {
@@ -122,7 +107,7 @@ fn fuzz(target: &str, seeds: &[Vec<u8>], parse: impl Fn(&[u8]) -> bool) {
     let secs = env_or("ANISOCB_FUZZ_SECS", 3);
     let base = env_or("ANISOCB_FUZZ_SEED", 0x5EED);
     let name_hash = target.bytes().fold(0u64, |h, b| h.wrapping_mul(31).wrapping_add(b as u64));
-    let mut rng = Rng(base ^ name_hash);
+    let mut rng = Rng::new(base ^ name_hash);
     let start = Instant::now();
     let budget = Duration::from_secs(secs);
     let (mut runs, mut accepted, mut slowest) = (0u64, 0u64, Duration::ZERO);

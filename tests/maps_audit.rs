@@ -2,11 +2,15 @@
 //! the same weighted covariances; scikit-image `feature.canny`), from
 //! `tests/fixtures/gen_maps.py`, and of the Jacobi eigen-solver against faer.
 
+use anisocb::rng::Rng;
+#[path = "common/random.rs"]
+mod random;
 use anisocb::geom::anisotropy::{covariances, covariances_ref, sym3_eigenvalues, Sym3};
 use anisocb::geom::laplacian::{positions_f64, smooth};
 use anisocb::geom::GridMesh;
 use anisocb::imgproc::{canny, CannyParams};
 use anisocb::io::read_npy;
+use random::TestData;
 use std::path::{Path, PathBuf};
 
 fn fixture(name: &str) -> PathBuf {
@@ -22,18 +26,6 @@ fn load_mesh(name: &str) -> GridMesh {
     let t = read_npy(&fixture(&format!("mesh_{name}.npy"))).expect("mesh fixture");
     let (h, w) = (t.shape[0], t.shape[1]);
     GridMesh::new(w, h, t.data.chunks(3).map(|c| [c[0], c[1], c[2]]).collect())
-}
-
-/// Tiny deterministic PRNG (xorshift64*), uniform in [-1, 1).
-struct Rng(u64);
-impl Rng {
-    fn next(&mut self) -> f64 {
-        self.0 ^= self.0 >> 12;
-        self.0 ^= self.0 << 25;
-        self.0 ^= self.0 >> 27;
-        let v = self.0.wrapping_mul(0x2545_F491_4F6C_DD1D);
-        (v >> 11) as f64 / (1u64 << 52) as f64 - 1.0
-    }
 }
 
 #[test]
@@ -91,11 +83,11 @@ fn hashed_neighbour_covariances_match_brute_force() {
 
 #[test]
 fn jacobi_eigenvalues_match_faer_on_random_symmetric_matrices() {
-    let mut rng = Rng(0x9E37_79B9_7F4A_7C15);
+    let mut rng = Rng::new(0x9E37_79B9_7F4A_7C15);
     let mut worst = 0.0f64;
     for case in 0..2000 {
         // Random PSD matrices, some nearly rank-deficient (like flat neighbourhoods).
-        let a: [[f64; 3]; 3] = std::array::from_fn(|_| std::array::from_fn(|_| rng.next()));
+        let a: [[f64; 3]; 3] = std::array::from_fn(|_| std::array::from_fn(|_| rng.signed_f64()));
         let squash = if case % 3 == 0 { 1e-5 } else { 1.0 };
         let mut c: Sym3 = [0.0; 6];
         let idx = [(0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)];

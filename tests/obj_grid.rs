@@ -2,22 +2,8 @@
 
 use anisocb::geom::obj::{natural_cmp, obj_text, parse_obj, read_obj_grid, read_obj_grid_styled, FaceStyle};
 use anisocb::geom::GridMesh;
+use anisocb::rng::Rng;
 use std::path::{Path, PathBuf};
-
-/// Tiny deterministic PRNG (SplitMix64) for shuffles.
-struct Rng(u64);
-impl Rng {
-    fn next(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-    fn below(&mut self, n: usize) -> usize {
-        (self.next() % n as u64) as usize
-    }
-}
 
 fn tmp(name: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!("anisocb-obj-test-{}", std::process::id()));
@@ -105,7 +91,7 @@ fn written_grids_read_back_identically() {
 
 #[test]
 fn grid_is_recovered_from_shuffled_vertex_orders() {
-    let mut rng = Rng(42);
+    let mut rng = Rng::new(42);
     for (w, h) in [(2, 2), (2, 5), (6, 4), (9, 9), (13, 7)] {
         let m = grid(w, h);
         let syms = symmetries(&m);

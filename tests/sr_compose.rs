@@ -1,31 +1,20 @@
 //! Our Eq 12: Γfinal = U + (1 − Γb) ⊙ (1 + η·Γe) ⊙ R.
 
+use anisocb::rng::Rng;
+#[path = "common/random.rs"]
+mod random;
 use anisocb::sr::compose;
 use anisocb::Tensor;
-
-/// Tiny deterministic PRNG (xorshift64*), uniform in [0, 1).
-struct Rng(u64);
-impl Rng {
-    fn next(&mut self) -> f32 {
-        self.0 ^= self.0 >> 12;
-        self.0 ^= self.0 << 25;
-        self.0 ^= self.0 >> 27;
-        ((self.0.wrapping_mul(0x2545F4914F6CDD1D) >> 40) as f32) / (1u64 << 24) as f32
-    }
-    fn tensor(&mut self, shape: &[usize]) -> Tensor {
-        let n = shape.iter().product();
-        Tensor::from_vec(shape, (0..n).map(|_| self.next()).collect()).unwrap()
-    }
-}
+use random::TestData;
 
 #[test]
 fn composition_matches_scalar_formula_with_broadcast_maps() {
-    let mut rng = Rng(0x9E3779B97F4A7C15);
+    let mut rng = Rng::new(0x9E3779B97F4A7C15);
     let (n, h, w) = (2, 5, 7);
-    let u = rng.tensor(&[n, 3, h, w]);
-    let r = rng.tensor(&[n, 3, h, w]);
-    let gb = rng.tensor(&[n, 1, h, w]);
-    let ge = rng.tensor(&[n, 1, h, w]);
+    let u = rng.tensor(&[n, 3, h, w], 0.0, 1.0);
+    let r = rng.tensor(&[n, 3, h, w], 0.0, 1.0);
+    let gb = rng.tensor(&[n, 1, h, w], 0.0, 1.0);
+    let ge = rng.tensor(&[n, 1, h, w], 0.0, 1.0);
     let eta = 0.75;
     let out = compose(&u, &r, Some(&gb), Some(&ge), eta).unwrap();
     let mut worst = 0.0f32;
@@ -59,9 +48,9 @@ fn composition_known_values() {
 
 #[test]
 fn boundary_pixels_keep_interpolated_input_and_eta_zero_is_plain_residual() {
-    let mut rng = Rng(7);
-    let u = rng.tensor(&[1, 3, 4, 4]);
-    let r = rng.tensor(&[1, 3, 4, 4]);
+    let mut rng = Rng::new(7);
+    let u = rng.tensor(&[1, 3, 4, 4], 0.0, 1.0);
+    let r = rng.tensor(&[1, 3, 4, 4], 0.0, 1.0);
     let ones = Tensor::full(&[1, 1, 4, 4], 1.0);
     let out = compose(&u, &r, Some(&ones), Some(&ones), 3.0).unwrap();
     assert_eq!(out, u);

@@ -4,7 +4,7 @@
 use anisocb::nn::weights::load_net;
 use anisocb::nn::{AnisoCb, NetConfig, NetKind};
 use anisocb::ops::{AdamParams, Cpu, Ops};
-use anisocb::train::data::{split, Dataset, PatchSampler};
+use anisocb::train::data::{split, PatchSampler, TrainingData};
 use anisocb::train::trainer::{train, train_all, Event, TrainOptions};
 use anisocb::Tensor;
 use std::path::PathBuf;
@@ -17,7 +17,7 @@ fn tmp(name: &str) -> PathBuf {
 
 /// `n` frames of a smooth surface (LR h×w) with HR = bicubic(LR) + a wrinkle pattern, and
 /// boundary / edge maps marking the border and the wrinkle crests.
-fn synthetic(n: usize, h: usize, w: usize) -> Dataset {
+fn synthetic(n: usize, h: usize, w: usize) -> TrainingData {
     let ops: &dyn Ops = &Cpu;
     let mut lr = Tensor::zeros(&[n, 3, h, w]);
     for f in 0..n {
@@ -49,7 +49,7 @@ fn synthetic(n: usize, h: usize, w: usize) -> Dataset {
             }
         }
     }
-    Dataset::new(lr, hr, boundary, edges).unwrap()
+    TrainingData::new(lr, hr, boundary, edges).unwrap()
 }
 
 fn tiny_opts(out: PathBuf, steps: u64) -> TrainOptions {
@@ -198,7 +198,7 @@ fn patches_of_lr_and_targets_are_aligned_and_seeded() {
         }
     }
     let maps = Tensor::zeros(&[n, 1, 2 * h, 2 * w]);
-    let data = Dataset::new(lr, hr, maps.clone(), maps).unwrap();
+    let data = TrainingData::new(lr, hr, maps.clone(), maps).unwrap();
     let (train_idx, val_idx) = split(n, 0.3).unwrap();
     assert_eq!((train_idx.clone(), val_idx), (vec![0, 1], vec![2]));
     let mut s = PatchSampler::new(&data, train_idx.clone(), 5, 4, 3).unwrap();

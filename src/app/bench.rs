@@ -25,13 +25,11 @@ pub struct Args {
 pub fn run(args: Args) -> Result<()> {
     let ops = crate::cuda::ops_for_device(&args.device)?;
     if args.device.trim().eq_ignore_ascii_case("cpu") {
-        return crate::ops::peak::run_conv_bench(args.threads, args.quick, args.with_ref, |l| {
-            println!("{l}")
-        });
+        return crate::perf::run_conv_bench(args.threads, args.quick, args.with_ref, |l| println!("{l}"));
     }
     // Another backend: forward and full backward of each case through the op table.
     println!("{:<22} {:>14} {:>14} {:>10}", "3x3 conv", "forward ms", "fwd+bwd ms", "GFLOP/s");
-    for case in crate::ops::peak::conv_cases(args.quick) {
+    for case in crate::perf::conv_cases(args.quick) {
         let t = |shape: &[usize]| Tensor::full(shape, 0.01);
         let (x, w) = (t(&[case.n, case.c, case.h, case.w]), t(&[case.o, case.c, 3, 3]));
         let dy = t(&[case.n, case.o, case.h, case.w]);

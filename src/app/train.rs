@@ -6,7 +6,7 @@ use crate::eval::linear::LinearUpsampler;
 use crate::nn::config::parse_padding;
 use crate::nn::{NetConfig, NetKind};
 use crate::ops::AdamParams;
-use crate::train::data::{gather, interpolate_all, split, Dataset};
+use crate::train::data::{gather, interpolate_all, split, TrainingData};
 use crate::train::trainer::{loss_plot, train, train_all, Event, TrainOptions};
 use std::path::PathBuf;
 
@@ -73,7 +73,7 @@ pub struct Args {
 pub fn run(a: Args) -> Result<()> {
     let config = NetConfig::preset(&a.config)?.with_padding(parse_padding(&a.padding)?);
     let ops = crate::cuda::ops_for_device(&a.device)?;
-    let data = Dataset::load(&a.data)?;
+    let data = TrainingData::load(&a.data)?;
     if a.net == "linear" {
         return fit_linear(ops.as_ref(), &data, &a);
     }
@@ -174,7 +174,7 @@ pub fn run(a: Args) -> Result<()> {
 
 /// `--net linear`: fit [`LinearUpsampler`] on the training frames, report its validation MSE
 /// next to bicubic's, write `OUT/weights.npz`.
-fn fit_linear(ops: &dyn crate::ops::Ops, data: &Dataset, a: &Args) -> Result<()> {
+fn fit_linear(ops: &dyn crate::ops::Ops, data: &TrainingData, a: &Args) -> Result<()> {
     let (train_idx, val_idx) = split(data.len(), a.val_frac)?;
     let u = interpolate_all(ops, data);
     let mut resid = data.hr.clone();

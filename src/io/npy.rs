@@ -74,7 +74,13 @@ pub fn tensor_from_npy_bytes(bytes: &[u8]) -> std::result::Result<Tensor, String
         ));
     }
     // Allocations below are bounded by `payload`, checked above.
-    let data: Vec<f32> = if item == 4 {
+    let data: Vec<f32> = if item == 4 && cfg!(target_endian = "little") {
+        // '<f4' on a little-endian host: the payload is the f32 buffer itself; bytemuck copies
+        // it out whatever its alignment in the file (same bits as decoding element by element).
+        let mut v = vec![0.0f32; n as usize];
+        bytemuck::cast_slice_mut::<f32, u8>(&mut v).copy_from_slice(&bytes[header_len..]);
+        v
+    } else if item == 4 {
         npy.into_vec::<f32>().map_err(|e| format!("reading data: {e}"))?
     } else {
         npy.into_vec::<f64>()

@@ -1,9 +1,9 @@
 //! The three networks together, as the upscale pipeline uses them.
 
-use super::boundary_net::MapNet;
 use super::config::{NetConfig, NetKind};
 use super::geometry_net::{check_input, GeometryNet};
 use super::layers::Trunk;
+use super::map_net::MapNet;
 use crate::error::{Error, Result};
 use crate::geom::cloth_frame::InputFrame;
 use crate::ops::Ops;

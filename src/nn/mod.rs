@@ -4,21 +4,21 @@
 //! - [`layers`]: [`layers::Conv`] and the shared [`layers::Trunk`] (forward with or without a
 //!   tape of activations, backward that adds into gradients).
 //! - [`geometry_net`]: GeometryNet (residual trunk predicting `R` over bicubic `U`, MSE).
-//! - [`boundary_net`]: BoundaryNet / EnhanceNet (plain trunk, one logit channel, sigmoid-BCE).
+//! - [`map_net`]: BoundaryNet / EnhanceNet (plain trunk, one logit channel, sigmoid-BCE).
 //! - [`bundle`]: [`bundle::AnisoCb`], the three nets together, `forward → (U, R, Γb, Γe)`.
 //! - [`weights`]: `.npz` in and out with PyTorch-style names (see `weights/README.md`).
 //! - [`audit`]: every layer's activation as `.npy`, named after the layer.
 
 pub mod audit;
-pub mod boundary_net;
 pub mod bundle;
 pub mod config;
 pub mod geometry_net;
 pub mod layers;
+pub mod map_net;
 pub mod weights;
 
-pub use boundary_net::MapNet;
 pub use bundle::{AnisoCb, SrOutputs};
 pub use config::{NetConfig, NetKind};
 pub use geometry_net::GeometryNet;
 pub use layers::{Conv, Tape, Trunk};
+pub use map_net::MapNet;

@@ -11,7 +11,6 @@ pub mod adam;
 pub mod conv2d;
 pub mod cpu;
 pub mod loss;
-pub mod peak;
 pub mod pixel_shuffle;
 pub mod resample;
 

@@ -22,7 +22,7 @@ use std::path::Path;
 
 /// All frames of a training set.
 #[derive(Clone, Debug)]
-pub struct Dataset {
+pub struct TrainingData {
     /// LR geometry images (N, 3, H, W), in [0, 1].
     pub lr: Tensor,
     /// HR ground truth (N, 3, rH, rW).
@@ -38,12 +38,12 @@ pub struct Dataset {
     pub input_frame: InputFrame,
 }
 
-impl Dataset {
+impl TrainingData {
     /// Read and check `data.npz`; every problem names the file.
-    pub fn load(path: &Path) -> Result<Dataset> {
+    pub fn load(path: &Path) -> Result<TrainingData> {
         let e = read_npz(path)?;
         let get = |n: &str| e.require(path, n).cloned();
-        let mut d = Dataset::new(get("lr")?, get("hr")?, get("boundary")?, get("edges")?)
+        let mut d = TrainingData::new(get("lr")?, get("hr")?, get("boundary")?, get("edges")?)
             .map_err(|e| e.in_file(path))?;
         if let Some(bytes) = e.file("params.json") {
             let text =
@@ -57,7 +57,7 @@ impl Dataset {
     }
 
     /// Check shapes (`hr` is r× `lr`, maps have one channel) and values (finite).
-    pub fn new(lr: Tensor, hr: Tensor, boundary: Tensor, edges: Tensor) -> Result<Dataset> {
+    pub fn new(lr: Tensor, hr: Tensor, boundary: Tensor, edges: Tensor) -> Result<TrainingData> {
         let (n, c, h, w) = lr.expect_rank4("lr")?;
         if c != 3 || n == 0 || h == 0 || w == 0 {
             return Err(Error::shape(format!("lr: expected (N, 3, H, W), got {:?}", lr.shape)));
@@ -84,7 +84,7 @@ impl Dataset {
                 return Err(Error::numeric(format!("{name}: non-finite value {v} at index {i}")));
             }
         }
-        Ok(Dataset { lr, hr, boundary, edges, scale, input_frame: InputFrame::Domain })
+        Ok(TrainingData { lr, hr, boundary, edges, scale, input_frame: InputFrame::Domain })
     }
 
     pub fn len(&self) -> usize {
@@ -185,7 +185,13 @@ pub struct PatchSampler {
 
 impl PatchSampler {
     /// `patch` is clamped to the frame size (the paper's flag is 32×10).
-    pub fn new(data: &Dataset, train: Vec<usize>, seed: u64, batch: usize, patch: usize) -> Result<Self> {
+    pub fn new(
+        data: &TrainingData,
+        train: Vec<usize>,
+        seed: u64,
+        batch: usize,
+        patch: usize,
+    ) -> Result<Self> {
         if train.is_empty() || batch == 0 || patch == 0 {
             return Err(Error::config("need at least one training frame, batch ≥ 1 and patch ≥ 1"));
         }
@@ -207,7 +213,7 @@ impl PatchSampler {
 
     /// The batch of training step `step` (0-based). `u` is the whole-frame interpolation of
     /// `data.lr` (needed only for GeometryNet).
-    pub fn batch(&mut self, data: &Dataset, u: Option<&Tensor>, kind: NetKind, step: u64) -> Batch {
+    pub fn batch(&mut self, data: &TrainingData, u: Option<&Tensor>, kind: NetKind, step: u64) -> Batch {
         let r = data.scale;
         let (ph, pw) = self.patch;
         let (h, w) = data.lr_size();
@@ -237,7 +243,7 @@ impl PatchSampler {
 }
 
 /// Whole-frame interpolation `U` of every LR frame (N, 3, rH, rW), in chunks.
-pub fn interpolate_all(ops: &dyn Ops, data: &Dataset) -> Tensor {
+pub fn interpolate_all(ops: &dyn Ops, data: &TrainingData) -> Tensor {
     let n = data.len();
     let mut parts = Vec::with_capacity(data.hr.len());
     for n0 in (0..n).step_by(64) {

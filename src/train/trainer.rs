@@ -12,12 +12,12 @@
 //! [`super::data`]), so `(seed, step)` *is* the RNG state.
 
 use super::adam::Adam;
-use super::data::{gather, interpolate_all, split, Dataset, PatchSampler};
+use super::data::{gather, interpolate_all, split, PatchSampler, TrainingData};
 use crate::error::{Error, Result};
 use crate::io::json::Object;
 use crate::io::{read_npz, write_atomic_bytes, write_npz, NpzEntries};
-use crate::nn::boundary_net::map_loss;
 use crate::nn::geometry_net::geometry_loss;
+use crate::nn::map_net::map_loss;
 use crate::nn::weights::{push_trunk, save_net, trunk_from_npz};
 use crate::nn::{AnisoCb, NetConfig, NetKind, Trunk};
 use crate::ops::{AdamParams, Ops};
@@ -149,7 +149,7 @@ fn batch_loss(
 fn validation_loss(
     ops: &dyn Ops,
     trunk: &Trunk,
-    data: &Dataset,
+    data: &TrainingData,
     u_all: Option<&Tensor>,
     val: &[usize],
     o: &TrainOptions,
@@ -299,7 +299,7 @@ pub fn loss_plot(net: &str, history: &[LogRow]) -> LinePlot {
 /// Train one net on `data` into `opts.out`: `checkpoint.npz`, `loss.csv`, `weights.npz`.
 pub fn train(
     ops: &dyn Ops,
-    data: &Dataset,
+    data: &TrainingData,
     net: NetKind,
     opts: &TrainOptions,
     on_event: &mut dyn FnMut(Event),
@@ -441,7 +441,7 @@ pub fn train(
 /// `out/<net>/`, each resumable), then write the bundle `out/weights.npz`.
 pub fn train_all(
     ops: &dyn Ops,
-    data: &Dataset,
+    data: &TrainingData,
     opts: &TrainOptions,
     on_event: &mut dyn FnMut(Event),
 ) -> Result<(AnisoCb, Vec<TrainReport>)> {
