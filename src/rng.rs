@@ -40,6 +40,23 @@ fn unit_f32(bits: u64) -> f32 {
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct SplitMix64(pub u64);
 
+/// The float samplers both generators share, written once over their `next_u64`.
+macro_rules! uniform_methods {
+    () => {
+        /// Uniform in [0, 1) with 24 bits of precision.
+        #[inline]
+        pub fn uniform(&mut self) -> f32 {
+            unit_f32(self.next_u64())
+        }
+
+        /// Uniform in [lo, hi).
+        #[inline]
+        pub fn uniform_in(&mut self, lo: f32, hi: f32) -> f32 {
+            lo + (hi - lo) * self.uniform()
+        }
+    };
+}
+
 impl SplitMix64 {
     /// A stream for `seed` (decorrelated from the raw state `seed` by the golden-ratio xor).
     pub fn new(seed: u64) -> Self {
@@ -51,17 +68,7 @@ impl SplitMix64 {
         splitmix64(&mut self.0)
     }
 
-    /// Uniform in [0, 1) with 24 bits of precision.
-    #[inline]
-    pub fn uniform(&mut self) -> f32 {
-        unit_f32(self.next_u64())
-    }
-
-    /// Uniform in [lo, hi).
-    #[inline]
-    pub fn uniform_in(&mut self, lo: f32, hi: f32) -> f32 {
-        lo + (hi - lo) * self.uniform()
-    }
+    uniform_methods!();
 }
 
 /// xoshiro256** seeded through splitmix64.
@@ -91,17 +98,7 @@ impl Rng {
         result
     }
 
-    /// Uniform in [0, 1) with 24 bits of precision.
-    #[inline]
-    pub fn uniform(&mut self) -> f32 {
-        unit_f32(self.next_u64())
-    }
-
-    /// Uniform in [lo, hi).
-    #[inline]
-    pub fn uniform_in(&mut self, lo: f32, hi: f32) -> f32 {
-        lo + (hi - lo) * self.uniform()
-    }
+    uniform_methods!();
 
     /// Uniform integer in 0..n (n > 0), by Lemire's multiply-shift (bias < 2⁻³² for small n).
     #[inline]

@@ -374,6 +374,15 @@ fn anisocb(args: &[&str]) -> std::process::Output {
     std::process::Command::new(env!("CARGO_BIN_EXE_anisocb")).args(args).output().unwrap()
 }
 
+/// `anisocb train --data DATA --config tiny --steps 2 EXTRA... --out OUT`.
+fn train_tiny(data: &Path, out: &Path, extra: &[&str]) -> std::process::Output {
+    let (data, out) = (data.to_str().unwrap(), out.to_str().unwrap());
+    let mut args = vec!["train", "--data", data, "--config", "tiny", "--steps", "2"];
+    args.extend_from_slice(extra);
+    args.extend_from_slice(&["--out", out]);
+    anisocb(&args)
+}
+
 #[test]
 fn cli_usage_errors_exit_2() {
     let o = anisocb(&["no-such-command"]);
@@ -504,17 +513,7 @@ fn cli_train_refuses_bad_inputs_and_writes_nothing() {
         (&missing, d.join("out4"), &["missing.npz", "No such file"]),
     ];
     for (data, out, want) in cases {
-        let o = anisocb(&[
-            "train",
-            "--data",
-            data.to_str().unwrap(),
-            "--config",
-            "tiny",
-            "--steps",
-            "2",
-            "--out",
-            out.to_str().unwrap(),
-        ]);
+        let o = train_tiny(data, &out, &[]);
         let err = String::from_utf8_lossy(&o.stderr);
         assert_eq!(o.status.code(), Some(1), "{err}");
         for w in want {
@@ -531,17 +530,7 @@ fn cli_train_refuses_bad_inputs_and_writes_nothing() {
     let data = d.join("data.npz");
     anisocb::io::write_npz(&data, &good).unwrap();
     let out = blocker.join("run");
-    let o = anisocb(&[
-        "train",
-        "--data",
-        data.to_str().unwrap(),
-        "--config",
-        "tiny",
-        "--steps",
-        "2",
-        "--out",
-        out.to_str().unwrap(),
-    ]);
+    let o = train_tiny(&data, &out, &[]);
     let err = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(1), "{err}");
     assert!(
@@ -553,18 +542,7 @@ fn cli_train_refuses_bad_inputs_and_writes_nothing() {
     let out = d.join("resume");
     std::fs::create_dir_all(&out).unwrap();
     let ckpt = write(&out, "checkpoint.npz", b"PK\x03\x04 truncated checkpoint");
-    let o = anisocb(&[
-        "train",
-        "--data",
-        data.to_str().unwrap(),
-        "--config",
-        "tiny",
-        "--steps",
-        "2",
-        "--resume",
-        "--out",
-        out.to_str().unwrap(),
-    ]);
+    let o = train_tiny(&data, &out, &["--resume"]);
     let err = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(1), "{err}");
     assert!(err.contains(&ckpt.display().to_string()), "{err}");
