@@ -21,7 +21,7 @@ use crate::nn::config::NetConfig;
 use crate::nn::geometry_net::GeometryNet;
 use crate::ops::Ops;
 use crate::sr::compose::{compose, DEFAULT_ETA};
-use crate::sr::upscale::{upscale_images, UpscaleParams};
+use crate::sr::upscale::{upscale_images, UpscaleParams, EVAL_STRAIN_ITERS};
 use crate::tensor::Tensor;
 use crate::viz::heat::{render_heat_row, scale_max, ScalarColors};
 use crate::viz::image::vstack;
@@ -163,6 +163,12 @@ fn methods_for_run(
         meshes: images_to_sequence(&no_b, domain),
     });
     if model.input_frame() == InputFrame::Cloth {
+        let sp = UpscaleParams { strain_iters: EVAL_STRAIN_ITERS, ..p };
+        let sl = upscale_images(ops, model, lr, domain, &sp, &mut |_| {})?;
+        out.push(Method {
+            name: format!("anisocb + strain limit ({EVAL_STRAIN_ITERS} iterations), eta={DEFAULT_ETA}"),
+            meshes: images_to_sequence(&sl.hr, domain),
+        });
         let pf = upscale_images(ops, model, lr, domain, &UpscaleParams { temporal: 0, ..p }, &mut |_| {})?;
         out.push(Method {
             name: format!("anisocb per frame (no temporal smoothing), eta={DEFAULT_ETA}"),

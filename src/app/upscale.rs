@@ -44,6 +44,12 @@ pub struct Args {
     /// kept.
     #[arg(long, default_value_t = crate::sr::upscale::DEFAULT_TEMPORAL)]
     pub temporal: usize,
+    /// Strain limit: iterations pulling the output's edge lengths toward those of the input
+    /// frame (0 = off). About 10 removes swimming and frame-to-frame edge flicker on cloth that
+    /// barely stretches (flags, drapes: also −6 % error); do not use it on cloth that stretches
+    /// a lot (rubber, strongly twisted strips), where it makes the result worse.
+    #[arg(long, default_value_t = crate::sr::upscale::DEFAULT_STRAIN_ITERS)]
+    pub strain_iters: usize,
     /// Weights file (.npz bundle of the three nets) instead of the embedded ×2 model.
     #[arg(long)]
     pub weights: Option<PathBuf>,
@@ -169,8 +175,13 @@ pub fn run(a: Args) -> Result<()> {
     eprintln!("{}", input.domain_note);
     let pb = progress(t as u64, "upscale");
     let start = Instant::now();
-    let params =
-        UpscaleParams { eta: a.eta, batch: a.batch, temporal: a.temporal, ..UpscaleParams::default() };
+    let params = UpscaleParams {
+        eta: a.eta,
+        batch: a.batch,
+        temporal: a.temporal,
+        strain_iters: a.strain_iters,
+        ..UpscaleParams::default()
+    };
     let mut on_frames = |k: usize| pb.set_position(k as u64);
     let (up, hr_meshes) = match &input.frames {
         LrFrames::Meshes(m) => {
