@@ -113,6 +113,8 @@ fn dataset_pairs_lr_with_hr_and_maps_in_the_documented_layout() {
     let frames = String::from_utf8(z.file("frames.json").unwrap().to_vec()).unwrap();
     assert_eq!(frames.matches("\"frame\"").count(), n);
     assert!(frames.contains("\"seed\": 2") && !frames.contains("drape"), "{frames}");
+    // Runs are recorded by name, never by the machine path they were read from.
+    assert!(frames.contains("\"run\": \"a\"") && !frames.contains(root.to_str().unwrap()), "{frames}");
     let params = String::from_utf8(z.file("params.json").unwrap().to_vec()).unwrap();
     assert!(params.contains("\"gamma\": 0.05") && params.contains("\"holdout\": [\"drape\"]"), "{params}");
     assert!(root.join("data.png").is_file());

@@ -174,6 +174,20 @@ fn obj_parser_accepts_slashes_and_negative_indices() {
 }
 
 #[test]
+fn negative_indices_count_back_from_the_vertices_read_so_far() {
+    // Two quads, each written right after its own vertices with relative indices (how some
+    // exporters write one object after another): -4 means the fourth vertex above the face
+    // line, not the fourth from the end of the file.
+    let v = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\n";
+    let t = format!("{v}vt 0 0\nf -4/-1 -3/-1 -2/-1 -1/-1\n{v}vt 1 1\nf -4/-1 -3/-1 -2/-1 -1/-1\n");
+    let m = parse_obj(&t, Path::new("x.obj")).unwrap();
+    assert_eq!(m.faces, vec![vec![0, 1, 2, 3], vec![4, 5, 6, 7]]);
+    assert_eq!(m.face_uv, vec![vec![0; 4], vec![1; 4]]);
+    let e = parse_obj("v 0 0 0\nf -2 -1 -1\n", Path::new("y.obj")).unwrap_err().to_string();
+    assert!(e.contains("line 2") && e.contains("vertex -2"), "{e}");
+}
+
+#[test]
 fn frame_files_sort_naturally() {
     let mut v = vec!["frame_10.obj", "frame_2.obj", "frame_1.obj", "frame_0002.obj", "a.obj"];
     v.sort_by(|a, b| natural_cmp(a, b));

@@ -235,3 +235,134 @@ fn shipped_model_output_scales_with_the_cloth() {
     let dev = moved_deviation(&frames, &|k, p| p.map(|v| v * (1.4 + 0.1 * k as f64)));
     assert!(dev < INVARIANCE_TOL, "scale: {dev} LR edges");
 }
+
+/// A grid written the way Blender's OBJ exporter writes a UV-unwrapped cloth: header comments,
+/// `mtllib`, `o`, `v`, `vn`, `vt`, `s`, `usemtl`, then `v/vt/vn` quads wound (i,j) → (i+1,j) →
+/// (i+1,j+1) → (i,j+1) (opposite to `GridMesh::quads`), one `vt` per vertex.
+fn blender_style_obj(m: &GridMesh) -> String {
+    let mut s = String::from("# Blender 4.5.4\n# www.blender.org\nmtllib cloth.mtl\no Cloth\n");
+    for p in &m.pos {
+        s += &format!("v {:.6} {:.6} {:.6}\n", p[0], p[1], p[2]);
+    }
+    for _ in &m.pos {
+        s += "vn -0.0000 1.0000 -0.0000\n";
+    }
+    for j in 0..m.h {
+        for i in 0..m.w {
+            s += &format!("vt {:.6} {:.6}\n", i as f32 / (m.w - 1) as f32, 1.0 - j as f32 / (m.h - 1) as f32);
+        }
+    }
+    s += "s 1\nusemtl Fabric\n";
+    for j in 0..m.h - 1 {
+        for i in 0..m.w - 1 {
+            let v = [m.idx(i, j), m.idx(i + 1, j), m.idx(i + 1, j + 1), m.idx(i, j + 1)].map(|v| v + 1);
+            s += &format!("f {0}/{0}/{0} {1}/{1}/{1} {2}/{2}/{2} {3}/{3}/{3}\n", v[0], v[1], v[2], v[3]);
+        }
+    }
+    s
+}
+
+fn upscale_cli(args: &[&str]) {
+    let o = Command::new(bin()).arg("upscale").args(args).output().unwrap();
+    assert!(o.status.success(), "upscale {args:?} failed: {}", String::from_utf8_lossy(&o.stderr));
+}
+
+#[test]
+fn blender_obj_keeps_uvs_material_names_normals_and_winding() {
+    use anisocb::geom::obj::obj_to_grid;
+    let dir = std::env::temp_dir().join(format!("anisocb-blender-obj-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let input = dir.join("in");
+    std::fs::create_dir_all(&input).unwrap();
+    let frames = small_run(3);
+    for (k, f) in frames.iter().enumerate() {
+        std::fs::write(input.join(format!("cloth{:06}.obj", k + 1)), blender_style_obj(f)).unwrap();
+    }
+    let out = dir.join("out");
+    upscale_cli(&[input.to_str().unwrap(), "--out", out.to_str().unwrap()]);
+    for k in 0..3 {
+        let name = format!("cloth{:06}.obj", k + 1);
+        let (pi, po) = (input.join(&name), out.join(&name));
+        let text = std::fs::read_to_string(&po).unwrap();
+        for line in ["mtllib cloth.mtl", "o Cloth", "usemtl Fabric", "s 1"] {
+            assert!(text.lines().any(|l| l == line), "{name}: no '{line}'");
+        }
+        let m = parse_obj(&text, &po).unwrap();
+        let g = obj_to_grid(&m, &po).unwrap();
+        let gin = obj_to_grid(&parse_obj(&std::fs::read_to_string(&pi).unwrap(), &pi).unwrap(), &pi).unwrap();
+        assert_eq!((g.mesh.w, g.mesh.h), (24, 24));
+        assert!(
+            m.attrs.normals && m.face_uv.iter().all(|f| f.len() == 4),
+            "{name}: every corner has vt and vn"
+        );
+        // Faces wind the way the input's do, and the normals agree with that winding.
+        assert!(gin.attrs.flipped && g.attrs.flipped, "{name}: winding not kept");
+        let uv = g.uv.expect("UVs kept");
+        let lr_uv = gin.uv.unwrap();
+        // The UV layout is linear and stays so: the HR grid's UVs are the uniform layout an HR
+        // export of the same sheet has, corners exactly where they were.
+        for (j, i) in [(0, 0), (0, 23), (23, 0), (23, 23), (7, 11)] {
+            let want = [i as f32 / 23.0, 1.0 - j as f32 / 23.0];
+            let got = uv[j * 24 + i];
+            assert!(
+                (got[0] - want[0]).abs() < 2e-6 && (got[1] - want[1]).abs() < 2e-6,
+                "uv ({i},{j}) {got:?}"
+            );
+        }
+        for (c, lc) in [(0, 0), (23, 11), (24 * 23, 12 * 11), (24 * 24 - 1, 12 * 12 - 1)] {
+            assert_eq!(uv[c], lr_uv[lc], "{name}: corner UV moved");
+        }
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn frame_slices_concatenate_to_the_whole_shot_byte_for_byte() {
+    let dir = std::env::temp_dir().join(format!("anisocb-slices-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let input = dir.join("in");
+    std::fs::create_dir_all(&input).unwrap();
+    let frames = small_run(7);
+    for (k, f) in frames.iter().enumerate() {
+        write_obj_grid(&input.join(format!("f_{k:03}.obj")), f, true).unwrap();
+    }
+    let inp = input.to_str().unwrap();
+    let (whole, sliced) = (dir.join("whole"), dir.join("sliced"));
+    upscale_cli(&[inp, "--out", whole.to_str().unwrap()]);
+    // Slices of different lengths, chunks and batches, smaller than the temporal window.
+    let s = sliced.to_str().unwrap();
+    upscale_cli(&[inp, "--out", s, "--frames", "0:2", "--chunk", "1"]);
+    upscale_cli(&[inp, "--out", s, "--frames", "2:5", "--batch", "2"]);
+    upscale_cli(&[inp, "--out", s, "--frames", "5:", "--chunk", "3"]);
+    for k in 0..7 {
+        let name = format!("f_{k:03}.obj");
+        let a = std::fs::read(whole.join(&name)).unwrap();
+        assert!(a == std::fs::read(sliced.join(&name)).unwrap(), "{name} differs between slice and whole");
+    }
+    // The same for geometry images in and out (a run directory).
+    let run = dir.join("run");
+    std::fs::create_dir_all(&run).unwrap();
+    let d = Domain::enclosing(&frames, 0.05);
+    anisocb::io::write_npy(&run.join("geometry.npy"), &sequence_to_images(&frames, &d)).unwrap();
+    anisocb::io::write_npy(&run.join("domain.npy"), &d.to_tensor()).unwrap();
+    let (wn, sn) = (dir.join("wn"), dir.join("sn"));
+    upscale_cli(&[run.to_str().unwrap(), "--out", wn.to_str().unwrap(), "--chunk", "2"]);
+    upscale_cli(&[run.to_str().unwrap(), "--out", sn.to_str().unwrap(), "--frames", "3:6"]);
+    let a = anisocb::io::read_npy(&wn.join("geometry.npy")).unwrap();
+    let b = anisocb::io::read_npy(&sn.join("geometry.3-6.npy")).unwrap();
+    assert_eq!(b.shape, [3, 3, 24, 24]);
+    assert!(a.slice_batch(3, 3).data.iter().zip(&b.data).all(|(x, y)| x.to_bits() == y.to_bits()));
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn bad_frame_ranges_are_usage_errors_naming_the_range() {
+    use anisocb::app::upscale::parse_frames;
+    assert_eq!(parse_frames(None, 5).unwrap(), 0..5);
+    assert_eq!(parse_frames(Some("1:3"), 5).unwrap(), 1..3);
+    assert_eq!(parse_frames(Some("2:"), 5).unwrap(), 2..5);
+    for bad in ["3:3", "4:2", "0:6", "x:2", "3", ":"] {
+        let e = parse_frames(Some(bad), 5).unwrap_err().to_string();
+        assert!(e.contains(bad) && e.contains("A:B"), "{bad}: {e}");
+    }
+}

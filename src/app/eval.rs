@@ -228,7 +228,7 @@ pub fn run(a: Args) -> Result<()> {
         let pair = read_pair(dir)?;
         let (lr, domain) = (&pair.lr, &pair.domain);
         // Runs are labelled by their directory name (unique, and the user's own naming).
-        let scenario = run_label(Path::new(&pair.name));
+        let scenario = pair.label();
         let hr = images_to_sequence(&pair.hr, domain);
         let lr_m = images_to_sequence(lr, domain);
         let methods = methods_for_run(ops.as_ref(), &model, &others, lr, domain, &a.eta)?;
@@ -284,11 +284,6 @@ pub fn run(a: Args) -> Result<()> {
         a.out.display()
     );
     Ok(())
-}
-
-fn run_label(dir: &Path) -> String {
-    let name = dir.file_name().or_else(|| dir.parent().and_then(Path::file_name));
-    name.map_or_else(|| "run".to_string(), |n| n.to_string_lossy().into_owned())
 }
 
 fn write_plots(out: &Path, scenario: &str, rows: &[Cell]) -> Result<()> {

@@ -18,25 +18,17 @@ impl Domain {
     /// Bounding box of all frames, grown by `margin` (fraction of the largest extent) on every
     /// side; degenerate axes (a flat sheet) get the largest extent so no axis divides by ~0.
     pub fn enclosing(frames: &[GridMesh], margin: f32) -> Domain {
-        let mut lo = [f32::INFINITY; 3];
-        let mut hi = [f32::NEG_INFINITY; 3];
+        let mut b = Bounds::default();
         for f in frames {
-            let (a, b) = f.bounds();
-            for k in 0..3 {
-                lo[k] = lo[k].min(a[k]);
-                hi[k] = hi[k].max(b[k]);
-            }
+            b.add(f);
         }
-        let ext = (0..3).map(|k| hi[k] - lo[k]).fold(0.0f32, f32::max).max(1e-6);
-        let mut d = Domain { bmin: lo, bmax: hi };
-        for k in 0..3 {
-            let c = 0.5 * (lo[k] + hi[k]);
-            let half = 0.5 * (hi[k] - lo[k]).max(ext * 0.5) + margin * ext;
-            d.bmin[k] = c - half;
-            d.bmax[k] = c + half;
-        }
-        d
+        b.domain(margin)
     }
+
+    /// The box [0, 1]³: geometry images in it hold positions in metres, unchanged (encoding and
+    /// decoding are exact). Used where no sequence-wide box is wanted: a model in the cloth
+    /// frame does not need one, and a frame's result then depends on that frame alone.
+    pub const UNIT: Domain = Domain { bmin: [0.0; 3], bmax: [1.0; 3] };
 
     pub fn validate(&self) -> Result<()> {
         for k in 0..3 {
@@ -71,6 +63,44 @@ impl Domain {
     #[inline]
     pub fn decode(&self, c: [f32; 3]) -> [f32; 3] {
         std::array::from_fn(|k| self.bmin[k] + c[k] * (self.bmax[k] - self.bmin[k]))
+    }
+}
+
+/// A running bounding box of frames (a shot read one frame at a time); see [`Domain::enclosing`].
+#[derive(Clone, Copy, Debug)]
+pub struct Bounds {
+    pub lo: [f32; 3],
+    pub hi: [f32; 3],
+}
+
+impl Default for Bounds {
+    fn default() -> Self {
+        Bounds { lo: [f32::INFINITY; 3], hi: [f32::NEG_INFINITY; 3] }
+    }
+}
+
+impl Bounds {
+    pub fn add(&mut self, f: &GridMesh) {
+        let (a, b) = f.bounds();
+        for k in 0..3 {
+            self.lo[k] = self.lo[k].min(a[k]);
+            self.hi[k] = self.hi[k].max(b[k]);
+        }
+    }
+
+    /// The box grown by `margin` (fraction of the largest extent) on every side; degenerate
+    /// axes (a flat sheet) get the largest extent so no axis divides by ~0.
+    pub fn domain(&self, margin: f32) -> Domain {
+        let (lo, hi) = (self.lo, self.hi);
+        let ext = (0..3).map(|k| hi[k] - lo[k]).fold(0.0f32, f32::max).max(1e-6);
+        let mut d = Domain { bmin: lo, bmax: hi };
+        for k in 0..3 {
+            let c = 0.5 * (lo[k] + hi[k]);
+            let half = 0.5 * (hi[k] - lo[k]).max(ext * 0.5) + margin * ext;
+            d.bmin[k] = c - half;
+            d.bmax[k] = c + half;
+        }
+        d
     }
 }
 

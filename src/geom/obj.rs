@@ -13,7 +13,7 @@
 //! triangles of a cell must agree, otherwise the file is rejected with a message that asks
 //! for quads.
 
-use super::mesh::GridMesh;
+use super::mesh::{vertex_normals, GridMesh};
 use super::vec3::{cross, dot, norm};
 use crate::error::{Error, Result};
 use std::collections::HashMap;
@@ -27,16 +27,50 @@ pub enum FaceStyle {
 }
 
 /// Vertices and faces of an OBJ file (0-based indices); faces have 3 or 4 vertices.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, Default)]
 pub struct ObjMesh {
     pub pos: Vec<[f32; 3]>,
     pub faces: Vec<Vec<u32>>,
+    /// Texture coordinates (`vt u v`), and per face the `vt` index of each corner (an empty
+    /// list for a face written without them).
+    pub uv: Vec<[f32; 2]>,
+    pub face_uv: Vec<Vec<u32>>,
+    /// Everything else an upscaled copy should keep.
+    pub attrs: ObjAttrs,
+}
+
+/// What an OBJ carries besides geometry, kept so that an upscaled frame is written the way it
+/// came in: a textured cloth comes back textured, and diffs against the input stay small.
+#[derive(Clone, Debug, PartialEq, Default)]
+pub struct ObjAttrs {
+    /// Arguments of the `mtllib` lines, in order (the `.mtl` files themselves are untouched).
+    pub mtllib: Vec<String>,
+    /// `o NAME` (the object's name in Blender, Maya, …).
+    pub object: Option<String>,
+    /// The first `g NAME` before the faces.
+    pub group: Option<String>,
+    /// The first `usemtl NAME` (one material per cloth: a grid is one piece of fabric).
+    pub material: Option<String>,
+    /// The smoothing-group line's argument (`s 1`, `s off`).
+    pub smooth: Option<String>,
+    /// The file had `vn` normals: the output gets normals too (recomputed on the HR grid).
+    pub normals: bool,
+    /// Set when the file is read as a grid ([`obj_to_grid`]): its faces wind opposite to
+    /// [`GridMesh::quads`], so faces are written reversed and normals point the file's way.
+    pub flipped: bool,
 }
 
 /// Parse OBJ text (`path` only names the file in errors).
 pub fn parse_obj(text: &str, path: &Path) -> Result<ObjMesh> {
     let mut pos = Vec::new();
-    let mut raw_faces: Vec<(usize, Vec<i64>)> = Vec::new();
+    let mut uv: Vec<[f32; 2]> = Vec::new();
+    let mut attrs = ObjAttrs::default();
+    // (line, corner vt indices, vt read before the face).
+    let mut raw_face_uv: Vec<(usize, Vec<i64>, i64)> = Vec::new();
+    let rest = |line: &str, key: &str| line[key.len()..].trim().to_string();
+    // (line, vertex indices, vertices read before the face: what a negative index counts
+    // back from).
+    let mut raw_faces: Vec<(usize, Vec<i64>, i64)> = Vec::new();
     for (ln, line) in text.lines().enumerate() {
         let ln = ln + 1;
         let line = line.split('#').next().unwrap_or("").trim();
@@ -61,38 +95,78 @@ pub fn parse_obj(text: &str, path: &Path) -> Result<ObjMesh> {
                 }
                 pos.push(p);
             }
+            Some("vt") => {
+                let c: Vec<&str> = it.collect();
+                if c.len() < 2 {
+                    return Err(Error::format(path, format!("line {ln}: texture coordinate needs u and v")));
+                }
+                let mut t = [0.0f32; 2];
+                for k in 0..2 {
+                    t[k] = c[k].parse::<f32>().ok().filter(|v| v.is_finite()).ok_or_else(|| {
+                        Error::format(path, format!("line {ln}: bad texture coordinate '{}'", c[k]))
+                    })?;
+                }
+                uv.push(t);
+            }
+            Some("vn") => attrs.normals = true,
+            Some("mtllib") => attrs.mtllib.push(rest(line, "mtllib")),
+            Some("o") => attrs.object = attrs.object.take().or(Some(rest(line, "o"))),
+            Some("g") if raw_faces.is_empty() => attrs.group = attrs.group.take().or(Some(rest(line, "g"))),
+            Some("usemtl") => attrs.material = attrs.material.take().or(Some(rest(line, "usemtl"))),
+            Some("s") => attrs.smooth = attrs.smooth.take().or(Some(rest(line, "s"))),
             Some("f") => {
                 let mut f = Vec::new();
+                let mut t = Vec::new();
                 for tok in it {
-                    let first = tok.split('/').next().unwrap_or("");
-                    let i: i64 = first
-                        .parse()
-                        .map_err(|_| Error::format(path, format!("line {ln}: bad face index '{tok}'")))?;
+                    let mut parts = tok.split('/');
+                    let bad = || Error::format(path, format!("line {ln}: bad face index '{tok}'"));
+                    let i: i64 = parts.next().unwrap_or("").parse().map_err(|_| bad())?;
                     f.push(i);
+                    match parts.next() {
+                        Some(vt) if !vt.is_empty() => t.push(vt.parse::<i64>().map_err(|_| bad())?),
+                        _ => {}
+                    }
                 }
-                raw_faces.push((ln, f));
+                // Corner UVs count only when every corner has one.
+                if t.len() != f.len() {
+                    t.clear();
+                }
+                raw_faces.push((ln, f, pos.len() as i64));
+                raw_face_uv.push((ln, t, uv.len() as i64));
             }
             _ => {}
         }
     }
-    let nv = pos.len() as i64;
-    let mut faces = Vec::with_capacity(raw_faces.len());
-    for (ln, f) in raw_faces {
-        let mut g = Vec::with_capacity(f.len());
-        for i in f {
-            // OBJ indices are 1-based; negative ones count back from the last vertex so far.
-            let k = if i > 0 { i - 1 } else { nv + i };
-            if i == 0 || k < 0 || k >= nv {
-                return Err(Error::format(
-                    path,
-                    format!("line {ln}: face references vertex {i}, but the file has {nv} vertices"),
-                ));
-            }
-            g.push(k as u32);
-        }
-        faces.push(g);
-    }
-    Ok(ObjMesh { pos, faces })
+    let faces = resolve_indices(raw_faces, pos.len() as i64, ("vertex", "vertices"), path)?;
+    let face_uv = resolve_indices(raw_face_uv, uv.len() as i64, ("texture coordinate", "of them"), path)?;
+    Ok(ObjMesh { pos, faces, uv, face_uv, attrs })
+}
+
+/// 1-based (or negative, relative) OBJ indices → 0-based, checked against `n` entries.
+fn resolve_indices(
+    raw: Vec<(usize, Vec<i64>, i64)>,
+    n: i64,
+    (what, plural): (&str, &str),
+    path: &Path,
+) -> Result<Vec<Vec<u32>>> {
+    raw.into_iter()
+        .map(|(ln, f, seen)| {
+            f.into_iter()
+                .map(|i| {
+                    // OBJ indices are 1-based; negative (relative) ones count back from the
+                    // last entry read before this face line (-1 = the one just above it).
+                    let k = if i > 0 { i - 1 } else { seen + i };
+                    if i == 0 || k < 0 || k >= n {
+                        return Err(Error::format(
+                            path,
+                            format!("line {ln}: face references {what} {i}, but the file has {n} {plural}"),
+                        ));
+                    }
+                    Ok(k as u32)
+                })
+                .collect()
+        })
+        .collect()
 }
 
 fn not_grid(path: &Path, why: impl std::fmt::Display) -> Error {
@@ -163,8 +237,9 @@ fn pair_triangles(m: &ObjMesh, path: &Path) -> Result<Vec<[u32; 4]>> {
     Ok(quads)
 }
 
-/// Recover the grid of a quad mesh: `grid[j*w + i]` = file vertex at (i, j).
-fn recover_grid(nv: usize, quads: &[[u32; 4]], path: &Path) -> Result<(usize, usize, Vec<u32>)> {
+/// Recover the grid of a quad mesh: `grid[j*w + i]` = file vertex at (i, j), and whether the
+/// file's faces wind opposite to [`GridMesh::quads`].
+fn recover_grid(nv: usize, quads: &[[u32; 4]], path: &Path) -> Result<(usize, usize, Vec<u32>, bool)> {
     let mut edge_faces: HashMap<(u32, u32), Vec<usize>> = HashMap::new();
     let mut faces_of = vec![0u32; nv];
     for (q, f) in quads.iter().enumerate() {
@@ -238,6 +313,7 @@ fn recover_grid(nv: usize, quads: &[[u32; 4]], path: &Path) -> Result<(usize, us
         g[j * w] = col0[j];
     }
     let mut used_face = vec![false; quads.len()];
+    let mut flipped = false;
     for j in 0..h - 1 {
         for i in 0..w - 1 {
             let (a, b, d) = (g[j * w + i], g[j * w + i + 1], g[(j + 1) * w + i]);
@@ -256,6 +332,10 @@ fn recover_grid(nv: usize, quads: &[[u32; 4]], path: &Path) -> Result<(usize, us
             let pa = f.iter().position(|&v| v == a).unwrap_or(0);
             let cyc_ok = (f[(pa + 1) % 4] == b && f[(pa + 2) % 4] == c && f[(pa + 3) % 4] == d)
                 || (f[(pa + 3) % 4] == b && f[(pa + 2) % 4] == c && f[(pa + 1) % 4] == d);
+            if i == 0 && j == 0 {
+                // GridMesh::quads winds (0,0) → (0,1) → (1,1) → (1,0).
+                flipped = f[(pa + 1) % 4] == b;
+            }
             let slot = &mut g[(j + 1) * w + i + 1];
             if !cyc_ok || (*slot != NONE && *slot != c) {
                 return Err(not_grid(path, format!("cell at ({i}, {j}) does not fit a grid")));
@@ -269,7 +349,7 @@ fn recover_grid(nv: usize, quads: &[[u32; 4]], path: &Path) -> Result<(usize, us
             return Err(not_grid(path, "a vertex appears twice in the recovered grid"));
         }
     }
-    Ok((w, h, g))
+    Ok((w, h, g, flipped))
 }
 
 /// A parsed OBJ turned into a grid: the mesh, the face style, and the file index of each grid
@@ -279,6 +359,42 @@ pub struct ObjGrid {
     pub mesh: GridMesh,
     pub style: FaceStyle,
     pub order: Vec<u32>,
+    /// Texture coordinates per grid vertex (`uv[j*w + i]`), when the file has them for every
+    /// face and each vertex has one (no UV seam inside the cloth).
+    pub uv: Option<Vec<[f32; 2]>>,
+    /// Why the file's UVs could not be kept, if it had some.
+    pub uv_note: Option<String>,
+    pub attrs: ObjAttrs,
+}
+
+/// The file's UVs per grid vertex, or why there are none (see [`ObjGrid::uv`]).
+fn grid_uv(m: &ObjMesh, order: &[u32]) -> (Option<Vec<[f32; 2]>>, Option<String>) {
+    if m.uv.is_empty() {
+        return (None, None);
+    }
+    if let Some(f) = m.face_uv.iter().position(Vec::is_empty) {
+        return (None, Some(format!("face {} has no texture coordinates; the output has no UVs", f + 1)));
+    }
+    let mut per_vertex: Vec<Option<[f32; 2]>> = vec![None; m.pos.len()];
+    for (f, t) in m.faces.iter().zip(&m.face_uv) {
+        for (&v, &t) in f.iter().zip(t) {
+            let uv = m.uv[t as usize];
+            match per_vertex[v as usize] {
+                Some(old) if old != uv => {
+                    return (
+                        None,
+                        Some(format!(
+                            "vertex {} has two texture coordinates (a UV seam inside the cloth); the output has no UVs",
+                            v + 1
+                        )),
+                    )
+                }
+                _ => per_vertex[v as usize] = Some(uv),
+            }
+        }
+    }
+    // Every grid vertex is in a face (checked by the grid recovery), so each has a UV.
+    (Some(order.iter().map(|&v| per_vertex[v as usize].unwrap_or([0.0; 2])).collect()), None)
 }
 
 /// Turn parsed OBJ data into a grid (see the module docs).
@@ -306,9 +422,11 @@ pub fn obj_to_grid(m: &ObjMesh, path: &Path) -> Result<ObjGrid> {
         }
         (pair_triangles(m, path)?, FaceStyle::Triangles)
     };
-    let (w, h, order) = recover_grid(m.pos.len(), &quads, path)?;
+    let (w, h, order, flipped) = recover_grid(m.pos.len(), &quads, path)?;
     let pos = order.iter().map(|&v| m.pos[v as usize]).collect();
-    Ok(ObjGrid { mesh: GridMesh::new(w, h, pos), style, order })
+    let (uv, uv_note) = grid_uv(m, &order);
+    let attrs = ObjAttrs { flipped, ..m.attrs.clone() };
+    Ok(ObjGrid { mesh: GridMesh::new(w, h, pos), style, order, uv, uv_note, attrs })
 }
 
 /// Read an OBJ grid and its face style.
@@ -324,21 +442,73 @@ pub fn read_obj_grid(path: &Path) -> Result<GridMesh> {
 
 /// OBJ text of a grid, quads or (with `quads = false`) the triangles of [`GridMesh::triangles`].
 pub fn obj_text(mesh: &GridMesh, quads: bool) -> String {
+    obj_text_with(mesh, quads, None, &ObjAttrs::default())
+}
+
+/// OBJ text of a grid with texture coordinates per grid vertex (`uv`, `w·h` of them) and what
+/// `attrs` says the input had: `mtllib`, `o`, normals (computed from `mesh`, one per vertex),
+/// `g`, `usemtl`, `s`, in the order Blender writes them. Positions and UVs print as the
+/// shortest decimal that reads back to the same f32, normals with 4 decimals (Blender's own
+/// precision), so two runs write identical files.
+pub fn obj_text_with(mesh: &GridMesh, quads: bool, uv: Option<&[[f32; 2]]>, attrs: &ObjAttrs) -> String {
     use std::fmt::Write;
-    let mut s = String::with_capacity(mesh.pos.len() * 40);
+    let mut s = String::with_capacity(mesh.pos.len() * if uv.is_some() { 90 } else { 40 });
     let _ = writeln!(s, "# anisocb grid {} x {} vertices (columns x rows), metres", mesh.w, mesh.h);
+    for m in &attrs.mtllib {
+        let _ = writeln!(s, "mtllib {m}");
+    }
+    if let Some(o) = &attrs.object {
+        let _ = writeln!(s, "o {o}");
+    }
     for p in &mesh.pos {
-        // `{}` prints the shortest decimal that reads back to the same f32.
         let _ = writeln!(s, "v {} {} {}", p[0], p[1], p[2]);
     }
-    if quads {
-        for q in mesh.quads() {
-            let _ = writeln!(s, "f {} {} {} {}", q[0] + 1, q[1] + 1, q[2] + 1, q[3] + 1);
+    if let Some(uv) = uv {
+        for t in uv {
+            let _ = writeln!(s, "vt {} {}", t[0], t[1]);
         }
+    }
+    if attrs.normals {
+        let sign = if attrs.flipped { -1.0 } else { 1.0 };
+        for n in vertex_normals(mesh) {
+            // `+ 0.0` turns -0.0 into 0.0 so a flat cloth prints `0.0000`, as Blender does.
+            let _ =
+                writeln!(s, "vn {:.4} {:.4} {:.4}", sign * n[0] + 0.0, sign * n[1] + 0.0, sign * n[2] + 0.0);
+        }
+    }
+    if let Some(g) = &attrs.group {
+        let _ = writeln!(s, "g {g}");
+    }
+    if let Some(m) = &attrs.material {
+        let _ = writeln!(s, "usemtl {m}");
+    }
+    if let Some(sm) = &attrs.smooth {
+        let _ = writeln!(s, "s {sm}");
+    }
+    // One index per vertex for v, vt and vn alike: `i`, `i/i`, `i//i` or `i/i/i`.
+    let corner = |s: &mut String, v: usize| {
+        let i = v + 1;
+        let _ = match (uv.is_some(), attrs.normals) {
+            (false, false) => write!(s, " {i}"),
+            (true, false) => write!(s, " {i}/{i}"),
+            (false, true) => write!(s, " {i}//{i}"),
+            (true, true) => write!(s, " {i}/{i}/{i}"),
+        };
+    };
+    let faces: Vec<Vec<usize>> = if quads {
+        mesh.quads().iter().map(|q| q.to_vec()).collect()
     } else {
-        for t in mesh.triangles() {
-            let _ = writeln!(s, "f {} {} {}", t[0] + 1, t[1] + 1, t[2] + 1);
+        mesh.triangles().iter().map(|t| t.to_vec()).collect()
+    };
+    for mut f in faces {
+        if attrs.flipped {
+            f.reverse();
         }
+        s.push('f');
+        for v in f {
+            corner(&mut s, v);
+        }
+        s.push('\n');
     }
     s
 }
@@ -396,44 +566,64 @@ pub fn list_obj_files(dir: &Path) -> Result<Vec<PathBuf>> {
     Ok(files)
 }
 
-/// Read a sequence of OBJ grids (one per file, in the given order). Frames whose faces equal
-/// the first frame's reuse its vertex order, so the whole sequence has one orientation; all
-/// frames must have the same `W × H`.
+/// An OBJ sequence read one frame at a time (memory for one frame, whatever the shot's
+/// length). The first file fixes the grid's orientation, size, UVs and attributes; a frame
+/// with the first file's faces reuses its vertex order, any other must be a grid of the same
+/// size.
+pub struct ObjSequence {
+    pub files: Vec<PathBuf>,
+    /// The first file as a grid.
+    pub first: ObjGrid,
+    faces: Vec<Vec<u32>>,
+    vertices: usize,
+}
+
+impl ObjSequence {
+    /// Open a sequence (reads the first file).
+    pub fn open(paths: &[PathBuf]) -> Result<ObjSequence> {
+        let Some(p) = paths.first() else { return Err(Error::config("no OBJ files given")) };
+        let m = parse_obj(&std::fs::read_to_string(p).map_err(|e| Error::io(p, e))?, p)?;
+        let first = obj_to_grid(&m, p)?;
+        Ok(ObjSequence { files: paths.to_vec(), first, faces: m.faces, vertices: m.pos.len() })
+    }
+
+    pub fn len(&self) -> usize {
+        self.files.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.files.is_empty()
+    }
+
+    /// Frame `k` as a grid in the first file's orientation.
+    pub fn frame(&self, k: usize) -> Result<GridMesh> {
+        let p = &self.files[k];
+        let m = parse_obj(&std::fs::read_to_string(p).map_err(|e| Error::io(p, e))?, p)?;
+        let g0 = &self.first;
+        if m.faces == self.faces && m.pos.len() == self.vertices {
+            return Ok(GridMesh::new(
+                g0.mesh.w,
+                g0.mesh.h,
+                g0.order.iter().map(|&v| m.pos[v as usize]).collect(),
+            ));
+        }
+        let g = obj_to_grid(&m, p)?;
+        if (g.mesh.w, g.mesh.h) != (g0.mesh.w, g0.mesh.h) {
+            return Err(Error::format(
+                p,
+                format!(
+                    "grid is {}x{}, but the first frame is {}x{}",
+                    g.mesh.w, g.mesh.h, g0.mesh.w, g0.mesh.h
+                ),
+            ));
+        }
+        Ok(g.mesh)
+    }
+}
+
+/// Read a whole OBJ sequence into memory (see [`ObjSequence`]) and its face style.
 pub fn read_obj_sequence(paths: &[PathBuf]) -> Result<(Vec<GridMesh>, FaceStyle)> {
-    let mut out = Vec::with_capacity(paths.len());
-    let mut first: Option<(ObjMesh, ObjGrid)> = None;
-    for p in paths {
-        let text = std::fs::read_to_string(p).map_err(|e| Error::io(p, e))?;
-        let m = parse_obj(&text, p)?;
-        let mesh = match &first {
-            Some((m0, g0)) if m0.faces == m.faces && m0.pos.len() == m.pos.len() => {
-                GridMesh::new(g0.mesh.w, g0.mesh.h, g0.order.iter().map(|&v| m.pos[v as usize]).collect())
-            }
-            _ => {
-                let g = obj_to_grid(&m, p)?;
-                if let Some((_, g0)) = &first {
-                    if (g.mesh.w, g.mesh.h) != (g0.mesh.w, g0.mesh.h) {
-                        return Err(Error::format(
-                            p,
-                            format!(
-                                "grid is {}x{}, but the first frame is {}x{}",
-                                g.mesh.w, g.mesh.h, g0.mesh.w, g0.mesh.h
-                            ),
-                        ));
-                    }
-                }
-                let mesh = g.mesh.clone();
-                if first.is_none() {
-                    first = Some((m, g));
-                }
-                mesh
-            }
-        };
-        out.push(mesh);
-    }
-    let style = first.as_ref().map_or(FaceStyle::Quads, |(_, g)| g.style);
-    if out.is_empty() {
-        return Err(Error::config("no OBJ files given"));
-    }
-    Ok((out, style))
+    let seq = ObjSequence::open(paths)?;
+    let frames = (0..seq.len()).map(|k| seq.frame(k)).collect::<Result<Vec<_>>>()?;
+    Ok((frames, seq.first.style))
 }

@@ -27,30 +27,64 @@ fn temp_prefix(name: &std::ffi::OsStr) -> String {
     format!(".{}.tmp.", name.to_string_lossy())
 }
 
+/// A file written in pieces that appears at `path` only when [`AtomicFile::commit`] succeeds
+/// (temp + fsync + rename, as [`write_atomic`]); dropped uncommitted — an error, a panic — it
+/// leaves nothing. For outputs too large to build in memory (streamed point caches, `.npy`).
+pub struct AtomicFile {
+    path: PathBuf,
+    tmp: PathBuf,
+    w: Option<BufWriter<File>>,
+    guard: TempGuard,
+}
+
+impl AtomicFile {
+    pub fn create(path: &Path) -> Result<AtomicFile> {
+        let dir = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+        let name =
+            path.file_name().ok_or_else(|| Error::config(format!("{}: not a file name", path.display())))?;
+        let n = COUNTER.fetch_add(1, Ordering::Relaxed);
+        let tmp = dir.join(format!("{}{}.{n}", temp_prefix(name), std::process::id()));
+        let file = File::create(&tmp).map_err(|e| Error::io(path, e))?;
+        Ok(AtomicFile {
+            path: path.to_path_buf(),
+            tmp: tmp.clone(),
+            w: Some(BufWriter::new(file)),
+            guard: TempGuard(Some(tmp)),
+        })
+    }
+
+    /// The writer for the file's bytes (errors from it belong to [`AtomicFile::path`]).
+    pub fn writer(&mut self) -> &mut BufWriter<File> {
+        self.w.as_mut().expect("an AtomicFile is only written before commit")
+    }
+
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// Flush, fsync, rename over the final path, fsync the directory.
+    pub fn commit(mut self) -> Result<()> {
+        let w = self.w.take().expect("commit runs once");
+        let result = (|| {
+            let file = w.into_inner().map_err(|e| e.into_error())?;
+            file.sync_all()?;
+            fs::rename(&self.tmp, &self.path)?;
+            self.guard.0 = None;
+            // Make the rename itself durable; not every filesystem allows syncing a directory.
+            let dir = self.path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+            if let Ok(d) = File::open(dir) {
+                let _ = d.sync_all();
+            }
+            Ok(())
+        })();
+        result.map_err(|e| Error::io(&self.path, e))
+    }
+}
+
 pub fn write_atomic(path: &Path, f: impl FnOnce(&mut dyn Write) -> std::io::Result<()>) -> Result<()> {
-    let dir = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
-    let name =
-        path.file_name().ok_or_else(|| Error::config(format!("{}: not a file name", path.display())))?;
-    let n = COUNTER.fetch_add(1, Ordering::Relaxed);
-    let tmp = dir.join(format!("{}{}.{n}", temp_prefix(name), std::process::id()));
-    let mut guard = TempGuard(None);
-    let result = (|| {
-        let file = File::create(&tmp)?;
-        guard.0 = Some(tmp.clone());
-        let mut w = BufWriter::new(file);
-        f(&mut w)?;
-        let file = w.into_inner().map_err(|e| e.into_error())?;
-        file.sync_all()?;
-        fs::rename(&tmp, path)?;
-        guard.0 = None;
-        // Make the rename itself durable; not every filesystem allows syncing a directory.
-        if let Ok(d) = File::open(dir) {
-            let _ = d.sync_all();
-        }
-        Ok(())
-    })();
-    drop(guard);
-    result.map_err(|e| Error::io(path, e))
+    let mut file = AtomicFile::create(path)?;
+    f(file.writer()).map_err(|e| Error::io(path, e))?;
+    file.commit()
 }
 
 pub fn write_atomic_bytes(path: &Path, bytes: &[u8]) -> Result<()> {

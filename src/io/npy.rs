@@ -2,10 +2,13 @@
 //! bytes actually present before allocating, accepts f32/f64 little-endian C-order arrays, and
 //! rejects NaN/Inf only where the caller asks (see [`Tensor::first_non_finite`]).
 
+use super::atomic::AtomicFile;
 use crate::error::{Error, Result};
 use crate::tensor::Tensor;
 use npyz::WriterBuilder;
-use std::path::Path;
+use std::fs::File;
+use std::io::{Read, Seek, SeekFrom, Write};
+use std::path::{Path, PathBuf};
 
 /// Largest array we accept from disk, in elements (4 GiB of f32): a header claiming more is
 /// rejected before anything is allocated.
@@ -23,9 +26,30 @@ pub const MAX_HEADER_BYTES: usize = 10_000;
 /// Deepest bracket nesting accepted in a header (a float array's header nests 2 deep).
 const MAX_HEADER_NESTING: usize = 8;
 
-/// Parse `.npy` bytes; the error is a plain message that the caller attaches a file name to.
-/// Nothing is allocated beyond what the bytes present can fill.
-pub fn tensor_from_npy_bytes(bytes: &[u8]) -> std::result::Result<Tensor, String> {
+/// What a `.npy` header says: the array's shape, bytes per element (4 = '<f4', 8 = '<f8'),
+/// and where the data starts.
+#[derive(Clone, Debug, PartialEq)]
+pub struct NpyHeader {
+    pub shape: Vec<usize>,
+    pub item: usize,
+    pub offset: usize,
+}
+
+impl NpyHeader {
+    /// Elements in the array.
+    pub fn len(&self) -> usize {
+        self.shape.iter().product()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+}
+
+/// Parse and check the header at the start of `bytes` (which need hold only the header) of a
+/// `.npy` file of `file_len` bytes: a float array in C order whose data fills the file
+/// exactly. Nothing is allocated beyond the header text.
+pub fn parse_npy_header(bytes: &[u8], file_len: u64) -> std::result::Result<NpyHeader, String> {
     if bytes.is_empty() {
         return Err("empty file (0 bytes); expected a .npy array".into());
     }
@@ -41,14 +65,13 @@ pub fn tensor_from_npy_bytes(bytes: &[u8]) -> std::result::Result<Tensor, String
             "header claims {text_len} bytes, more than the {MAX_HEADER_BYTES}-byte limit (corrupt file?)"
         ));
     }
-    if header_len > bytes.len() {
-        return Err(format!("truncated: header claims {header_len} bytes, file has {}", bytes.len()));
+    if header_len as u64 > file_len || header_len > bytes.len() {
+        return Err(format!("truncated: header claims {header_len} bytes, file has {file_len}"));
     }
     check_header_nesting(&bytes[header_len - text_len..header_len])?;
-    let npy = npyz::NpyFile::new(bytes).map_err(|e| format!("bad .npy header: {e}"))?;
+    let npy = npyz::NpyFile::new(&bytes[..header_len]).map_err(|e| format!("bad .npy header: {e}"))?;
     let shape: Vec<u64> = npy.shape().to_vec();
-    let dtype = npy.dtype();
-    let descr = dtype.descr();
+    let descr = npy.dtype().descr();
     let item: u64 = match descr.as_str() {
         "'<f4'" => 4,
         "'<f8'" => 8,
@@ -62,7 +85,7 @@ pub fn tensor_from_npy_bytes(bytes: &[u8]) -> std::result::Result<Tensor, String
         Some(n) if n <= MAX_ELEMENTS => n,
         _ => return Err(format!("shape {shape:?} is too large (limit {MAX_ELEMENTS} elements)")),
     };
-    let payload = (bytes.len() - header_len) as u64;
+    let payload = file_len - header_len as u64;
     let need = n * item; // ≤ 2^33: cannot overflow
     if payload < need {
         return Err(format!("truncated: shape {shape:?} needs {need} bytes of data, file has {payload}"));
@@ -73,24 +96,150 @@ pub fn tensor_from_npy_bytes(bytes: &[u8]) -> std::result::Result<Tensor, String
             payload - need
         ));
     }
-    // Allocations below are bounded by `payload`, checked above.
-    let data: Vec<f32> = if item == 4 && cfg!(target_endian = "little") {
+    Ok(NpyHeader {
+        shape: shape.iter().map(|&d| d as usize).collect(),
+        item: item as usize,
+        offset: header_len,
+    })
+}
+
+/// Decode little-endian f32 (`item` = 4) or f64 (8) data into f32s.
+fn decode_floats(bytes: &[u8], item: usize) -> Vec<f32> {
+    if item == 4 && cfg!(target_endian = "little") {
         // '<f4' on a little-endian host: the payload is the f32 buffer itself; bytemuck copies
         // it out whatever its alignment in the file (same bits as decoding element by element).
-        let mut v = vec![0.0f32; n as usize];
-        bytemuck::cast_slice_mut::<f32, u8>(&mut v).copy_from_slice(&bytes[header_len..]);
+        let mut v = vec![0.0f32; bytes.len() / 4];
+        bytemuck::cast_slice_mut::<f32, u8>(&mut v).copy_from_slice(bytes);
         v
     } else if item == 4 {
-        npy.into_vec::<f32>().map_err(|e| format!("reading data: {e}"))?
+        bytes.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect()
     } else {
-        npy.into_vec::<f64>()
-            .map_err(|e| format!("reading data: {e}"))?
-            .into_iter()
-            .map(|v| v as f32)
-            .collect()
-    };
-    let shape: Vec<usize> = shape.iter().map(|&d| d as usize).collect();
-    Tensor::from_vec(&shape, data).map_err(|e| e.to_string())
+        bytes.chunks_exact(8).map(|b| f64::from_le_bytes(b.try_into().unwrap_or([0; 8])) as f32).collect()
+    }
+}
+
+/// Parse `.npy` bytes; the error is a plain message that the caller attaches a file name to.
+/// Nothing is allocated beyond what the bytes present can fill.
+pub fn tensor_from_npy_bytes(bytes: &[u8]) -> std::result::Result<Tensor, String> {
+    let h = parse_npy_header(bytes, bytes.len() as u64)?;
+    // Bounded by the payload present, checked by the header parse.
+    let data = decode_floats(&bytes[h.offset..], h.item);
+    Tensor::from_vec(&h.shape, data).map_err(|e| e.to_string())
+}
+
+/// A `(T, …)` `.npy` read a range of the first axis at a time (seek + read: memory for the
+/// range only), for shots longer than memory.
+pub struct NpyFrames {
+    path: PathBuf,
+    file: File,
+    pub header: NpyHeader,
+}
+
+impl NpyFrames {
+    pub fn open(path: &Path) -> Result<NpyFrames> {
+        let mut file = File::open(path).map_err(|e| Error::io(path, e))?;
+        let len = file.metadata().map_err(|e| Error::io(path, e))?.len();
+        let mut head = Vec::new();
+        (&mut file)
+            .take(12 + MAX_HEADER_BYTES as u64)
+            .read_to_end(&mut head)
+            .map_err(|e| Error::io(path, e))?;
+        let header = parse_npy_header(&head, len).map_err(|m| Error::format(path, m))?;
+        if header.shape.is_empty() {
+            return Err(Error::format(path, "a scalar, not a sequence of frames"));
+        }
+        Ok(NpyFrames { path: path.to_path_buf(), file, header })
+    }
+
+    /// Entries along the first axis.
+    pub fn frames(&self) -> usize {
+        self.header.shape[0]
+    }
+
+    /// Frames `range` as a tensor of shape (range.len(), …).
+    pub fn read(&mut self, range: std::ops::Range<usize>) -> Result<Tensor> {
+        if range.start > range.end || range.end > self.frames() {
+            return Err(Error::config(format!(
+                "{}: frames {range:?} asked, the file has {}",
+                self.path.display(),
+                self.frames()
+            )));
+        }
+        let per = self.header.len() / self.frames().max(1);
+        let at = self.header.offset as u64 + (range.start * per * self.header.item) as u64;
+        let mut bytes = vec![0u8; range.len() * per * self.header.item];
+        self.file.seek(SeekFrom::Start(at)).map_err(|e| Error::io(&self.path, e))?;
+        self.file.read_exact(&mut bytes).map_err(|e| Error::io(&self.path, e))?;
+        let mut shape = self.header.shape.clone();
+        shape[0] = range.len();
+        Tensor::from_vec(&shape, decode_floats(&bytes, self.header.item))
+    }
+}
+
+/// A `(T, …)` float32 `.npy` written a range of the first axis at a time, appearing atomically
+/// when [`NpyWriter::finish`] has written all `T` (the same bytes [`npy_bytes`] gives).
+pub struct NpyWriter {
+    file: AtomicFile,
+    shape: Vec<usize>,
+    written: usize,
+}
+
+impl NpyWriter {
+    pub fn create(path: &Path, shape: &[usize]) -> Result<NpyWriter> {
+        let mut file = AtomicFile::create(path)?;
+        let header = npy_header_bytes(shape);
+        file.writer().write_all(&header).map_err(|e| Error::io(path, e))?;
+        Ok(NpyWriter { file, shape: shape.to_vec(), written: 0 })
+    }
+
+    /// Append the next frames, `t` of shape (n, …) with the remaining dims of the file's.
+    pub fn append(&mut self, t: &Tensor) -> Result<()> {
+        let path = self.file.path().to_path_buf();
+        if t.shape.len() != self.shape.len()
+            || t.shape[1..] != self.shape[1..]
+            || self.written + t.shape[0] > self.shape[0]
+        {
+            return Err(Error::shape(format!(
+                "{}: cannot append {:?} to an array of shape {:?} holding {} entries",
+                path.display(),
+                t.shape,
+                self.shape,
+                self.written
+            )));
+        }
+        let w = self.file.writer();
+        for v in &t.data {
+            w.write_all(&v.to_le_bytes()).map_err(|e| Error::io(&path, e))?;
+        }
+        self.written += t.shape[0];
+        Ok(())
+    }
+
+    /// Check every entry was written, then move the file into place.
+    pub fn finish(self) -> Result<()> {
+        if self.written != self.shape[0] {
+            return Err(Error::shape(format!(
+                "{}: {} of {} entries written",
+                self.file.path().display(),
+                self.written,
+                self.shape[0]
+            )));
+        }
+        self.file.commit()
+    }
+}
+
+/// The `.npy` header npyz writes for a float32 C-order array of `shape`.
+fn npy_header_bytes(shape: &[usize]) -> Vec<u8> {
+    let mut out = Vec::new();
+    let dims: Vec<u64> = shape.iter().map(|&d| d as u64).collect();
+    npyz::WriteOptions::<f32>::new()
+        .default_dtype()
+        .shape(&dims)
+        .writer(&mut out)
+        .write_header_only()
+        .expect("writing to a Vec cannot fail");
+    out
 }
 
 /// Reject headers nested deeper than [`MAX_HEADER_NESTING`] before npyz's recursive parser

@@ -2,6 +2,7 @@
 //! upscale pipeline around it.
 
 pub mod compose;
+pub mod stream;
 pub mod upscale;
 
 pub use compose::{compose, DEFAULT_ETA};

@@ -43,7 +43,6 @@ use crate::viz::image::{image_rgb8, resize_nearest, upscale_nearest};
 use crate::viz::sheet::{evenly_spaced, sheet};
 use crate::viz::Rgb8;
 use rayon::prelude::*;
-use std::path::Path;
 
 /// Parameters of both ground-truth maps.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -55,7 +54,7 @@ pub struct MapParams {
 /// True if `run` matches one of the held-out names: its scenario, its directory name, its
 /// path as given, or `seed=N`.
 pub fn is_held_out(run: &RunPair, holdout: &[String]) -> bool {
-    let leaf = Path::new(&run.name).file_name().and_then(|n| n.to_str()).unwrap_or("").to_string();
+    let leaf = run.label();
     holdout.iter().any(|h| {
         *h == run.scenario
             || *h == leaf
@@ -189,12 +188,7 @@ pub fn build(
         ds.boundary.data[i * hh * wh..(i + 1) * hh * wh].copy_from_slice(&m.boundary.data);
         ds.edges.data[i * hh * wh..(i + 1) * hh * wh].copy_from_slice(&m.edges.data);
         ds.domain.data[i * 6..(i + 1) * 6].copy_from_slice(&r.domain.to_tensor().data);
-        ds.frames.push(FrameInfo {
-            run: r.name.clone(),
-            scenario: r.scenario.clone(),
-            seed: r.seed,
-            frame: f,
-        });
+        ds.frames.push(FrameInfo { run: r.label(), scenario: r.scenario.clone(), seed: r.seed, frame: f });
     }
     Ok(ds)
 }
