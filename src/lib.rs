@@ -25,7 +25,7 @@
 //! - [`sr`]: composition (Eq 12) and the upscale pipeline.
 //! - [`eval`]: metrics (incl. STED), the interpolation and learned-linear baselines, tables.
 //! - [`viz`]: every picture (raster image, font, renderer, plots, heat tiles, sheets).
-//! - [`io`]: `.npy`/`.npz`, JSON, atomic writes.
+//! - [`io`]: `.npy`/`.npz`, JSON, PC2/MDD point caches, atomic writes.
 //! - [`rng`]: the seeded random number generator everything shares.
 //! - [`perf`]: speed measurement for benchmarks (FMA peak, timers, the conv table).
 //! - [`cuda`]: the GPU backend (feature `cuda`); a stub with the same API otherwise.

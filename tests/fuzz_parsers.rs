@@ -255,3 +255,54 @@ fn fuzz_obj_reader() {
         parse_obj(&text, p).and_then(|o| obj_to_grid(&o, p)).is_ok()
     });
 }
+
+/// Point caches written by the crate's writer: a few shapes, and for MDD also Blender's
+/// exporter's layout with its one uncounted rest frame.
+fn point_cache_seeds(format: anisocb::io::CacheFormat) -> Vec<Vec<u8>> {
+    use anisocb::io::point_cache::{write_frame, write_header};
+    use anisocb::io::CacheHeader;
+    let mut seeds = Vec::new();
+    for (points, frames) in [(1, 1), (3, 4), (17, 2)] {
+        let h = CacheHeader {
+            start_frame: 1.0,
+            sample_rate: 0.5,
+            ..CacheHeader::new(format, points, frames, 24.0)
+        };
+        let mut v = Vec::new();
+        write_header(&mut v, &h).unwrap();
+        for f in 0..frames {
+            let pts: Vec<[f32; 3]> = (0..points).map(|i| [i as f32, f as f32 * 0.5, -0.25]).collect();
+            write_frame(&mut v, format, &pts).unwrap();
+        }
+        if format == anisocb::io::CacheFormat::Mdd && points == 3 {
+            let rest = v[v.len() - 36..].to_vec();
+            seeds.push([&v[..], &rest[..]].concat());
+        }
+        seeds.push(v);
+    }
+    seeds
+}
+
+/// Open from bytes, read every frame, then a middle range again.
+fn read_point_cache(bytes: &[u8], name: &str) -> bool {
+    use anisocb::io::PointCacheReader;
+    let r = PointCacheReader::from_reader(std::io::Cursor::new(bytes), std::path::Path::new(name));
+    r.and_then(|mut r| {
+        let n = r.header().frames;
+        r.read_frames(0..n)?;
+        r.read_frames(n / 2..n)
+    })
+    .is_ok()
+}
+
+#[test]
+fn fuzz_pc2_reader() {
+    let seeds = point_cache_seeds(anisocb::io::CacheFormat::Pc2);
+    fuzz("pc2", &seeds, |b| read_point_cache(b, "fuzz.pc2"));
+}
+
+#[test]
+fn fuzz_mdd_reader() {
+    let seeds = point_cache_seeds(anisocb::io::CacheFormat::Mdd);
+    fuzz("mdd", &seeds, |b| read_point_cache(b, "fuzz.mdd"));
+}
