@@ -366,3 +366,68 @@ fn bad_frame_ranges_are_usage_errors_naming_the_range() {
         assert!(e.contains(bad) && e.contains("A:B"), "{bad}: {e}");
     }
 }
+
+#[test]
+fn point_cache_with_rest_obj_upscales_to_an_hr_rest_obj_and_cache() {
+    use anisocb::geom::obj::obj_to_grid;
+    use anisocb::io::point_cache::{write_point_cache, CacheFormat, CacheHeader, PointCacheReader};
+    let dir = std::env::temp_dir().join(format!("anisocb-pc2-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let objs = dir.join("objs");
+    std::fs::create_dir_all(&objs).unwrap();
+    let frames = small_run(4);
+    for (k, f) in frames.iter().enumerate() {
+        std::fs::write(objs.join(format!("cloth{k:03}.obj")), blender_style_obj(f)).unwrap();
+    }
+    let rest = dir.join("cloth.obj");
+    std::fs::write(&rest, blender_style_obj(&frames[0])).unwrap();
+    // The OBJ sequence's result is what the cache must reproduce, frame by frame.
+    let via_obj = dir.join("via_obj");
+    upscale_cli(&[objs.to_str().unwrap(), "--out", via_obj.to_str().unwrap()]);
+    // The cache holds what the OBJ files hold (as printed), in their vertex order.
+    let positions: Vec<[f32; 3]> = (0..4)
+        .flat_map(|k| {
+            let p = objs.join(format!("cloth{k:03}.obj"));
+            parse_obj(&std::fs::read_to_string(&p).unwrap(), &p).unwrap().pos
+        })
+        .collect();
+    for (format, ext) in [(CacheFormat::Pc2, "pc2"), (CacheFormat::Mdd, "mdd")] {
+        let cache = dir.join(format!("cloth.{ext}"));
+        let mut header = CacheHeader::new(format, 144, 4, 24.0);
+        header.start_frame = 1.0;
+        write_point_cache(&cache, &header, &positions).unwrap();
+        let out = dir.join(format!("out_{ext}"));
+        let (c, o, r) = (cache.to_str().unwrap(), out.to_str().unwrap(), rest.to_str().unwrap());
+        upscale_cli(&[c, "--rest", r, "--out", o]);
+        let hr_rest = out.join("cloth.obj");
+        let g =
+            obj_to_grid(&parse_obj(&std::fs::read_to_string(&hr_rest).unwrap(), &hr_rest).unwrap(), &hr_rest)
+                .unwrap();
+        assert_eq!((g.mesh.w, g.mesh.h), (24, 24));
+        assert!(
+            g.uv.is_some() && g.attrs.material.as_deref() == Some("Fabric"),
+            "{ext}: rest OBJ lost its UVs"
+        );
+        let mut hr = PointCacheReader::open(&out.join(format!("cloth.{ext}"))).unwrap();
+        let h = hr.header().clone();
+        assert_eq!((h.points, h.frames), (576, 4), "{ext}");
+        if format == CacheFormat::Pc2 {
+            assert_eq!((h.start_frame, h.sample_rate), (1.0, 1.0));
+        } else {
+            assert_eq!(h.times, header.times);
+        }
+        // Cache points are in the HR rest OBJ's vertex order, and every frame is the OBJ
+        // sequence's result bit for bit.
+        let pts = hr.read_frames(0..4).unwrap();
+        for k in 0..4 {
+            let p = via_obj.join(format!("cloth{k:03}.obj"));
+            let m = parse_obj(&std::fs::read_to_string(&p).unwrap(), &p).unwrap();
+            assert!(m.pos == pts[k * 576..(k + 1) * 576], "{ext}: frame {k} differs from the OBJ path");
+        }
+        // Without --rest: an error that says what to add.
+        let o2 = Command::new(bin()).args(["upscale", c, "--out", o]).output().unwrap();
+        assert_eq!(o2.status.code(), Some(1));
+        assert!(String::from_utf8_lossy(&o2.stderr).contains("--rest"));
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -8,17 +8,20 @@ use crate::cloth::run_io::DOMAIN_MARGIN;
 use crate::error::{Error, Result};
 use crate::geom::cloth_frame::InputFrame;
 use crate::geom::geometry_image::{image_to_mesh, mesh_to_image, Bounds};
-use crate::geom::obj::{list_obj_files, natural_cmp, obj_text_with, FaceStyle, ObjAttrs, ObjSequence};
-use crate::geom::Domain;
+use crate::geom::obj::{
+    list_obj_files, natural_cmp, obj_text_with, FaceStyle, ObjAttrs, ObjGrid, ObjSequence,
+};
+use crate::geom::{Domain, GridMesh};
+use crate::io::atomic::AtomicFile;
 use crate::io::atomic::{ensure_dir, remove_stale_temps, write_atomic_bytes};
 use crate::io::json::{write_json, Layout, Object, Value};
 use crate::io::npy::{NpyFrames, NpyWriter};
+use crate::io::point_cache::{write_frame, write_header, CacheFormat, CacheHeader, PointCacheReader};
 use crate::io::read_npy;
 use crate::io::write_npy;
-use crate::nn::bundle::AnisoCb;
 use crate::sr::compose::DEFAULT_ETA;
 use crate::sr::stream::{upscale_stream, HrSink, LrSource, DEFAULT_CHUNK};
-use crate::sr::upscale::{upscale_uv, UpscaleParams, Upscaled};
+use crate::sr::upscale::{upscale_meshes, upscale_uv, UpscaleParams, Upscaled};
 use crate::tensor::Tensor;
 use std::ops::Range;
 use std::path::{Path, PathBuf};
@@ -44,7 +47,8 @@ Input meshes must be regular grids (quads or triangulated quads, any vertex orde
 triangles with the same file names, UVs interpolated (bilinear: seams stay put), normals recomputed,
 mtllib/usemtl/o/g/s kept; or geometry.npy + domain.npy).")]
 pub struct Args {
-    /// OBJ files, a directory of OBJ files, a run directory with geometry.npy, or a geometry.npy.
+    /// OBJ files, a directory of OBJ files, a run directory with geometry.npy, a geometry.npy,
+    /// or a point cache (.pc2 / .mdd, with --rest).
     #[arg(required = true)]
     pub input: Vec<PathBuf>,
     /// Output directory (created if missing; existing frames with the same names are replaced).
@@ -87,6 +91,11 @@ pub struct Args {
     /// Also write the predicted boundary and wrinkle-edge maps (boundary.npy, enhance.npy).
     #[arg(long)]
     pub maps: bool,
+    /// Rest mesh of a point-cache input (.pc2/.mdd): the OBJ whose vertices the cache moves,
+    /// in the same order (export both from the same object). Its connectivity, UVs and
+    /// material are used; the output gets an HR rest OBJ of the same name beside the HR cache.
+    #[arg(long, value_name = "OBJ")]
+    pub rest: Option<PathBuf>,
     /// Upscale only frames A to B−1 of the shot (0-based, `A:B`, `A:` = to the end). Slices
     /// upscaled separately give exactly the files (bytes) the whole shot gives, so a farm can
     /// split a shot by frame range; .npy output of a slice is named geometry.A-B.npy.
@@ -121,6 +130,9 @@ enum Shot {
     Npy { frames: NpyFrames, path: PathBuf },
     /// An OBJ sequence, encoded with `domain` as it is read.
     Obj { seq: Box<ObjSequence>, domain: Domain },
+    /// A point cache; `order[j*w + i]` is the cache point at grid vertex (i, j) (from the rest
+    /// mesh).
+    Cache { cache: PointCacheReader, order: Vec<u32>, w: usize, h: usize, domain: Domain },
 }
 
 impl Shot {
@@ -129,6 +141,7 @@ impl Shot {
         match self {
             Shot::Npy { frames, .. } => (frames.frames(), frames.header.shape[3], frames.header.shape[2]),
             Shot::Obj { seq, .. } => (seq.len(), seq.first.mesh.w, seq.first.mesh.h),
+            Shot::Cache { cache, w, h, .. } => (cache.header().frames, *w, *h),
         }
     }
 }
@@ -156,6 +169,17 @@ impl LrSource for Shot {
                 let mut t = Tensor::zeros(&[range.len(), 3, h, w]);
                 for (k, f) in range.enumerate() {
                     let img = mesh_to_image(&seq.frame(f)?, domain);
+                    t.data[k * 3 * h * w..(k + 1) * 3 * h * w].copy_from_slice(&img.data);
+                }
+                Ok(t)
+            }
+            Shot::Cache { cache, order, w, h, domain } => {
+                let (w, h, n) = (*w, *h, cache.header().points);
+                let pts = cache.read_frames(range.clone())?;
+                let mut t = Tensor::zeros(&[range.len(), 3, h, w]);
+                for (k, frame) in pts.chunks_exact(n).enumerate() {
+                    let mesh = GridMesh::new(w, h, order.iter().map(|&v| frame[v as usize]).collect());
+                    let img = mesh_to_image(&mesh, domain);
                     t.data[k * 3 * h * w..(k + 1) * 3 * h * w].copy_from_slice(&img.data);
                 }
                 Ok(t)
@@ -204,22 +228,52 @@ fn obj_files(inputs: &[PathBuf]) -> Result<Vec<PathBuf>> {
 /// OBJ frames written one file per frame, the way the input was.
 struct ObjSink {
     dir: PathBuf,
-    names: Vec<String>,
     domain: Domain,
-    quads: bool,
-    /// HR texture coordinates, if the input had usable ones.
-    uv: Option<Vec<[f32; 2]>>,
-    attrs: ObjAttrs,
+    mesh: MeshOut,
 }
 
 impl HrSink for ObjSink {
     fn write(&mut self, first: usize, up: &Upscaled, keep: Range<usize>) -> Result<()> {
         for (k, f) in keep.enumerate() {
-            let mesh = image_to_mesh(&up.hr, f, &self.domain);
-            let text = obj_text_with(&mesh, self.quads, self.uv.as_deref(), &self.attrs);
-            write_atomic_bytes(&self.dir.join(&self.names[first + k]), text.as_bytes())?;
+            let text = self.mesh.obj_text(&image_to_mesh(&up.hr, f, &self.domain));
+            write_atomic_bytes(&self.dir.join(&self.mesh.names[first + k]), text.as_bytes())?;
         }
         Ok(())
+    }
+}
+
+/// An HR point cache, frames appended in order, appearing when complete.
+struct CacheSink {
+    file: AtomicFile,
+    format: CacheFormat,
+    domain: Domain,
+    frames: usize,
+    written: usize,
+}
+
+impl HrSink for CacheSink {
+    fn write(&mut self, _first: usize, up: &Upscaled, keep: Range<usize>) -> Result<()> {
+        for f in keep {
+            let mesh = image_to_mesh(&up.hr, f, &self.domain);
+            let path = self.file.path().to_path_buf();
+            write_frame(self.file.writer(), self.format, &mesh.pos).map_err(|e| Error::io(path, e))?;
+            self.written += 1;
+        }
+        Ok(())
+    }
+}
+
+impl CacheSink {
+    fn finish(self) -> Result<()> {
+        if self.written != self.frames {
+            return Err(Error::shape(format!(
+                "{}: {} of {} frames written",
+                self.file.path().display(),
+                self.written,
+                self.frames
+            )));
+        }
+        self.file.commit()
     }
 }
 
@@ -227,6 +281,7 @@ impl HrSink for ObjSink {
 /// are appended chunk by chunk, each appearing when complete ([`Outputs::finish`]).
 struct Outputs {
     obj: Option<ObjSink>,
+    cache: Option<CacheSink>,
     geometry: Option<NpyWriter>,
     maps: Option<(NpyWriter, NpyWriter)>,
 }
@@ -235,7 +290,10 @@ impl HrSink for Outputs {
     fn write(&mut self, first: usize, up: &Upscaled, keep: Range<usize>) -> Result<()> {
         let (a, n) = (keep.start, keep.len());
         if let Some(o) = &mut self.obj {
-            o.write(first, up, keep)?;
+            o.write(first, up, keep.clone())?;
+        }
+        if let Some(c) = &mut self.cache {
+            c.write(first, up, keep.clone())?;
         }
         if let Some(g) = &mut self.geometry {
             g.append(&up.hr.slice_batch(a, n))?;
@@ -250,6 +308,9 @@ impl HrSink for Outputs {
 
 impl Outputs {
     fn finish(self) -> Result<()> {
+        if let Some(c) = self.cache {
+            c.finish()?;
+        }
         if let Some(g) = self.geometry {
             g.finish()?;
         }
@@ -261,31 +322,123 @@ impl Outputs {
     }
 }
 
-/// The domain OBJ frames are encoded with: none needed for a model in the cloth frame writing
-/// OBJ ([`Domain::UNIT`]: each frame then depends on itself alone); otherwise the bounding box
-/// of the whole shot (not of a `--frames` slice, so slices agree), from one reading pass.
-fn obj_domain(seq: &ObjSequence, model: &AnisoCb, fmt: &str, margin: f32) -> Result<(Domain, String)> {
-    if model.input_frame() == InputFrame::Cloth && fmt == "obj" {
-        return Ok((Domain::UNIT, "no domain needed: the model works in each frame's cloth frame".into()));
+impl Shot {
+    fn set_domain(&mut self, d: Domain) {
+        match self {
+            Shot::Obj { domain, .. } | Shot::Cache { domain, .. } => *domain = d,
+            Shot::Npy { .. } => {}
+        }
     }
+}
+
+/// The bounding box of a whole shot read in [`Domain::UNIT`] (images = metres), grown by
+/// `margin`: one reading pass, a chunk at a time.
+fn shot_bounds(shot: &mut Shot, margin: f32, chunk: usize) -> Result<Domain> {
     if !(margin.is_finite() && margin >= 0.0) {
         return Err(Error::config(format!("--margin must be ≥ 0, got {margin}")));
     }
-    let pb = progress(seq.len() as u64, "bounds");
+    let t = shot.frames();
+    let pb = progress(t as u64, "bounds");
     let mut b = Bounds::default();
-    for k in 0..seq.len() {
-        b.add(&seq.frame(k)?);
-        pb.set_position(k as u64 + 1);
+    let mut at = 0;
+    while at < t {
+        let n = chunk.max(1).min(t - at);
+        let img = shot.read(at..at + n)?;
+        for k in 0..n {
+            b.add(&image_to_mesh(&img, k, &Domain::UNIT));
+        }
+        at += n;
+        pb.set_position(at as u64);
     }
     pb.finish_and_clear();
-    let d = b.domain(margin);
-    let note = format!(
-        "domain = bounding box of all frames + {:.0}% margin: bmin {:?}, bmax {:?} (m)",
-        margin * 100.0,
-        d.bmin,
-        d.bmax
-    );
-    Ok((d, note))
+    Ok(b.domain(margin))
+}
+
+/// What an OBJ-based input (an OBJ sequence, or a point cache's rest mesh) gives the output.
+struct MeshOut {
+    /// Output names per frame of the shot (OBJ output).
+    names: Vec<String>,
+    style: FaceStyle,
+    /// HR texture coordinates, if the input had usable ones.
+    uv: Option<Vec<[f32; 2]>>,
+    attrs: ObjAttrs,
+}
+
+impl MeshOut {
+    fn of(g: &ObjGrid, file: &Path, names: Vec<String>, r: usize) -> MeshOut {
+        if let Some(why) = &g.uv_note {
+            eprintln!("note: {}: {why}", file.display());
+        }
+        let uv = g.uv.as_ref().map(|uv| upscale_uv(uv, g.mesh.w, g.mesh.h, r));
+        MeshOut { names, style: g.style, uv, attrs: g.attrs.clone() }
+    }
+
+    fn obj_text(&self, mesh: &GridMesh) -> String {
+        obj_text_with(mesh, self.style != FaceStyle::Triangles, self.uv.as_deref(), &self.attrs)
+    }
+}
+
+/// A point-cache input: the cache file, its header and its rest mesh.
+struct CacheIn {
+    path: PathBuf,
+    header: CacheHeader,
+    rest: PathBuf,
+    rest_grid: ObjGrid,
+}
+
+/// Open what the user gave: the shot (OBJ and cache frames read in [`Domain::UNIT`] until the
+/// domain is settled), the domain of `.npy` input, and what OBJ-based input gives the output.
+fn open_input(a: &Args, r: usize) -> Result<(Shot, Option<Domain>, Option<MeshOut>, Option<CacheIn>)> {
+    let first = &a.input[0];
+    if let Some(gp) = npy_input(&a.input) {
+        let dp = gp.with_file_name("domain.npy");
+        let domain = Domain::from_tensor(&read_npy(&dp)?).map_err(|e| e.in_file(&dp))?;
+        let frames = NpyFrames::open(&gp)?;
+        let s = &frames.header.shape;
+        if s.len() != 4 || s[1] != 3 || s[2] < 2 || s[3] < 2 || s[0] == 0 {
+            return Err(Error::format(
+                &gp,
+                format!("geometry images must have shape (T, 3, H, W) with T ≥ 1, H, W ≥ 2; got {s:?}"),
+            ));
+        }
+        return Ok((Shot::Npy { frames, path: gp }, Some(domain), None, None));
+    }
+    if a.input.len() == 1 && CacheFormat::from_path(first).is_some() {
+        let Some(rest) = &a.rest else {
+            return Err(Error::config(format!(
+                "{}: a point cache holds positions only; give the mesh they move with --rest MESH.obj                  (exported from the same object, same vertex order)",
+                first.display()
+            )));
+        };
+        let cache = PointCacheReader::open(first)?;
+        let seq = ObjSequence::open(std::slice::from_ref(rest))?;
+        let g = seq.first;
+        let nv = g.mesh.w * g.mesh.h;
+        if cache.header().points != nv {
+            return Err(Error::format(
+                first,
+                format!(
+                    "the cache moves {} points but the rest mesh {} has {nv} vertices: export both from the same object",
+                    cache.header().points,
+                    rest.display()
+                ),
+            ));
+        }
+        let t = cache.header().frames;
+        let out = MeshOut::of(&g, rest, (0..t).map(|k| format!("frame_{k:04}.obj")).collect(), r);
+        let header = cache.header().clone();
+        let (w, h, order) = (g.mesh.w, g.mesh.h, g.order.clone());
+        let shot = Shot::Cache { cache, order, w, h, domain: Domain::UNIT };
+        let cin = CacheIn { path: first.clone(), header, rest: rest.clone(), rest_grid: g };
+        return Ok((shot, None, Some(out), Some(cin)));
+    }
+    if a.rest.is_some() {
+        return Err(Error::config("--rest is for point-cache input (.pc2 / .mdd) only"));
+    }
+    let seq = ObjSequence::open(&obj_files(&a.input)?)?;
+    let names = seq.files.iter().map(|p| p.file_name().unwrap().to_string_lossy().into_owned()).collect();
+    let out = MeshOut::of(&seq.first, &seq.files[0], names, r);
+    Ok((Shot::Obj { seq: Box::new(seq), domain: Domain::UNIT }, None, Some(out), None))
 }
 
 pub fn run(a: Args) -> Result<()> {
@@ -293,43 +446,36 @@ pub fn run(a: Args) -> Result<()> {
     let ops = crate::cuda::ops_for_device(&a.device)?;
     let model = load_model(a.weights.as_deref())?;
     let r = model.scale();
-    // The shot, its domain, and (OBJ input) its files' names and attributes.
-    let (mut shot, domain, domain_note, obj_in) = match npy_input(&a.input) {
-        Some(gp) => {
-            let dp = gp.with_file_name("domain.npy");
-            let domain = Domain::from_tensor(&read_npy(&dp)?).map_err(|e| e.in_file(&dp))?;
-            let frames = NpyFrames::open(&gp)?;
-            let s = &frames.header.shape;
-            if s.len() != 4 || s[1] != 3 || s[2] < 2 || s[3] < 2 || s[0] == 0 {
-                return Err(Error::format(
-                    &gp,
-                    format!("geometry images must have shape (T, 3, H, W) with T ≥ 1, H, W ≥ 2; got {s:?}"),
-                ));
-            }
-            (Shot::Npy { frames, path: gp.clone() }, domain, format!("domain from {}", dp.display()), None)
+    let (mut shot, npy_domain, mesh_out, cache_in) = open_input(&a, r)?;
+    let fmt = match (a.format.as_str(), &mesh_out, &cache_in) {
+        ("auto", _, Some(c)) => c.header.format.name().to_lowercase(),
+        ("auto", Some(_), None) | ("obj", ..) => "obj".to_string(),
+        _ => "npy".to_string(),
+    };
+    let fmt = fmt.as_str();
+    // The domain: the file's for .npy input; none needed for a model in the cloth frame writing
+    // meshes (each frame then depends on itself alone); otherwise the whole shot's bounding
+    // box (not a --frames slice's, so slices agree).
+    let (domain, domain_note) = match npy_domain {
+        Some(d) => (d, "domain from domain.npy beside the input".to_string()),
+        None if model.input_frame() == InputFrame::Cloth && fmt != "npy" => {
+            (Domain::UNIT, "no domain needed: the model works in each frame's cloth frame".to_string())
         }
         None => {
-            let seq = ObjSequence::open(&obj_files(&a.input)?)?;
-            let fmt = if a.format == "npy" { "npy" } else { "obj" };
-            let (domain, note) = obj_domain(&seq, &model, fmt, a.margin)?;
-            let names: Vec<String> =
-                seq.files.iter().map(|p| p.file_name().unwrap().to_string_lossy().into_owned()).collect();
-            let g = &seq.first;
-            if let Some(why) = &g.uv_note {
-                eprintln!("note: {}: {why}", seq.files[0].display());
-            }
-            let uv = g.uv.as_ref().map(|uv| upscale_uv(uv, g.mesh.w, g.mesh.h, r));
-            let obj = (names, g.style, uv, g.attrs.clone());
-            (Shot::Obj { seq: Box::new(seq), domain }, domain, note, Some(obj))
+            let d = shot_bounds(&mut shot, a.margin, a.chunk)?;
+            shot.set_domain(d);
+            let note = format!(
+                "domain = bounding box of all frames + {:.0}% margin: bmin {:?}, bmax {:?} (m)",
+                a.margin * 100.0,
+                d.bmin,
+                d.bmax
+            );
+            (d, note)
         }
     };
     let (t, w, h) = shot.size();
     let range = parse_frames(a.frames.as_deref(), t)?;
     let sliced = range.len() != t;
-    let fmt = match (a.format.as_str(), &obj_in) {
-        ("auto", Some(_)) | ("obj", _) => "obj",
-        _ => "npy",
-    };
     ensure_dir(&a.out)?;
     eprintln!(
         "upscaling frames {}..{} of {t}, {w}x{h} -> {}x{} ({}), η = {}",
@@ -341,12 +487,19 @@ pub fn run(a: Args) -> Result<()> {
         a.eta
     );
     eprintln!("{domain_note}");
+    // Outputs of a slice carry its range in their names (OBJ frames keep their own names).
     let suffix = if sliced { format!(".{}-{}", range.start, range.end) } else { String::new() };
     let npy_name = |stem: &str| format!("{stem}{suffix}.npy");
-    let names: Vec<String> = match &obj_in {
-        Some((names, ..)) => names.clone(),
-        None => (0..t).map(|k| format!("frame_{k:04}.obj")).collect(),
-    };
+    let mesh_out = mesh_out.unwrap_or_else(|| MeshOut {
+        names: (0..t).map(|k| format!("frame_{k:04}.obj")).collect(),
+        style: FaceStyle::Quads,
+        uv: None,
+        attrs: ObjAttrs::default(),
+    });
+    let cache_name = cache_in.as_ref().map(|c| {
+        let stem = c.path.file_stem().unwrap_or_default().to_string_lossy().into_owned();
+        format!("{stem}{suffix}.{}", c.header.format.name().to_lowercase())
+    });
     // A rerun after a kill: clear the temp files the killed run left (every file below is
     // written atomically, so the outputs themselves are either complete or absent).
     let mut outputs: Vec<PathBuf> = ["geometry", "domain", "boundary", "enhance"]
@@ -354,7 +507,9 @@ pub fn run(a: Args) -> Result<()> {
         .map(|n| a.out.join(npy_name(n)))
         .chain([a.out.join(format!("upscale{suffix}.json"))])
         .collect();
-    outputs.extend(names[range.clone()].iter().map(|n| a.out.join(n)));
+    outputs.extend(mesh_out.names[range.clone()].iter().map(|n| a.out.join(n)));
+    outputs.extend(cache_name.iter().map(|n| a.out.join(n)));
+    outputs.extend(cache_in.iter().filter_map(|c| c.rest.file_name()).map(|n| a.out.join(n)));
     for p in &outputs {
         remove_stale_temps(p)?;
     }
@@ -365,9 +520,20 @@ pub fn run(a: Args) -> Result<()> {
         strain_iters: a.strain_iters,
         ..UpscaleParams::default()
     };
-    let pb = progress(range.len() as u64, "upscale");
-    let mut on_frames = |k: usize| pb.set_position(k as u64);
     let start = Instant::now();
+    // A point cache plays on an HR rest mesh: the rest OBJ upscaled on its own.
+    if let Some(c) = &cache_in {
+        let rest = &c.rest_grid.mesh;
+        let d = if domain == Domain::UNIT {
+            domain
+        } else {
+            Domain::enclosing(std::slice::from_ref(rest), a.margin)
+        };
+        let (hr, _) =
+            upscale_meshes(ops.as_ref(), &model, std::slice::from_ref(rest), &d, &params, &mut |_| {})?;
+        let name = c.rest.file_name().unwrap_or_default();
+        write_atomic_bytes(&a.out.join(name), mesh_out.obj_text(&hr[0]).as_bytes())?;
+    }
     let maps = if a.maps {
         let shape = [range.len(), 1, r * h, r * w];
         Some((
@@ -377,17 +543,31 @@ pub fn run(a: Args) -> Result<()> {
     } else {
         None
     };
-    let mut out = Outputs { obj: None, geometry: None, maps };
-    if fmt == "obj" {
-        let (quads, uv, attrs) = match obj_in {
-            Some((_, style, uv, attrs)) => (style != FaceStyle::Triangles, uv, attrs),
-            None => (true, None, ObjAttrs::default()),
-        };
-        out.obj = Some(ObjSink { dir: a.out.clone(), names, domain, quads, uv, attrs });
-    } else {
-        let shape = [range.len(), 3, r * h, r * w];
-        out.geometry = Some(NpyWriter::create(&a.out.join(npy_name("geometry")), &shape)?);
+    let mut out = Outputs { obj: None, cache: None, geometry: None, maps };
+    match (fmt, &cache_in) {
+        ("obj", _) => out.obj = Some(ObjSink { dir: a.out.clone(), domain, mesh: mesh_out }),
+        ("npy", _) => {
+            let shape = [range.len(), 3, r * h, r * w];
+            out.geometry = Some(NpyWriter::create(&a.out.join(npy_name("geometry")), &shape)?);
+        }
+        (_, Some(c)) => {
+            let path = a.out.join(cache_name.as_deref().unwrap_or("cache"));
+            let mut header = CacheHeader::new(c.header.format, r * r * w * h, range.len(), 1.0);
+            // The slice's timing: PC2 start frame and sampling, MDD per-frame times.
+            header.sample_rate = c.header.sample_rate;
+            header.start_frame = c.header.start_frame + range.start as f32 * c.header.sample_rate;
+            if !c.header.times.is_empty() {
+                header.times = c.header.times[range.clone()].to_vec();
+            }
+            let mut file = AtomicFile::create(&path)?;
+            write_header(file.writer(), &header).map_err(|e| Error::io(&path, e))?;
+            out.cache =
+                Some(CacheSink { file, format: header.format, domain, frames: range.len(), written: 0 });
+        }
+        _ => unreachable!("fmt is obj, npy, or a cache format for cache input"),
     }
+    let pb = progress(range.len() as u64, "upscale");
+    let mut on_frames = |k: usize| pb.set_position(k as u64);
     let chunk = a.chunk;
     upscale_stream(
         ops.as_ref(),
