@@ -386,9 +386,18 @@ struct CacheIn {
     rest_grid: ObjGrid,
 }
 
-/// Open what the user gave: the shot (OBJ and cache frames read in [`Domain::UNIT`] until the
-/// domain is settled), the domain of `.npy` input, and what OBJ-based input gives the output.
-fn open_input(a: &Args, r: usize) -> Result<(Shot, Option<Domain>, Option<MeshOut>, Option<CacheIn>)> {
+/// What the user gave, opened.
+struct Input {
+    /// The frames (OBJ and cache frames read in [`Domain::UNIT`] until the domain is settled).
+    shot: Shot,
+    /// The domain of `.npy` input.
+    npy_domain: Option<Domain>,
+    /// What OBJ-based input gives the output.
+    mesh_out: Option<MeshOut>,
+    cache_in: Option<CacheIn>,
+}
+
+fn open_input(a: &Args, r: usize) -> Result<Input> {
     let first = &a.input[0];
     if let Some(gp) = npy_input(&a.input) {
         let dp = gp.with_file_name("domain.npy");
@@ -401,7 +410,8 @@ fn open_input(a: &Args, r: usize) -> Result<(Shot, Option<Domain>, Option<MeshOu
                 format!("geometry images must have shape (T, 3, H, W) with T ≥ 1, H, W ≥ 2; got {s:?}"),
             ));
         }
-        return Ok((Shot::Npy { frames, path: gp }, Some(domain), None, None));
+        let shot = Shot::Npy { frames, path: gp };
+        return Ok(Input { shot, npy_domain: Some(domain), mesh_out: None, cache_in: None });
     }
     if a.input.len() == 1 && CacheFormat::from_path(first).is_some() {
         let Some(rest) = &a.rest else {
@@ -430,7 +440,7 @@ fn open_input(a: &Args, r: usize) -> Result<(Shot, Option<Domain>, Option<MeshOu
         let (w, h, order) = (g.mesh.w, g.mesh.h, g.order.clone());
         let shot = Shot::Cache { cache, order, w, h, domain: Domain::UNIT };
         let cin = CacheIn { path: first.clone(), header, rest: rest.clone(), rest_grid: g };
-        return Ok((shot, None, Some(out), Some(cin)));
+        return Ok(Input { shot, npy_domain: None, mesh_out: Some(out), cache_in: Some(cin) });
     }
     if a.rest.is_some() {
         return Err(Error::config("--rest is for point-cache input (.pc2 / .mdd) only"));
@@ -438,7 +448,8 @@ fn open_input(a: &Args, r: usize) -> Result<(Shot, Option<Domain>, Option<MeshOu
     let seq = ObjSequence::open(&obj_files(&a.input)?)?;
     let names = seq.files.iter().map(|p| p.file_name().unwrap().to_string_lossy().into_owned()).collect();
     let out = MeshOut::of(&seq.first, &seq.files[0], names, r);
-    Ok((Shot::Obj { seq: Box::new(seq), domain: Domain::UNIT }, None, Some(out), None))
+    let shot = Shot::Obj { seq: Box::new(seq), domain: Domain::UNIT };
+    Ok(Input { shot, npy_domain: None, mesh_out: Some(out), cache_in: None })
 }
 
 pub fn run(a: Args) -> Result<()> {
@@ -446,7 +457,7 @@ pub fn run(a: Args) -> Result<()> {
     let ops = crate::cuda::ops_for_device(&a.device)?;
     let model = load_model(a.weights.as_deref())?;
     let r = model.scale();
-    let (mut shot, npy_domain, mesh_out, cache_in) = open_input(&a, r)?;
+    let Input { mut shot, npy_domain, mesh_out, cache_in } = open_input(&a, r)?;
     let fmt = match (a.format.as_str(), &mesh_out, &cache_in) {
         ("auto", _, Some(c)) => c.header.format.name().to_lowercase(),
         ("auto", Some(_), None) | ("obj", ..) => "obj".to_string(),
