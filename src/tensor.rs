@@ -74,6 +74,20 @@ impl Tensor {
         Tensor { shape, data: self.data[n0 * per..(n0 + count) * per].to_vec() }
     }
 
+    /// Append `other`'s samples (same trailing shape) after this tensor's.
+    pub fn append_batch(&mut self, other: &Tensor) {
+        assert_eq!(self.shape[1..], other.shape[1..], "append_batch: trailing shapes differ");
+        self.data.extend_from_slice(&other.data);
+        self.shape[0] += other.shape[0];
+    }
+
+    /// Drop the first `n` samples of the leading axis.
+    pub fn drop_batch_front(&mut self, n: usize) {
+        let per: usize = self.shape[1..].iter().product();
+        self.data.drain(..n * per);
+        self.shape[0] -= n;
+    }
+
     /// First non-finite value, as (flat index, value).
     pub fn first_non_finite(&self) -> Option<(usize, f32)> {
         self.data.iter().enumerate().find(|(_, v)| !v.is_finite()).map(|(i, v)| (i, *v))

@@ -2,12 +2,14 @@
 //! time, so memory is bounded by the chunk, not the shot; and any frame range of a shot
 //! upscales to exactly the bits the whole shot gives for those frames (farm slices).
 //!
-//! Each chunk of frames `a..b` is run through [`upscale_images`] together with the
-//! `temporal` frames on either side of it (clipped to the shot), which the temporal smoothing
-//! of frames `a..b` reads; the context frames' own results are discarded. Every other step is
-//! per frame, so frame `f`'s result depends only on frames `f − k … f + k` of the shot.
+//! Each chunk of frames `a..b` is finished ([`finish`]: temporal smoothing, Eq 12, strain
+//! limit) together with the `temporal` = k frames on either side of it (clipped to the shot),
+//! which the smoothing of frames `a..b` reads; the context frames' own results are discarded,
+//! their nets' outputs kept for the next chunk, so every frame runs through the nets once.
+//! Every other step is per frame, so frame `f`'s result depends only on frames `f − k … f + k`
+//! of the shot, as in [`super::upscale::upscale_images`].
 
-use super::upscale::{upscale_images, UpscaleParams, Upscaled};
+use super::upscale::{finish, run_nets, UpscaleParams, Upscaled};
 use crate::error::{Error, Result};
 use crate::geom::cloth_frame::InputFrame;
 use crate::geom::Domain;
@@ -70,16 +72,40 @@ pub fn upscale_stream(
     }
     // Only a cloth-frame model smooths in time (see `UpscaleParams::temporal`).
     let k = if model.input_frame() == InputFrame::Cloth { params.temporal } else { 0 };
+    // Its frame numbers count from the window's first frame.
+    let from_frame = |lo: usize| {
+        move |e: Error| match e {
+            Error::Numeric(m) => Error::numeric(format!("{m} (counting from frame {lo} of the shot)")),
+            e => e,
+        }
+    };
+    // The nets' outputs for frames buf_lo..buf_lo + raw.frames(): each chunk's window, whose
+    // overlap with the next window is kept so that every frame runs through the nets once.
+    let mut raw: Option<Upscaled> = None;
+    let mut buf_lo = 0;
     let mut a = range.start;
     while a < range.end {
         let b = (a + chunk).min(range.end);
         let (lo, hi) = (a.saturating_sub(k), (b + k).min(t));
-        let lr = src.read(lo..hi)?;
-        let up = upscale_images(ops, model, &lr, domain, params, &mut |_| {}).map_err(|e| match e {
-            // Its frame numbers count from the chunk's first frame.
-            Error::Numeric(m) => Error::numeric(format!("{m} (counting from frame {lo} of the shot)")),
-            e => e,
-        })?;
+        let have = raw.as_ref().map_or(0, Upscaled::frames);
+        if buf_lo + have <= lo {
+            raw = None;
+            buf_lo = lo;
+        } else if let Some(r) = raw.as_mut() {
+            r.drop_front(lo - buf_lo);
+            buf_lo = lo;
+        }
+        let from = buf_lo + raw.as_ref().map_or(0, Upscaled::frames);
+        if from < hi {
+            let lr = src.read(from..hi)?;
+            let new = run_nets(ops, model, &lr, domain, params, &mut |_| {}).map_err(from_frame(from))?;
+            match raw.as_mut() {
+                Some(r) => r.append(&new),
+                None => raw = Some(new),
+            }
+        }
+        let window = raw.clone().expect("the window holds frames lo..hi");
+        let up = finish(window, model, params).map_err(from_frame(lo))?;
         sink.write(a, &up, a - lo..b - lo)?;
         a = b;
         on_frames(a - range.start);

@@ -100,6 +100,39 @@ pub struct Upscaled {
 }
 
 impl Upscaled {
+    /// Frames in it.
+    pub fn frames(&self) -> usize {
+        self.interpolated.shape[0]
+    }
+
+    /// Drop the first `n` frames.
+    pub fn drop_front(&mut self, n: usize) {
+        for t in [
+            &mut self.interpolated,
+            &mut self.residual,
+            &mut self.boundary,
+            &mut self.enhance,
+            &mut self.lr_net,
+        ] {
+            t.drop_batch_front(n);
+        }
+        if self.hr.shape[0] >= n {
+            self.hr.drop_batch_front(n);
+        }
+        self.maps.drain(..n);
+    }
+
+    /// Append `other`'s frames (the same sizes; `hr` is not carried: run [`finish`] after).
+    pub fn append(&mut self, other: &Upscaled) {
+        self.interpolated.append_batch(&other.interpolated);
+        self.residual.append_batch(&other.residual);
+        self.boundary.append_batch(&other.boundary);
+        self.enhance.append_batch(&other.enhance);
+        self.lr_net.append_batch(&other.lr_net);
+        self.maps.extend_from_slice(&other.maps);
+        self.hr = Tensor::zeros(&[0, 3, self.interpolated.shape[2], self.interpolated.shape[3]]);
+    }
+
     /// Γfinal for another enhancement factor `eta`, from the same network outputs (Eq 12 and
     /// the same strain limit as [`Upscaled::hr`]).
     pub fn with_eta(&self, eta: f32) -> Result<Tensor> {
@@ -166,6 +199,22 @@ pub fn upscale_images(
     params: &UpscaleParams,
     on_frames: &mut dyn FnMut(usize),
 ) -> Result<Upscaled> {
+    let raw = run_nets(ops, model, lr, domain, params, on_frames)?;
+    finish(raw, model, params)
+}
+
+/// Step 1 of [`upscale_images`], per frame: each LR frame in the nets' frame and the three
+/// nets, batch by batch. U, R and the per-frame maps stay in the nets' frame (`hr` is empty)
+/// until [`finish`]; the result can be cut and joined along frames ([`Upscaled::drop_front`],
+/// [`Upscaled::append`]), which the streaming pipeline does so every frame runs once.
+pub fn run_nets(
+    ops: &dyn Ops,
+    model: &AnisoCb,
+    lr: &Tensor,
+    domain: &Domain,
+    params: &UpscaleParams,
+    on_frames: &mut dyn FnMut(usize),
+) -> Result<Upscaled> {
     let (t, c, h, w) = lr.expect_rank4("upscale input")?;
     if c != 3 {
         return Err(Error::shape(format!("upscale input must have 3 channels (xyz), got {c}")));
@@ -184,7 +233,7 @@ pub fn upscale_images(
     let r = model.scale();
     let (hh, hw) = (r * h, r * w);
     let mut out = Upscaled {
-        hr: Tensor::zeros(&[t, 3, hh, hw]),
+        hr: Tensor::zeros(&[0, 3, hh, hw]),
         interpolated: Tensor::zeros(&[t, 3, hh, hw]),
         residual: Tensor::zeros(&[t, 3, hh, hw]),
         boundary: Tensor::zeros(&[t, 1, hh, hw]),
@@ -194,14 +243,12 @@ pub fn upscale_images(
         strain_iters: if model.input_frame() == InputFrame::Cloth { params.strain_iters } else { 0 },
     };
     let (px3, px1) = (3 * hh * hw, hh * hw);
-    // 1. The nets, batch by batch, in each frame's own coordinates (U and R stay there until 4).
-    let mut maps = std::mem::take(&mut out.maps);
     let mut done = 0;
     while done < t {
         let n = params.batch.min(t - done);
-        maps.extend((done..done + n).map(|f| model.input_frame().image_maps(lr, f, domain)));
+        out.maps.extend((done..done + n).map(|f| model.input_frame().image_maps(lr, f, domain)));
         let mut x = lr.slice_batch(done, n);
-        for (img, m) in x.data.chunks_exact_mut(3 * h * w).zip(&maps[done..]) {
+        for (img, m) in x.data.chunks_exact_mut(3 * h * w).zip(&out.maps[done..]) {
             m.0.apply_image(img, true);
         }
         out.lr_net.data[done * 3 * h * w..(done + n) * 3 * h * w].copy_from_slice(&x.data);
@@ -216,6 +263,14 @@ pub fn upscale_images(
         done += n;
         on_frames(done);
     }
+    Ok(out)
+}
+
+/// Steps 2–3 of [`upscale_images`] on [`run_nets`]'s output for consecutive frames: temporal
+/// smoothing (the window renormalised at `raw`'s ends), back to the sequence's domain, Eq 12
+/// and the strain limit.
+pub fn finish(mut out: Upscaled, model: &AnisoCb, params: &UpscaleParams) -> Result<Upscaled> {
+    let px3 = out.interpolated.len() / out.interpolated.shape[0].max(1);
     // 2. Temporal smoothing of R where it is comparable across frames: in the cloth frame a
     //    wrinkle that stays on the cloth has the same residual whatever the cloth does.
     if params.temporal > 0 && model.input_frame() == InputFrame::Cloth {
@@ -223,13 +278,12 @@ pub fn upscale_images(
     }
     // 3. Back to the sequence's domain, then Eq 12 and the strain limit (`with_eta`).
     if model.input_frame() != InputFrame::Domain {
-        for (k, m) in maps.iter().enumerate() {
+        for (k, m) in out.maps.iter().enumerate() {
             let at = k * px3..(k + 1) * px3;
             m.1.apply_image(&mut out.interpolated.data[at.clone()], true);
             m.1.apply_image(&mut out.residual.data[at], false);
         }
     }
-    out.maps = maps;
     out.hr = out.with_eta(params.eta)?;
     if let Some((i, v)) = out.hr.first_non_finite() {
         return Err(Error::numeric(format!(
