@@ -1,7 +1,7 @@
 # anisocb — `make demo` runs the main job, `make test` runs every check.
 CARGO ?= cargo
 
-.PHONY: all build test lint fmt-check clippy check-features bench demo weights dist fixtures clean
+.PHONY: all build test lint fmt-check clippy check-features bench demo weights dist fixtures onnx clean
 
 all: build
 
@@ -40,6 +40,14 @@ demo:
 ## Retrain the shipped model from scratch (simulate, dataset, train; ≈ 25 min on 2 cores).
 weights: build
 	./weights/make_weights.sh
+
+## Export the shipped model to ONNX and check ONNX Runtime against anisocb (needs Python and
+## pip; not part of `make test`). Writes target/anisocb-x2.onnx.
+onnx: build
+	test -x .venv-onnx/bin/python || python3 -m venv .venv-onnx
+	.venv-onnx/bin/pip install -q -r tests/onnx/requirements.txt
+	.venv-onnx/bin/python tests/onnx/export_onnx.py weights/anisocb-x2.npz target/anisocb-x2.onnx
+	.venv-onnx/bin/python tests/onnx/check_onnx.py --onnx target/anisocb-x2.onnx
 
 ## Regenerate reference .npy files (needs Python; `make test` does not).
 fixtures:

@@ -604,6 +604,23 @@ fn obj_catalogue_each_bad_file_gives_its_error() {
         ("missing_vertex.obj", without_vertex_5.into_bytes(), &["vertex 9", "8 vertices"]),
         ("bad_index.obj", good.replacen("f 1 2", "f one 2", 1).into_bytes(), &["bad face index 'one'"]),
         (
+            "relative_too_far.obj",
+            good.replacen("f 1 2", "f -99 2", 1).into_bytes(),
+            &["vertex -99", "9 vertices"],
+        ),
+        (
+            "nan_uv.obj",
+            format!("vt 0.5 nan\n{good}").into_bytes(),
+            &["line 1", "bad texture coordinate 'nan'"],
+        ),
+        ("one_uv_coord.obj", format!("vt 0.5\n{good}").into_bytes(), &["line 1", "needs u and v"]),
+        (
+            "absent_uv.obj",
+            format!("vt 0 0\n{}", good.replacen("f 1 2", "f 1/7 2", 1)).into_bytes(),
+            &["texture coordinate 7", "1 texture coordinates"],
+        ),
+        ("bad_uv_index.obj", good.replacen("f 1 2", "f 1/x 2", 1).into_bytes(), &["bad face index '1/x'"]),
+        (
             "duplicate_vertex.obj",
             format!("v 0 0 0\n{good}").replace("f ", "f_").replace("f_", "f ").into_bytes(),
             &["not a regular grid"],

@@ -127,10 +127,6 @@ pub fn parse_obj(text: &str, path: &Path) -> Result<ObjMesh> {
                         _ => {}
                     }
                 }
-                // Corner UVs count only when every corner has one.
-                if t.len() != f.len() {
-                    t.clear();
-                }
                 raw_faces.push((ln, f, pos.len() as i64));
                 raw_face_uv.push((ln, t, uv.len() as i64));
             }
@@ -138,7 +134,14 @@ pub fn parse_obj(text: &str, path: &Path) -> Result<ObjMesh> {
         }
     }
     let faces = resolve_indices(raw_faces, pos.len() as i64, ("vertex", "vertices"), path)?;
-    let face_uv = resolve_indices(raw_face_uv, uv.len() as i64, ("texture coordinate", "of them"), path)?;
+    let mut face_uv =
+        resolve_indices(raw_face_uv, uv.len() as i64, ("texture coordinate", "texture coordinates"), path)?;
+    // Corner UVs count only when every corner of the face has one.
+    for (t, f) in face_uv.iter_mut().zip(&faces) {
+        if t.len() != f.len() {
+            t.clear();
+        }
+    }
     Ok(ObjMesh { pos, faces, uv, face_uv, attrs })
 }
 
