@@ -238,9 +238,10 @@ fn shipped_model_output_scales_with_the_cloth() {
 
 /// A grid written the way Blender's OBJ exporter writes a UV-unwrapped cloth: header comments,
 /// `mtllib`, `o`, `v`, `vn`, `vt`, `s`, `usemtl`, then `v/vt/vn` quads wound (i,j) → (i+1,j) →
-/// (i+1,j+1) → (i,j+1) (opposite to `GridMesh::quads`), one `vt` per vertex.
-fn blender_style_obj(m: &GridMesh) -> String {
-    let mut s = String::from("# Blender 4.5.4\n# www.blender.org\nmtllib cloth.mtl\no Cloth\n");
+/// (i+1,j+1) → (i,j+1) (opposite to `GridMesh::quads`), one `vt` per vertex; Blender writes one
+/// `.mtl` per frame of an animation, named like the frame.
+fn blender_style_obj(m: &GridMesh, mtl: &str) -> String {
+    let mut s = format!("# Blender 4.5.4\n# www.blender.org\nmtllib {mtl}\no Cloth\n");
     for p in &m.pos {
         s += &format!("v {:.6} {:.6} {:.6}\n", p[0], p[1], p[2]);
     }
@@ -276,7 +277,9 @@ fn blender_obj_keeps_uvs_material_names_normals_and_winding() {
     std::fs::create_dir_all(&input).unwrap();
     let frames = small_run(3);
     for (k, f) in frames.iter().enumerate() {
-        std::fs::write(input.join(format!("cloth{:06}.obj", k + 1)), blender_style_obj(f)).unwrap();
+        let name = format!("cloth{:06}", k + 1);
+        std::fs::write(input.join(format!("{name}.obj")), blender_style_obj(f, &format!("{name}.mtl")))
+            .unwrap();
     }
     let out = dir.join("out");
     upscale_cli(&[input.to_str().unwrap(), "--out", out.to_str().unwrap()]);
@@ -284,7 +287,8 @@ fn blender_obj_keeps_uvs_material_names_normals_and_winding() {
         let name = format!("cloth{:06}.obj", k + 1);
         let (pi, po) = (input.join(&name), out.join(&name));
         let text = std::fs::read_to_string(&po).unwrap();
-        for line in ["mtllib cloth.mtl", "o Cloth", "usemtl Fabric", "s 1"] {
+        let mtllib = format!("mtllib cloth{:06}.mtl", k + 1);
+        for line in [mtllib.as_str(), "o Cloth", "usemtl Fabric", "s 1"] {
             assert!(text.lines().any(|l| l == line), "{name}: no '{line}'");
         }
         let m = parse_obj(&text, &po).unwrap();
@@ -377,10 +381,10 @@ fn point_cache_with_rest_obj_upscales_to_an_hr_rest_obj_and_cache() {
     std::fs::create_dir_all(&objs).unwrap();
     let frames = small_run(4);
     for (k, f) in frames.iter().enumerate() {
-        std::fs::write(objs.join(format!("cloth{k:03}.obj")), blender_style_obj(f)).unwrap();
+        std::fs::write(objs.join(format!("cloth{k:03}.obj")), blender_style_obj(f, "cloth.mtl")).unwrap();
     }
     let rest = dir.join("cloth.obj");
-    std::fs::write(&rest, blender_style_obj(&frames[0])).unwrap();
+    std::fs::write(&rest, blender_style_obj(&frames[0], "cloth.mtl")).unwrap();
     // The OBJ sequence's result is what the cache must reproduce, frame by frame.
     let via_obj = dir.join("via_obj");
     upscale_cli(&[objs.to_str().unwrap(), "--out", via_obj.to_str().unwrap()]);

@@ -23,8 +23,11 @@ use crate::sr::compose::DEFAULT_ETA;
 use crate::sr::stream::{upscale_stream, HrSink, LrSource, DEFAULT_CHUNK};
 use crate::sr::upscale::{upscale_meshes, upscale_uv, UpscaleParams, Upscaled};
 use crate::tensor::Tensor;
+use std::cell::RefCell;
+use std::collections::BTreeMap;
 use std::ops::Range;
 use std::path::{Path, PathBuf};
+use std::rc::Rc;
 use std::time::Instant;
 
 #[derive(clap::Args, Debug)]
@@ -128,8 +131,9 @@ pub fn parse_frames(spec: Option<&str>, t: usize) -> Result<Range<usize>> {
 enum Shot {
     /// A geometry.npy (T, 3, H, W) with its domain.
     Npy { frames: NpyFrames, path: PathBuf },
-    /// An OBJ sequence, encoded with `domain` as it is read.
-    Obj { seq: Box<ObjSequence>, domain: Domain },
+    /// An OBJ sequence, encoded with `domain` as it is read; each frame's file attributes go to
+    /// `attrs` until its HR frame is written.
+    Obj { seq: Box<ObjSequence>, domain: Domain, attrs: FrameAttrs },
     /// A point cache; `order[j*w + i]` is the cache point at grid vertex (i, j) (from the rest
     /// mesh).
     Cache { cache: PointCacheReader, order: Vec<u32>, w: usize, h: usize, domain: Domain },
@@ -164,11 +168,13 @@ impl LrSource for Shot {
                 }
                 Ok(t)
             }
-            Shot::Obj { seq, domain } => {
+            Shot::Obj { seq, domain, attrs } => {
                 let (w, h) = (seq.first.mesh.w, seq.first.mesh.h);
                 let mut t = Tensor::zeros(&[range.len(), 3, h, w]);
                 for (k, f) in range.enumerate() {
-                    let img = mesh_to_image(&seq.frame(f)?, domain);
+                    let (mesh, a) = seq.frame_and_attrs(f)?;
+                    attrs.borrow_mut().insert(f, a);
+                    let img = mesh_to_image(&mesh, domain);
                     t.data[k * 3 * h * w..(k + 1) * 3 * h * w].copy_from_slice(&img.data);
                 }
                 Ok(t)
@@ -225,17 +231,25 @@ fn obj_files(inputs: &[PathBuf]) -> Result<Vec<PathBuf>> {
     Ok(files)
 }
 
-/// OBJ frames written one file per frame, the way the input was.
+/// Per-frame OBJ attributes (`mtllib` …) of input frames read but not yet written, by frame.
+type FrameAttrs = Rc<RefCell<BTreeMap<usize, ObjAttrs>>>;
+
+/// OBJ frames written one file per frame, the way the input was: each with its own input
+/// frame's attributes (from `attrs`; the first frame's for non-OBJ input).
 struct ObjSink {
     dir: PathBuf,
     domain: Domain,
     mesh: MeshOut,
+    attrs: FrameAttrs,
 }
 
 impl HrSink for ObjSink {
     fn write(&mut self, first: usize, up: &Upscaled, keep: Range<usize>) -> Result<()> {
         for (k, f) in keep.enumerate() {
-            let text = self.mesh.obj_text(&image_to_mesh(&up.hr, f, &self.domain));
+            let hr = image_to_mesh(&up.hr, f, &self.domain);
+            let attrs =
+                self.attrs.borrow_mut().remove(&(first + k)).unwrap_or_else(|| self.mesh.attrs.clone());
+            let text = self.mesh.obj_text(&hr, &attrs);
             write_atomic_bytes(&self.dir.join(&self.mesh.names[first + k]), text.as_bytes())?;
         }
         Ok(())
@@ -373,8 +387,9 @@ impl MeshOut {
         MeshOut { names, style: g.style, uv, attrs: g.attrs.clone() }
     }
 
-    fn obj_text(&self, mesh: &GridMesh) -> String {
-        obj_text_with(mesh, self.style != FaceStyle::Triangles, self.uv.as_deref(), &self.attrs)
+    /// OBJ text of an HR frame with `attrs` (its input frame's; the rest mesh's for caches).
+    fn obj_text(&self, mesh: &GridMesh, attrs: &ObjAttrs) -> String {
+        obj_text_with(mesh, self.style != FaceStyle::Triangles, self.uv.as_deref(), attrs)
     }
 }
 
@@ -448,7 +463,7 @@ fn open_input(a: &Args, r: usize) -> Result<Input> {
     let seq = ObjSequence::open(&obj_files(&a.input)?)?;
     let names = seq.files.iter().map(|p| p.file_name().unwrap().to_string_lossy().into_owned()).collect();
     let out = MeshOut::of(&seq.first, &seq.files[0], names, r);
-    let shot = Shot::Obj { seq: Box::new(seq), domain: Domain::UNIT };
+    let shot = Shot::Obj { seq: Box::new(seq), domain: Domain::UNIT, attrs: FrameAttrs::default() };
     Ok(Input { shot, npy_domain: None, mesh_out: Some(out), cache_in: None })
 }
 
@@ -543,7 +558,7 @@ pub fn run(a: Args) -> Result<()> {
         let (hr, _) =
             upscale_meshes(ops.as_ref(), &model, std::slice::from_ref(rest), &d, &params, &mut |_| {})?;
         let name = c.rest.file_name().unwrap_or_default();
-        write_atomic_bytes(&a.out.join(name), mesh_out.obj_text(&hr[0]).as_bytes())?;
+        write_atomic_bytes(&a.out.join(name), mesh_out.obj_text(&hr[0], &mesh_out.attrs).as_bytes())?;
     }
     let maps = if a.maps {
         let shape = [range.len(), 1, r * h, r * w];
@@ -556,7 +571,13 @@ pub fn run(a: Args) -> Result<()> {
     };
     let mut out = Outputs { obj: None, cache: None, geometry: None, maps };
     match (fmt, &cache_in) {
-        ("obj", _) => out.obj = Some(ObjSink { dir: a.out.clone(), domain, mesh: mesh_out }),
+        ("obj", _) => {
+            let attrs = match &shot {
+                Shot::Obj { attrs, .. } => attrs.clone(),
+                _ => FrameAttrs::default(),
+            };
+            out.obj = Some(ObjSink { dir: a.out.clone(), domain, mesh: mesh_out, attrs });
+        }
         ("npy", _) => {
             let shape = [range.len(), 3, r * h, r * w];
             out.geometry = Some(NpyWriter::create(&a.out.join(npy_name("geometry")), &shape)?);

@@ -600,15 +600,19 @@ impl ObjSequence {
 
     /// Frame `k` as a grid in the first file's orientation.
     pub fn frame(&self, k: usize) -> Result<GridMesh> {
+        Ok(self.frame_and_attrs(k)?.0)
+    }
+
+    /// Frame `k` and what its file carries besides geometry (exporters write per-frame
+    /// `mtllib`s: Blender's `cloth0002.obj` uses `cloth0002.mtl`).
+    pub fn frame_and_attrs(&self, k: usize) -> Result<(GridMesh, ObjAttrs)> {
         let p = &self.files[k];
         let m = parse_obj(&std::fs::read_to_string(p).map_err(|e| Error::io(p, e))?, p)?;
         let g0 = &self.first;
         if m.faces == self.faces && m.pos.len() == self.vertices {
-            return Ok(GridMesh::new(
-                g0.mesh.w,
-                g0.mesh.h,
-                g0.order.iter().map(|&v| m.pos[v as usize]).collect(),
-            ));
+            let mesh =
+                GridMesh::new(g0.mesh.w, g0.mesh.h, g0.order.iter().map(|&v| m.pos[v as usize]).collect());
+            return Ok((mesh, ObjAttrs { flipped: g0.attrs.flipped, ..m.attrs }));
         }
         let g = obj_to_grid(&m, p)?;
         if (g.mesh.w, g.mesh.h) != (g0.mesh.w, g0.mesh.h) {
@@ -620,7 +624,7 @@ impl ObjSequence {
                 ),
             ));
         }
-        Ok(g.mesh)
+        Ok((g.mesh, g.attrs))
     }
 }
 

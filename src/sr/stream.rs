@@ -104,7 +104,11 @@ pub fn upscale_stream(
                 None => raw = Some(new),
             }
         }
-        let window = raw.clone().expect("the window holds frames lo..hi");
+        // Keep only what the next window shares with this one (≤ 2k frames from b − k).
+        let next_lo = b.saturating_sub(k).max(lo);
+        let window = raw.take().expect("the window holds frames lo..hi");
+        raw = Some(window.slice_frames(next_lo - lo..hi - lo));
+        buf_lo = next_lo;
         let up = finish(window, model, params).map_err(from_frame(lo))?;
         sink.write(a, &up, a - lo..b - lo)?;
         a = b;

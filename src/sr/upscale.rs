@@ -105,6 +105,21 @@ impl Upscaled {
         self.interpolated.shape[0]
     }
 
+    /// A copy of frames `r` (`hr` is not carried: run [`finish`] after).
+    pub fn slice_frames(&self, r: std::ops::Range<usize>) -> Upscaled {
+        let cut = |t: &Tensor| t.slice_batch(r.start, r.len());
+        Upscaled {
+            hr: Tensor::zeros(&[0, 3, self.interpolated.shape[2], self.interpolated.shape[3]]),
+            interpolated: cut(&self.interpolated),
+            residual: cut(&self.residual),
+            boundary: cut(&self.boundary),
+            enhance: cut(&self.enhance),
+            maps: self.maps[r.clone()].to_vec(),
+            lr_net: cut(&self.lr_net),
+            strain_iters: self.strain_iters,
+        }
+    }
+
     /// Drop the first `n` frames.
     pub fn drop_front(&mut self, n: usize) {
         for t in [
