@@ -12,8 +12,7 @@ use crate::geom::obj::{
     list_obj_files, natural_cmp, obj_text_with, FaceStyle, ObjAttrs, ObjGrid, ObjSequence,
 };
 use crate::geom::{Domain, GridMesh};
-use crate::io::atomic::AtomicFile;
-use crate::io::atomic::{ensure_dir, remove_stale_temps, write_atomic_bytes};
+use crate::io::atomic::{ensure_dir, remove_stale_temps, write_atomic_bytes, AtomicFile};
 use crate::io::json::{write_json, Layout, Object, Value};
 use crate::io::npy::{NpyFrames, NpyWriter};
 use crate::io::point_cache::{write_frame, write_header, CacheFormat, CacheHeader, PointCacheReader};
@@ -148,6 +147,14 @@ impl Shot {
             Shot::Cache { cache, w, h, .. } => (cache.header().frames, *w, *h),
         }
     }
+
+    /// Encode OBJ and cache frames with `d` from now on (`.npy` frames come with theirs).
+    fn set_domain(&mut self, d: Domain) {
+        match self {
+            Shot::Obj { domain, .. } | Shot::Cache { domain, .. } => *domain = d,
+            Shot::Npy { .. } => {}
+        }
+    }
 }
 
 impl LrSource for Shot {
@@ -174,8 +181,7 @@ impl LrSource for Shot {
                 for (k, f) in range.enumerate() {
                     let (mesh, a) = seq.frame_and_attrs(f)?;
                     attrs.borrow_mut().insert(f, a);
-                    let img = mesh_to_image(&mesh, domain);
-                    t.data[k * 3 * h * w..(k + 1) * 3 * h * w].copy_from_slice(&img.data);
+                    put_frame(&mut t, k, &mesh, domain);
                 }
                 Ok(t)
             }
@@ -185,13 +191,18 @@ impl LrSource for Shot {
                 let mut t = Tensor::zeros(&[range.len(), 3, h, w]);
                 for (k, frame) in pts.chunks_exact(n).enumerate() {
                     let mesh = GridMesh::new(w, h, order.iter().map(|&v| frame[v as usize]).collect());
-                    let img = mesh_to_image(&mesh, domain);
-                    t.data[k * 3 * h * w..(k + 1) * 3 * h * w].copy_from_slice(&img.data);
+                    put_frame(&mut t, k, &mesh, domain);
                 }
                 Ok(t)
             }
         }
     }
+}
+
+/// Frame `k` of the (n, 3, H, W) images `t`: `mesh` encoded with `domain` (Eq 1).
+fn put_frame(t: &mut Tensor, k: usize, mesh: &GridMesh, domain: &Domain) {
+    let n = 3 * mesh.w * mesh.h;
+    t.data[k * n..(k + 1) * n].copy_from_slice(&mesh_to_image(mesh, domain).data);
 }
 
 fn is_obj(p: &Path) -> bool {
@@ -333,15 +344,6 @@ impl Outputs {
             e.finish()?;
         }
         Ok(())
-    }
-}
-
-impl Shot {
-    fn set_domain(&mut self, d: Domain) {
-        match self {
-            Shot::Obj { domain, .. } | Shot::Cache { domain, .. } => *domain = d,
-            Shot::Npy { .. } => {}
-        }
     }
 }
 
