@@ -1,7 +1,7 @@
 # anisocb — `make demo` runs the main job, `make test` runs every check.
 CARGO ?= cargo
 
-.PHONY: all build test lint fmt-check clippy check-features bench demo weights dist fixtures onnx clean
+.PHONY: all build test lint fmt-check clippy check-features bench bench-peers demo weights dist fixtures onnx clean
 
 all: build
 
@@ -33,6 +33,14 @@ check-features:
 
 bench:
 	$(CARGO) run --release -- bench
+
+## anisocb vs ONNX Runtime and JAX/XLA, interleaved rounds, medians and ratios (needs Python and
+## pip; not part of `make test`; ≈ 6 min on 2 cores). Writes target/bench-peers.md.
+bench-peers:
+	test -x .venv-peers/bin/python || python3 -m venv .venv-peers
+	.venv-peers/bin/pip install -q -r benches/peers/requirements.txt
+	$(CARGO) bench --bench peers --no-run
+	.venv-peers/bin/python benches/peers/run.py $(GROUPS)
 
 demo:
 	$(CARGO) run --release -- demo

@@ -1,7 +1,7 @@
 //! Training throughput (samples/s: batch 32 of 16×16 LR patches → 32×32 HR, forward + backward
 //! and Adam) and inference time per 32×32 → 64×64 frame, for the `small` and `paper` configs.
 //!
-//! `cargo bench --bench train [-- small|paper]`. Compare with JAX/XLA: `python3 benches/train_jax.py`.
+//! `cargo bench --bench train [-- small|paper]`. Side by side with JAX/XLA and ONNX Runtime: `make bench-peers`.
 
 use anisocb::nn::{AnisoCb, GeometryNet, NetConfig, NetKind};
 use anisocb::ops::{AdamParams, Cpu, Interp, Ops, Padding};
@@ -108,7 +108,7 @@ fn main() {
         let mut net = GeometryNet::new(cfg, 1);
         let lr = random(&[b, 3, p, p], 2);
         let hr = random(&[b, 3, 2 * p, 2 * p], 3);
-        let u = anisocb::nn::geometry_net::interpolate(ops, &lr, 2);
+        let u = anisocb::nn::geometry_net::interpolate(ops, &lr, 2, cfg.upsample);
         let mut grads = net.trunk.zeros_like();
         let sizes: Vec<usize> = net.trunk.params().iter().map(|(_, t)| t.len()).collect();
         let mut adam = Adam::new(AdamParams::default(), &sizes);

@@ -3,7 +3,7 @@
 //! ```text
 //!  PBD cloth sim ──► LR mesh sequence ──► geometry image (Eq 1) ──► each frame in its own
 //!   (cloth/)          (geom/)               3×H×W, on disk           cloth frame (geom/cloth_frame)
-//!                                                                    U = bicubic ×2 (align corners)
+//!                                                                    U = cubic ×2 (align corners)
 //!                                               │                    │
 //!                                               ├─► GeometryNet ─► R (residual)      (nn/)
 //!                                               ├─► BoundaryNet ─► Γb (prob. map)

@@ -205,6 +205,8 @@ fn align_corners_resize_and_its_gradient_match_jax() {
         ("resize_x3_bicubic", Interp::Bicubic),
         ("resize_odd_bicubic", Interp::Bicubic),
         ("resize_odd_bilinear", Interp::Bilinear),
+        ("resize_x2_catmull_rom", Interp::CatmullRom),
+        ("resize_odd_catmull_rom", Interp::CatmullRom),
     ];
     for ops in tables() {
         for (name, mode) in cases {

@@ -157,7 +157,13 @@ fn demo_and_eval_write_their_tables_and_pictures() {
         .unwrap();
     assert!(o.status.success(), "eval failed: {}", String::from_utf8_lossy(&o.stderr));
     let md = std::fs::read_to_string(out.join("results.md")).unwrap();
-    for row in ["| bicubic |", "| anisocb -boundary, eta=0.5 |", "| anisocb, eta=0 |", "| anisocb, eta=1 |"] {
+    for row in [
+        "| bicubic |",
+        "| catmull-rom |",
+        "| anisocb -boundary, eta=0.5 |",
+        "| anisocb, eta=0 |",
+        "| anisocb, eta=1 |",
+    ] {
         assert!(md.contains(row), "results.md lacks {row}:\n{md}");
     }
     assert!(

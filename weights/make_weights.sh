@@ -20,7 +20,8 @@ FRAMES=${FRAMES:-150}
 TRACKING=${TRACKING:-1000}     # as the held-out runs: detail the LR frame can predict
 SEEDS=${SEEDS:-"1 2 3 4 5"}
 EDGE=${EDGE:-1.0}              # weight of the edge-vector loss term
-TRAIN=(--config small --lr 5e-4 --patch 16 --batch 32 --seed 1 --edge-weight "$EDGE")
+UPSAMPLE=${UPSAMPLE:-catmull-rom}  # the U every residual refines (bicubic = Keys a = -0.75)
+TRAIN=(--config small --lr 5e-4 --patch 16 --batch 32 --seed 1 --edge-weight "$EDGE" --upsample "$UPSAMPLE")
 MAPS=(--gamma 0.3 --canny-low 0.12 --canny-high 0.16)
 rm -rf "$WORK"
 mkdir -p "$WORK/runs"
@@ -43,7 +44,7 @@ done
   --boundary-benefit "$WORK/train/geometry/weights.npz"
 "$BIN" train --data "$WORK/data-benefit.npz" "${TRAIN[@]}" --net all --steps "$MAP_STEPS" --resume --out "$WORK/train"
 cp "$WORK/train/weights.npz" weights/anisocb-x2.npz
-"$BIN" train --data "$WORK/data.npz" --net linear --out "$WORK/linear"
+"$BIN" train --data "$WORK/data.npz" --net linear --upsample "$UPSAMPLE" --out "$WORK/linear"
 cp "$WORK/linear/weights.npz" weights/linear-x2.npz
 "$BIN" train --data "$WORK/data-domain.npz" "${TRAIN[@]}" --net geometry --steps "$GEO_STEPS" --out "$WORK/domain"
 cp "$WORK/domain/weights.npz" weights/domain-x2.npz

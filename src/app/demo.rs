@@ -15,6 +15,8 @@ use crate::geom::GridMesh;
 use crate::io::atomic::ensure_dir;
 use crate::io::json::{write_json, Layout, Object};
 use crate::io::write_atomic_bytes;
+use crate::nn::geometry_net::interpolate;
+use crate::ops::Interp;
 use crate::sr::compose::DEFAULT_ETA;
 use crate::sr::upscale::{upscale_images, UpscaleParams};
 use crate::tensor::Tensor;
@@ -110,7 +112,9 @@ pub fn run(a: Args) -> Result<()> {
     pb.finish_and_clear();
     let up_s = t1.elapsed().as_secs_f64();
     let ours = images_to_sequence(&up.hr, &domain);
-    let bicubic = images_to_sequence(&up.interpolated, &domain);
+    // The yardstick: PyTorch's bicubic (Keys a = −0.75), whatever U the model refines.
+    let keys = interpolate(ops.as_ref(), &pair.lr, model.scale(), Interp::Bicubic);
+    let bicubic = images_to_sequence(&keys, &domain);
     let plain = images_to_sequence(&up.with_eta(0.0)?, &domain);
 
     // 3. Metrics against the HR run.

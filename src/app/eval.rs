@@ -18,8 +18,8 @@ use crate::io::json::{write_json, Layout, Object, Value};
 use crate::io::write_atomic_bytes;
 use crate::nn::bundle::AnisoCb;
 use crate::nn::config::NetConfig;
-use crate::nn::geometry_net::GeometryNet;
-use crate::ops::Ops;
+use crate::nn::geometry_net::{interpolate, GeometryNet};
+use crate::ops::{Interp, Ops};
 use crate::sr::compose::{compose, DEFAULT_ETA};
 use crate::sr::upscale::{upscale_images, UpscaleParams, EVAL_STRAIN_ITERS};
 use crate::tensor::Tensor;
@@ -32,7 +32,8 @@ use std::time::Instant;
 
 #[derive(clap::Args, Debug)]
 #[command(after_help = "Methods compared (all on the same held-out runs, against their HR run):
-  bicubic            U, the LR geometry image interpolated x2 (align corners)
+  bicubic            the LR geometry image interpolated x2 (align corners), Keys a = -0.75 (PyTorch's bicubic)
+  catmull-rom        the same with a = -0.5 (Catmull-Rom), which keeps evenly spaced vertices evenly spaced
   linear             learned linear upsampler (Kavan et al. 2011 spirit), U + ridge regression (--linear FILE)
   GeometryNet [NAME] one residual SR net alone, U + R (--prior FILE): the prior method (Chen et al. 2018
                      style), or weights/domain-x2.npz, GeometryNet trained in the paper's domain frame
@@ -143,15 +144,23 @@ fn methods_for_run(
 ) -> Result<Vec<Method>> {
     let p = UpscaleParams::default();
     let up = upscale_images(ops, model, lr, domain, &p, &mut |_| {})?;
-    let mut out =
-        vec![Method { name: "bicubic".into(), meshes: images_to_sequence(&up.interpolated, domain) }];
+    // Each model's residual goes onto the interpolation it was trained over (its `upsample`).
+    let scale = model.scale();
+    let keys = interpolate(ops, lr, scale, Interp::Bicubic);
+    let catmull_rom = interpolate(ops, lr, scale, Interp::CatmullRom);
+    let u_of = |m: Interp| if m == Interp::CatmullRom { &catmull_rom } else { &keys };
+    let mut out = vec![
+        Method { name: "bicubic".into(), meshes: images_to_sequence(&keys, domain) },
+        Method { name: "catmull-rom".into(), meshes: images_to_sequence(&catmull_rom, domain) },
+    ];
     if let Some(l) = &others.linear {
-        let hr = plus_residual(&up.interpolated, lr, domain, l.input_frame, &mut |x| l.residual(x))?;
+        let hr = plus_residual(u_of(l.upsample), lr, domain, l.input_frame, &mut |x| l.residual(x))?;
         out.push(Method { name: "linear upsampler".into(), meshes: images_to_sequence(&hr, domain) });
     }
     if let Some((name, g)) = &others.prior {
         let input = g.trunk.config.input_frame;
-        let hr = plus_residual(&up.interpolated, lr, domain, input, &mut |x| Ok(g.forward(ops, x)?.1))?;
+        let u = u_of(g.trunk.config.upsample);
+        let hr = plus_residual(u, lr, domain, input, &mut |x| Ok(g.forward(ops, x)?.1))?;
         out.push(Method {
             name: format!("GeometryNet only [{name}]"),
             meshes: images_to_sequence(&hr, domain),
@@ -210,6 +219,45 @@ pub fn results_markdown(cells: &[Cell]) -> String {
     s
 }
 
+/// Markdown: the shipped defaults (`anisocb, eta=DEFAULT_ETA`) against each interpolation, per
+/// run: ratios of vertex RMSE, normal-angle error and STED temporal (< 1: anisocb is better),
+/// then the RMSE ratio averaged over runs and of the summed RMSE. Empty without those rows.
+pub fn ratios_markdown(cells: &[Cell]) -> String {
+    let ours = format!("anisocb, eta={DEFAULT_ETA}");
+    let mut scenarios: Vec<&str> = cells.iter().map(|c| c.scenario.as_str()).collect();
+    scenarios.dedup();
+    let find =
+        |sc: &str, m: &str| cells.iter().find(|c| c.scenario == sc && c.method == m).map(|c| &c.metrics);
+    let mut s = String::new();
+    for base in ["bicubic", "catmull-rom"] {
+        let mut t = format!(
+            "\n### {ours} vs {base} (ratios; < 1 = anisocb better)\n\n\
+             | run | vertex RMSE | normal angle | STED temporal |\n|---|---:|---:|---:|\n"
+        );
+        let (mut ratios, mut sums, mut any) = (Vec::new(), (0.0f64, 0.0f64), false);
+        for sc in &scenarios {
+            let (Some(o), Some(b)) = (find(sc, &ours), find(sc, base)) else { continue };
+            any = true;
+            let r = o.mean.rmse / b.mean.rmse;
+            ratios.push(r as f64);
+            sums.0 += o.mean.rmse as f64;
+            sums.1 += b.mean.rmse as f64;
+            t.push_str(&format!(
+                "| {sc} | {r:.3} | {:.3} | {:.3} |\n",
+                o.mean.normal_angle_deg / b.mean.normal_angle_deg,
+                o.sted_temporal / b.sted_temporal
+            ));
+        }
+        if any {
+            let mean = ratios.iter().sum::<f64>() / ratios.len() as f64;
+            t.push_str(&format!("| mean of the ratios | {mean:.3} | | |\n"));
+            t.push_str(&format!("| ratio of the summed RMSE | {:.3} | | |\n", sums.0 / sums.1));
+            s.push_str(&t);
+        }
+    }
+    s
+}
+
 pub fn run(a: Args) -> Result<()> {
     set_threads(a.threads)?;
     let ops = crate::cuda::ops_for_device(&a.device)?;
@@ -254,7 +302,7 @@ pub fn run(a: Args) -> Result<()> {
     let md = format!(
         "# anisocb evaluation\n\nHeld-out runs: {}. Means over frames; boundary = the border band (vertices within {BAND_ROWS} rows of the grid's border).\n{}",
         a.runs.iter().map(|p| p.display().to_string()).collect::<Vec<_>>().join(", "),
-        results_markdown(&cells)
+        results_markdown(&cells) + &ratios_markdown(&cells)
     );
     write_atomic_bytes(&a.out.join("results.md"), md.as_bytes())?;
     if a.moved {

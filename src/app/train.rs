@@ -3,9 +3,9 @@
 use super::ui::{progress, save_png};
 use crate::error::Result;
 use crate::eval::linear::LinearUpsampler;
-use crate::nn::config::parse_padding;
+use crate::nn::config::{parse_padding, parse_upsample};
 use crate::nn::{NetConfig, NetKind};
-use crate::ops::AdamParams;
+use crate::ops::{AdamParams, Interp};
 use crate::train::data::{gather, interpolate_all, split, TrainingData};
 use crate::train::trainer::{loss_plot, train, train_all, Event, TrainOptions};
 use std::path::PathBuf;
@@ -26,6 +26,13 @@ pub struct Args {
     /// Conv padding: zero (paper) or replicate.
     #[arg(long, default_value = "zero")]
     pub padding: String,
+    /// The interpolation U that GeometryNet's residual (and the linear upsampler's) refines:
+    /// catmull-rom (Keys a = −0.5: evenly spaced vertices stay evenly spaced, so the residual
+    /// is the cloth's detail and not a correction of the kernel) or bicubic (Keys a = −0.75,
+    /// the paper's and PyTorch's, which bunches the vertices of an even row in a pattern tied
+    /// to the grid). Saved in the weights; `upscale` and `eval` follow it.
+    #[arg(long, default_value = "catmull-rom")]
+    pub upsample: String,
     /// Output folder: checkpoint.npz, loss.csv, loss.png, weights.npz.
     #[arg(long)]
     pub out: PathBuf,
@@ -71,11 +78,13 @@ pub struct Args {
 }
 
 pub fn run(a: Args) -> Result<()> {
-    let config = NetConfig::preset(&a.config)?.with_padding(parse_padding(&a.padding)?);
+    let upsample = parse_upsample(&a.upsample)?;
+    let config =
+        NetConfig::preset(&a.config)?.with_padding(parse_padding(&a.padding)?).with_upsample(upsample);
     let ops = crate::cuda::ops_for_device(&a.device)?;
     let data = TrainingData::load(&a.data)?;
     if a.net == "linear" {
-        return fit_linear(ops.as_ref(), &data, &a);
+        return fit_linear(ops.as_ref(), &data, &a, upsample);
     }
     let which = if a.net == "all" { None } else { Some(NetKind::parse(&a.net)?) };
     let config = config.with_input_frame(data.input_frame);
@@ -114,7 +123,7 @@ pub fn run(a: Args) -> Result<()> {
             // eprintln under suspend: shown also when stderr is not a terminal (bar hidden).
             pb.suspend(|| eprintln!("{line}"));
             if let Some(b) = baseline_val {
-                pb.suspend(|| eprintln!("bicubic alone (R = 0): validation loss {b:.4e}"));
+                pb.suspend(|| eprintln!("U alone (R = 0, {}): validation loss {b:.4e}", upsample.name()));
             }
         }
         Event::Step { step, loss, .. } => {
@@ -142,7 +151,7 @@ pub fn run(a: Args) -> Result<()> {
                 kind.name(),
                 r.last_train_loss,
                 r.last_val_loss.map_or("-".into(), |v| format!("{v:.4e}")),
-                r.baseline_val_loss.map_or(String::new(), |b| format!(" (bicubic alone {b:.4e})")),
+                r.baseline_val_loss.map_or(String::new(), |b| format!(" (U alone {b:.4e})")),
                 r.samples_per_s,
                 r.weights.display()
             )
@@ -174,9 +183,9 @@ pub fn run(a: Args) -> Result<()> {
 
 /// `--net linear`: fit [`LinearUpsampler`] on the training frames, report its validation MSE
 /// next to bicubic's, write `OUT/weights.npz`.
-fn fit_linear(ops: &dyn crate::ops::Ops, data: &TrainingData, a: &Args) -> Result<()> {
+fn fit_linear(ops: &dyn crate::ops::Ops, data: &TrainingData, a: &Args, upsample: Interp) -> Result<()> {
     let (train_idx, val_idx) = split(data.len(), a.val_frac)?;
-    let u = interpolate_all(ops, data);
+    let u = interpolate_all(ops, data, upsample);
     let mut resid = data.hr.clone();
     for (r, u) in resid.data.iter_mut().zip(&u.data) {
         *r -= u;
@@ -186,6 +195,7 @@ fn fit_linear(ops: &dyn crate::ops::Ops, data: &TrainingData, a: &Args) -> Resul
         &gather(&resid, &train_idx),
         a.ridge,
         data.input_frame,
+        upsample,
     )?;
     if !val_idx.is_empty() {
         let (uv, hv) = (gather(&u, &val_idx), gather(&data.hr, &val_idx));
@@ -194,8 +204,9 @@ fn fit_linear(ops: &dyn crate::ops::Ops, data: &TrainingData, a: &Args) -> Resul
             *e += u;
         }
         eprintln!(
-            "linear: validation MSE {:.4e} (bicubic alone {:.4e}) on {} frames",
+            "linear: validation MSE {:.4e} ({} alone {:.4e}) on {} frames",
             ops.mse(&est, &hv).0,
+            upsample.name(),
             ops.mse(&uv, &hv).0,
             val_idx.len()
         );

@@ -1,6 +1,6 @@
 //! The interpolation baseline: an LR mesh sequence upscaled through its geometry images
 //! (Eq 1), resized with align corners from (3, H, W) to (3, f·H, f·W), and read back (Eq 2).
-//! With [`Interp::Bicubic`] this is exactly the `U` the networks refine.
+//! With the `upsample` of a model's config this is exactly the `U` its networks refine.
 
 use crate::error::{Error, Result};
 use crate::geom::geometry_image::{images_to_sequence, sequence_to_images};

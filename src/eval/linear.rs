@@ -17,6 +17,7 @@ use crate::error::{Error, Result};
 use crate::geom::cloth_frame::InputFrame;
 use crate::io::json::Object;
 use crate::io::NpzEntries;
+use crate::ops::Interp;
 use crate::tensor::Tensor;
 use std::path::Path;
 
@@ -35,6 +36,9 @@ pub struct LinearUpsampler {
     pub lambda: f64,
     /// The coordinates it was fitted in (and must be applied in).
     pub input_frame: InputFrame,
+    /// The interpolation `U` its residual is added to (`config.json` key `upsample`, default
+    /// bicubic).
+    pub upsample: Interp,
 }
 
 /// φ(y, x) of one (3, H, W) image.
@@ -59,12 +63,13 @@ fn features(img: &[f32], h: usize, w: usize, y: usize, x: usize, out: &mut [f64;
 
 impl LinearUpsampler {
     /// Fit on `lr` (N, 3, H, W) and the target residual `target = HR − U` (N, 3, rH, rW), both
-    /// in `input_frame` coordinates.
+    /// in `input_frame` coordinates, `U` interpolated with `upsample`.
     pub fn fit(
         lr: &Tensor,
         target: &Tensor,
         lambda: f64,
         input_frame: InputFrame,
+        upsample: Interp,
     ) -> Result<LinearUpsampler> {
         let (n, c, h, w) = lr.expect_rank4("linear fit: lr")?;
         let (tn, tc, th, tw) = target.expect_rank4("linear fit: target")?;
@@ -120,7 +125,7 @@ impl LinearUpsampler {
         if weight.iter().any(|v| !v.is_finite()) {
             return Err(Error::numeric("linear fit produced non-finite weights"));
         }
-        Ok(LinearUpsampler { scale: r, weight, lambda, input_frame })
+        Ok(LinearUpsampler { scale: r, weight, lambda, input_frame, upsample })
     }
 
     /// The predicted residual (N, 3, rH, rW) of `lr` (N, 3, H, W), in the fitted coordinates.
@@ -167,6 +172,7 @@ impl LinearUpsampler {
             .num("scale", self.scale)
             .num("lambda", self.lambda)
             .str("input", self.input_frame.name())
+            .str("upsample", self.upsample.name())
             .to_json();
         e.push_file("config.json", cfg.into_bytes());
         e
@@ -185,6 +191,17 @@ impl LinearUpsampler {
         }
         let input_frame = InputFrame::parse(o.get("input").and_then(|v| v.as_str()).unwrap_or("domain"))
             .map_err(|e| e.in_file(path))?;
+        let upsample = match o.get("upsample") {
+            None => Interp::Bicubic,
+            Some(v) => v
+                .as_str()
+                .ok_or("'upsample' must be a string")
+                .and_then(|s| {
+                    crate::nn::config::parse_upsample(s)
+                        .map_err(|_| "unknown 'upsample' (expected catmull-rom or bicubic)")
+                })
+                .map_err(|m| Error::format(path, format!("config.json: {m}")))?,
+        };
         let lambda = o.get("lambda").and_then(|v| v.as_f64()).unwrap_or(0.0);
         let w = e.require(path, "linear.weight")?;
         let outs = 3 * scale * scale;
@@ -197,7 +214,13 @@ impl LinearUpsampler {
         if let Some((i, v)) = w.first_non_finite() {
             return Err(Error::format(path, format!("linear.weight[{i}] is {v}")));
         }
-        Ok(LinearUpsampler { scale, weight: w.data.iter().map(|&v| v as f64).collect(), lambda, input_frame })
+        Ok(LinearUpsampler {
+            scale,
+            weight: w.data.iter().map(|&v| v as f64).collect(),
+            lambda,
+            input_frame,
+            upsample,
+        })
     }
 }
 
@@ -229,9 +252,10 @@ mod tests {
             weight: (0..FEATURES * 12).map(|k| ((k * 37 % 23) as f64 - 11.0) * 1e-3).collect(),
             lambda: 0.0,
             input_frame: InputFrame::Cloth,
+            upsample: Interp::CatmullRom,
         };
         let target = truth.residual(&lr).unwrap();
-        let fit = LinearUpsampler::fit(&lr, &target, 0.0, InputFrame::Cloth).unwrap();
+        let fit = LinearUpsampler::fit(&lr, &target, 0.0, InputFrame::Cloth, Interp::CatmullRom).unwrap();
         let again = fit.residual(&lr).unwrap();
         assert!(again.max_abs_diff(&target) < 1e-5, "{}", again.max_abs_diff(&target));
     }
@@ -243,6 +267,7 @@ mod tests {
             weight: (0..FEATURES * 12).map(|k| k as f64 * 0.25).collect(),
             lambda: 1e-3,
             input_frame: InputFrame::Cloth,
+            upsample: Interp::CatmullRom,
         };
         let p = Path::new("lin.npz");
         assert_eq!(LinearUpsampler::from_npz(&m.to_npz(), p).unwrap(), m);

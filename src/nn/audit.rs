@@ -32,7 +32,7 @@ pub fn audit_trunk(ops: &dyn Ops, trunk: &Trunk, x: &Tensor, dir: &Path) -> Resu
     save("input", x);
     let y = trunk.forward_observed(ops, x, &mut |n, t| save(n, t));
     if trunk.kind == NetKind::Geometry {
-        let mut est = interpolate(ops, x, trunk.config.scale);
+        let mut est = interpolate(ops, x, trunk.config.scale, trunk.config.upsample);
         save("interp", &est);
         ops.add_assign(&mut est, &y);
         save("estimate", &est);

@@ -20,7 +20,7 @@ pub struct AnisoCb {
 /// What the nets say about one batch; every map is (N, ·, r·H, r·W).
 #[derive(Clone, Debug)]
 pub struct SrOutputs {
-    /// Bicubic (align-corners) interpolation of the input, (N, 3, rH, rW).
+    /// Cubic (align-corners) interpolation U of the input (`config.upsample`), (N, 3, rH, rW).
     pub u: Tensor,
     /// GeometryNet's residual, (N, 3, rH, rW).
     pub r: Tensor,

@@ -12,7 +12,7 @@
 use crate::error::{Error, Result};
 use crate::geom::cloth_frame::InputFrame;
 use crate::io::json::Object;
-use crate::ops::Padding;
+use crate::ops::{Interp, Padding};
 
 /// The three networks. GeometryNet predicts the 3-channel residual `R`; BoundaryNet and
 /// EnhanceNet predict one channel of logits.
@@ -72,6 +72,11 @@ pub struct NetConfig {
     /// sequence box, or the per-frame cloth frame (`geom::cloth_frame`). `config.json` key
     /// `input`; a file without it is a `domain` net (every model before the cloth frame).
     pub input_frame: InputFrame,
+    /// The interpolation `U` that GeometryNet's residual refines (and the composition falls
+    /// back to): `bicubic` (Keys a = −0.75, the paper's and PyTorch's) or `catmull-rom`
+    /// (a = −0.5, keeps evenly spaced vertices evenly spaced). `config.json` key `upsample`;
+    /// a file without it is a `bicubic` net (every model before the key).
+    pub upsample: Interp,
 }
 
 /// Input channels of every net (x, y, z of the geometry image).
@@ -90,6 +95,7 @@ impl NetConfig {
             scale: 2,
             padding: Padding::Zero,
             input_frame: InputFrame::Domain,
+            upsample: Interp::Bicubic,
         }
     }
     /// The CPU preset: C = 32, 4 blocks, ×2.
@@ -100,6 +106,7 @@ impl NetConfig {
             scale: 2,
             padding: Padding::Zero,
             input_frame: InputFrame::Domain,
+            upsample: Interp::Bicubic,
         }
     }
     /// For tests and fixtures: C = 4, 2 blocks, ×2.
@@ -110,6 +117,7 @@ impl NetConfig {
             scale: 2,
             padding: Padding::Zero,
             input_frame: InputFrame::Domain,
+            upsample: Interp::Bicubic,
         }
     }
 
@@ -129,6 +137,11 @@ impl NetConfig {
 
     pub fn with_input_frame(mut self, input_frame: InputFrame) -> Self {
         self.input_frame = input_frame;
+        self
+    }
+
+    pub fn with_upsample(mut self, upsample: Interp) -> Self {
+        self.upsample = upsample;
         self
     }
 
@@ -166,6 +179,7 @@ impl NetConfig {
             .num("tail_convs", TAIL_CONVS)
             .num("kernel", KERNEL)
             .str("input", self.input_frame.name())
+            .str("upsample", self.upsample.name())
             .to_json()
     }
 
@@ -198,12 +212,20 @@ impl NetConfig {
             Some(v) => InputFrame::parse(v.as_str().ok_or("config.json: 'input' must be a string")?)
                 .map_err(|e| format!("config.json: {e}"))?,
         };
+        let upsample = match o.get("upsample") {
+            None => Interp::Bicubic,
+            Some(v) => v
+                .as_str()
+                .and_then(parse_upsample_name)
+                .ok_or("config.json: 'upsample' must be \"bicubic\" or \"catmull-rom\"")?,
+        };
         let cfg = NetConfig {
             channels: n("channels")?,
             blocks: n("blocks")?,
             scale: n("scale")?,
             padding,
             input_frame,
+            upsample,
         };
         cfg.validate().map_err(|e| e.to_string())?;
         Ok((kind, cfg))
@@ -222,6 +244,7 @@ impl NetConfig {
         f("scale", self.scale.to_string(), other.scale.to_string());
         f("padding", padding_name(self.padding).into(), padding_name(other.padding).into());
         f("input", self.input_frame.name().into(), other.input_frame.name().into());
+        f("upsample", self.upsample.name().into(), other.upsample.name().into());
         d
     }
 }
@@ -230,12 +253,13 @@ impl std::fmt::Display for NetConfig {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         write!(
             f,
-            "C={}, {} blocks, x{}, {} padding, {} input",
+            "C={}, {} blocks, x{}, {} padding, {} input, {} U",
             self.channels,
             self.blocks,
             self.scale,
             padding_name(self.padding),
-            self.input_frame.name()
+            self.input_frame.name(),
+            self.upsample.name()
         )
     }
 }
@@ -245,6 +269,16 @@ pub fn padding_name(p: Padding) -> &'static str {
         Padding::Zero => "zero",
         Padding::Replicate => "replicate",
     }
+}
+
+/// The cubic kernels `U` may use (bilinear is not one: it would put a kink at every LR vertex).
+fn parse_upsample_name(s: &str) -> Option<Interp> {
+    Interp::parse(s).filter(|m| *m != Interp::Bilinear)
+}
+
+pub fn parse_upsample(s: &str) -> Result<Interp> {
+    parse_upsample_name(s)
+        .ok_or_else(|| Error::config(format!("unknown upsample '{s}' (expected catmull-rom or bicubic)")))
 }
 
 pub fn parse_padding(s: &str) -> Result<Padding> {
@@ -266,7 +300,15 @@ mod tests {
             assert_eq!(NetConfig::from_json(&c.to_json(kind)).unwrap(), (kind, c));
             let c = c.with_input_frame(InputFrame::Cloth);
             assert_eq!(NetConfig::from_json(&c.to_json(kind)).unwrap(), (kind, c));
+            let c = c.with_upsample(Interp::CatmullRom);
+            assert_eq!(NetConfig::from_json(&c.to_json(kind)).unwrap(), (kind, c));
         }
+        // Files written before the key: Keys bicubic. A bilinear U is refused.
+        let old = NetConfig::small().to_json(NetKind::Geometry).replace(",\"upsample\":\"bicubic\"", "");
+        assert!(!old.contains("upsample"), "{old}");
+        assert_eq!(NetConfig::from_json(&old).unwrap().1.upsample, Interp::Bicubic);
+        let bl = NetConfig::small().to_json(NetKind::Geometry).replace("\"bicubic\"", "\"bilinear\"");
+        assert!(NetConfig::from_json(&bl).unwrap_err().contains("upsample"));
         let d = NetConfig::small().diff(&NetConfig::paper());
         assert_eq!(d, vec!["channels: 32 vs 64".to_string(), "blocks: 4 vs 10".to_string()]);
     }

@@ -1,4 +1,4 @@
-//! GeometryNet: the residual trunk predicting the detail `R` over the bicubic interpolation `U`
+//! GeometryNet: the residual trunk predicting the detail `R` over the cubic interpolation `U`
 //! (align corners, ×r) of the LR geometry image; the estimate is `U + R`, the loss
 //! `MSE(U + R, HR)` (paper Eq 3).
 
@@ -39,10 +39,11 @@ pub fn check_target(x: &Tensor, target: &Tensor, channels: usize, scale: usize, 
     Ok(())
 }
 
-/// `U`: the LR batch (N, C, H, W) resized to (N, C, r·H, r·W), bicubic with aligned corners.
-pub fn interpolate(ops: &dyn Ops, lr: &Tensor, scale: usize) -> Tensor {
+/// `U`: the LR batch (N, C, H, W) resized to (N, C, r·H, r·W) with `mode` (the net's
+/// `config.upsample`), aligned corners.
+pub fn interpolate(ops: &dyn Ops, lr: &Tensor, scale: usize, mode: Interp) -> Tensor {
     let (_, _, h, w) = lr.dims4();
-    ops.resize(lr, h * scale, w * scale, Interp::Bicubic)
+    ops.resize(lr, h * scale, w * scale, mode)
 }
 
 impl GeometryNet {
@@ -57,7 +58,7 @@ impl GeometryNet {
     /// lr (N, 3, H, W) → (U, R), both (N, 3, rH, rW). Inference: keeps no activations.
     pub fn forward(&self, ops: &dyn Ops, lr: &Tensor) -> Result<(Tensor, Tensor)> {
         check_input(lr, "GeometryNet input")?;
-        let u = interpolate(ops, lr, self.trunk.config.scale);
+        let u = interpolate(ops, lr, self.trunk.config.scale, self.trunk.config.upsample);
         let r = self.trunk.forward(ops, lr);
         Ok((u, r))
     }

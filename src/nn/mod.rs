@@ -3,7 +3,7 @@
 //! - [`config`]: [`NetKind`], [`NetConfig`] and its presets (`paper`, `small`, `tiny`).
 //! - [`layers`]: [`layers::Conv`] and the shared [`layers::Trunk`] (forward with or without a
 //!   tape of activations, backward that adds into gradients).
-//! - [`geometry_net`]: GeometryNet (residual trunk predicting `R` over bicubic `U`, MSE).
+//! - [`geometry_net`]: GeometryNet (residual trunk predicting `R` over the cubic interpolation `U`, MSE).
 //! - [`map_net`]: BoundaryNet / EnhanceNet (plain trunk, one logit channel, sigmoid-BCE).
 //! - [`bundle`]: [`bundle::AnisoCb`], the three nets together, `forward → (U, R, Γb, Γe)`.
 //! - [`weights`]: `.npz` in and out with PyTorch-style names (see `weights/README.md`).

@@ -24,6 +24,24 @@ pub enum Interp {
     Bilinear,
     /// Keys cubic convolution, a = −0.75 (PyTorch's), border samples clamped.
     Bicubic,
+    /// Keys cubic convolution, a = −0.5 (Catmull-Rom), border samples clamped: reproduces
+    /// evenly spaced samples exactly (away from the border), which a = −0.75 does not.
+    CatmullRom,
+}
+
+impl Interp {
+    /// Name in configs and on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            Interp::Bilinear => "bilinear",
+            Interp::Bicubic => "bicubic",
+            Interp::CatmullRom => "catmull-rom",
+        }
+    }
+
+    pub fn parse(s: &str) -> Option<Interp> {
+        [Interp::Bilinear, Interp::Bicubic, Interp::CatmullRom].into_iter().find(|m| m.name() == s)
+    }
 }
 
 /// Adam hyper-parameters (paper: lr 1e-4).

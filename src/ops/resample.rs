@@ -1,6 +1,6 @@
 //! Resizing with align-corners semantics (PyTorch `F.interpolate(..., align_corners=True)`),
-//! bilinear or bicubic (Keys cubic convolution, a = −0.75, sample indices clamped to the
-//! border), forward and backward. The ×r upsampling of the pipeline is `resize(x, r·H, r·W)`.
+//! bilinear or cubic convolution (Keys' kernel with a = −0.75, PyTorch's bicubic, or a = −0.5,
+//! Catmull-Rom; sample indices clamped to the border), forward and backward. The ×r upsampling of the pipeline is `resize(x, r·H, r·W)`.
 //!
 //! Output index d maps to source coordinate s = d · (in − 1)/(out − 1) (0 when out = 1),
 //! computed in f32 as PyTorch does. x: (N, C, H, W) → y: (N, C, out_h, out_w).
@@ -16,8 +16,15 @@ use super::Interp;
 use crate::tensor::Tensor;
 use rayon::prelude::*;
 
-/// Keys' cubic-convolution parameter (PyTorch's choice).
-const CUBIC_A: f32 = -0.75;
+/// Keys' cubic-convolution parameter a of a cubic mode: −0.75 (PyTorch's and OpenCV's bicubic)
+/// or −0.5 (Catmull-Rom, the only a for which the kernel reproduces linear and quadratic
+/// functions: with −0.75 an evenly spaced row of vertices comes out unevenly spaced).
+fn cubic_a(mode: Interp) -> f32 {
+    match mode {
+        Interp::CatmullRom => -0.5,
+        _ => -0.75,
+    }
+}
 
 /// Work (output elements) below which threading is skipped.
 const PAR_MIN: usize = 1 << 14;
@@ -54,8 +61,7 @@ fn scale(in_n: usize, out_n: usize) -> f32 {
 
 /// Keys cubic weights for the 4 samples at offsets −1, 0, 1, 2 from floor(s), t = s − floor(s).
 #[inline]
-fn cubic_weights(t: f32) -> [f32; 4] {
-    let a = CUBIC_A;
+fn cubic_weights(t: f32, a: f32) -> [f32; 4] {
     // |x| ≤ 1: ((a+2)|x| − (a+3))|x|² + 1;  1 < |x| < 2: ((a|x| − 5a)|x| + 8a)|x| − 4a
     let c1 = |x: f32| ((a + 2.0) * x - (a + 3.0)) * x * x + 1.0;
     let c2 = |x: f32| ((a * x - 5.0 * a) * x + 8.0 * a) * x - 4.0 * a;
@@ -73,13 +79,13 @@ fn taps_at(d: usize, in_n: usize, sc: f32, mode: Interp) -> ([usize; 4], [f32; 4
             let t = (s - i0 as f32).clamp(0.0, 1.0);
             ([i0, i1, 0, 0], [1.0 - t, t, 0.0, 0.0], 2)
         }
-        Interp::Bicubic => {
+        Interp::Bicubic | Interp::CatmullRom => {
             let f = s.floor();
             let t = s - f;
             let i = f as isize;
             let last = in_n as isize - 1;
             let at = |o: isize| (i + o).clamp(0, last) as usize;
-            ([at(-1), at(0), at(1), at(2)], cubic_weights(t), 4)
+            ([at(-1), at(0), at(1), at(2)], cubic_weights(t, cubic_a(mode)), 4)
         }
     }
 }
@@ -90,7 +96,7 @@ pub fn axis_taps(in_n: usize, out_n: usize, mode: Interp) -> AxisTaps {
     let sc = scale(in_n, out_n);
     let k = match mode {
         Interp::Bilinear => 2,
-        Interp::Bicubic => 4,
+        Interp::Bicubic | Interp::CatmullRom => 4,
     };
     let mut t = AxisTaps { k, idx: Vec::with_capacity(out_n * k), w: Vec::with_capacity(out_n * k) };
     for d in 0..out_n {
@@ -292,10 +298,10 @@ mod tests {
     fn fast_resize_matches_ref_on_odd_shapes() {
         let mut rng = TestRng::new(3);
         for case in 0..40 {
-            let mode = if case % 2 == 0 { Interp::Bilinear } else { Interp::Bicubic };
+            let mode = MODES[case % 3];
             let (n, c) = (rng.range(1, 2), rng.range(1, 4));
             let (h, w) = (rng.range(1, 11), rng.range(1, 11));
-            let (oh, ow) = if case % 3 == 0 {
+            let (oh, ow) = if case % 4 == 0 {
                 (rng.range(1, 25), rng.range(1, 25))
             } else {
                 let r = rng.range(2, 3);
@@ -314,11 +320,27 @@ mod tests {
         }
     }
 
+    const MODES: [Interp; 3] = [Interp::Bilinear, Interp::Bicubic, Interp::CatmullRom];
+
+    #[test]
+    fn catmull_rom_keeps_an_evenly_spaced_row_even_and_keys_does_not() {
+        // A ramp 0..11 (12 evenly spaced vertices) to 24: away from the border (where the
+        // clamped taps read a repeated sample) every output must be d·11/23.
+        let x = Tensor { shape: vec![1, 1, 1, 12], data: (0..12).map(|i| i as f32).collect() };
+        let err = |mode| {
+            let y = resize(&x, 1, 24, mode);
+            (3..21).map(|d| (y.data[d] - d as f32 * 11.0 / 23.0).abs()).fold(0.0f32, f32::max)
+        };
+        assert!(err(Interp::CatmullRom) < 1e-5, "Catmull-Rom: {}", err(Interp::CatmullRom));
+        assert!(err(Interp::Bilinear) < 1e-5);
+        assert!(err(Interp::Bicubic) > 1e-3, "Keys a = −0.75 is known not to reproduce a ramp");
+    }
+
     #[test]
     fn resize_keeps_corners_and_constants() {
         let mut rng = TestRng::new(4);
         let x = rng.tensor(&[1, 2, 5, 7], -1.0, 1.0);
-        for mode in [Interp::Bilinear, Interp::Bicubic] {
+        for mode in MODES {
             let y = resize(&x, 15, 21, mode);
             for c in 0..2 {
                 assert_eq!(y.data[y.idx4(0, c, 0, 0)], x.data[x.idx4(0, c, 0, 0)]);
@@ -333,7 +355,7 @@ mod tests {
     fn resize_backward_is_the_adjoint_of_forward() {
         // <resize(x), g> == <x, resize_backward(g)>
         let mut rng = TestRng::new(5);
-        for mode in [Interp::Bilinear, Interp::Bicubic] {
+        for mode in MODES {
             let x = rng.tensor(&[2, 3, 6, 5], -1.0, 1.0);
             let g = rng.tensor(&[2, 3, 18, 15], -1.0, 1.0);
             let y = resize(&x, 18, 15, mode);
@@ -391,9 +413,9 @@ mod tests {
     fn gpu_resize_taps_reproduce_the_cpu_reference() {
         let mut rng = TestRng::new(0x9e37_79b9_7f4a_7c15);
         for case in 0..30 {
-            let mode = if case % 2 == 0 { Interp::Bilinear } else { Interp::Bicubic };
+            let mode = MODES[case % 3];
             let (n, c, h, w) = (rng.range(1, 2), rng.range(1, 3), rng.range(1, 9), rng.range(1, 9));
-            let (oh, ow) = if case % 3 == 0 { (rng.range(1, 20), rng.range(1, 20)) } else { (2 * h, 2 * w) };
+            let (oh, ow) = if case % 4 == 0 { (rng.range(1, 20), rng.range(1, 20)) } else { (2 * h, 2 * w) };
             let x = rng.tensor(&[n, c, h, w], -1.0, 1.0);
             // Same weights, same summation order as the reference: bitwise equal.
             assert_eq!(

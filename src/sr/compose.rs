@@ -4,7 +4,7 @@
 //! Γfinal = U + (1 − Γb) ⊙ (1 + η·Γe) ⊙ R
 //! ```
 //!
-//! - `U`  (N, 3, H, W): the LR geometry image interpolated ×2 (bicubic, align corners);
+//! - `U`  (N, 3, H, W): the LR geometry image interpolated ×2 (cubic, align corners: the model's `upsample`);
 //! - `R`  (N, 3, H, W): GeometryNet's residual (the detail);
 //! - `Γb` (N, 1, H, W): BoundaryNet's probability that a pixel is boundary (folded / border);
 //! - `Γe` (N, 1, H, W): EnhanceNet's probability that a pixel lies on a wrinkle edge;

@@ -15,7 +15,7 @@ use crate::io::json::Value;
 use crate::io::read_npz;
 use crate::nn::geometry_net::interpolate;
 use crate::nn::NetKind;
-use crate::ops::Ops;
+use crate::ops::{Interp, Ops};
 use crate::rng::{mix_seed, Rng};
 use crate::tensor::Tensor;
 use std::path::Path;
@@ -242,13 +242,13 @@ impl PatchSampler {
     }
 }
 
-/// Whole-frame interpolation `U` of every LR frame (N, 3, rH, rW), in chunks.
-pub fn interpolate_all(ops: &dyn Ops, data: &TrainingData) -> Tensor {
+/// Whole-frame interpolation `U` of every LR frame (N, 3, rH, rW) with `mode`, in chunks.
+pub fn interpolate_all(ops: &dyn Ops, data: &TrainingData, mode: Interp) -> Tensor {
     let n = data.len();
     let mut parts = Vec::with_capacity(data.hr.len());
     for n0 in (0..n).step_by(64) {
         let cnt = 64.min(n - n0);
-        parts.extend_from_slice(&interpolate(ops, &data.lr.slice_batch(n0, cnt), data.scale).data);
+        parts.extend_from_slice(&interpolate(ops, &data.lr.slice_batch(n0, cnt), data.scale, mode).data);
     }
     Tensor { shape: data.hr.shape.clone(), data: parts }
 }

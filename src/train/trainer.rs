@@ -345,7 +345,7 @@ pub fn train(
     };
     let (train_idx, val_idx) = split(data.len(), opts.val_frac)?;
     let mut sampler = PatchSampler::new(data, train_idx.clone(), opts.seed, opts.batch, opts.patch)?;
-    let u_all = (net == NetKind::Geometry).then(|| interpolate_all(ops, data));
+    let u_all = (net == NetKind::Geometry).then(|| interpolate_all(ops, data, opts.config.upsample));
     let baseline_val = match &u_all {
         Some(u) if !val_idx.is_empty() => {
             let (uv, hv) = (gather(u, &val_idx), gather(&data.hr, &val_idx));

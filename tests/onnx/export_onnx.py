@@ -5,7 +5,8 @@
 
 The model computes exactly what `AnisoCb::forward` (src/nn/bundle.rs) computes:
 
-    lr (N, 3, H, W)  ->  u        (N, 3, rH, rW)  bicubic x r, align corners (Keys a = -0.75)
+    lr (N, 3, H, W)  ->  u        (N, 3, rH, rW)  cubic x r, align corners (Keys a = -0.5,
+                                                  Catmull-Rom, or -0.75: config `upsample`)
                          r        (N, 3, rH, rW)  GeometryNet's residual R
                          boundary (N, 1, rH, rW)  sigmoid(BoundaryNet logits)   = Gamma_b
                          enhance  (N, 1, rH, rW)  sigmoid(EnhanceNet logits)    = Gamma_e
@@ -17,8 +18,8 @@ Op mapping (src/nn/layers.rs `Trunk::run`, src/ops/*):
   residual block a + conv2(relu(conv1(a))) (GeometryNet only) -> Add
   pixel shuffle (PyTorch order: y[c, h*r+i, w*r+j] = x[c*r*r + i*r + j, h, w])
                                       -> DepthToSpace(blocksize=r, mode=CRD)
-  bicubic align-corners resize (src/ops/resample.rs: s = d*(in-1)/(out-1), taps clamped to
-  the border) -> Resize(mode=cubic, cubic_coeff_a=-0.75, exclude_outside=0,
+  cubic align-corners resize (src/ops/resample.rs: s = d*(in-1)/(out-1), taps clamped to
+  the border) -> Resize(mode=cubic, cubic_coeff_a=A, exclude_outside=0,
                         coordinate_transformation_mode=align_corners, scales=[1,1,r,r])
   sigmoid                             -> Sigmoid
 
@@ -38,6 +39,10 @@ from onnx import TensorProto, helper, numpy_helper
 
 OPSET = 17
 KINDS = ("geometry", "boundary", "enhance")
+# config `upsample` -> Keys' a (src/ops/resample.rs `cubic_a`)
+CUBIC_A = {"catmull-rom": -0.5, "bicubic": -0.75}
+UPSAMPLE_DOC = {"catmull-rom": "Catmull-Rom",
+                "bicubic": "PyTorch F.interpolate(mode='bicubic', align_corners=True)"}
 # What this build of anisocb supports (src/nn/config.rs); a bundle claiming otherwise is refused.
 IN_CHANNELS, TAIL_CONVS, KERNEL = 3, 4, 3
 
@@ -66,6 +71,9 @@ def load_bundle(path):
         vals = {configs[k].get(key, "domain" if key == "input" else None) for k in KINDS}
         if len(vals) != 1:
             sys.exit(f"{path}: the three nets differ in '{key}': {sorted(map(str, vals))}")
+    up = configs["geometry"].get("upsample", "bicubic")
+    if up not in CUBIC_A:
+        sys.exit(f"{path}: geometry.config.json: unknown upsample {up!r} (expected {sorted(CUBIC_A)})")
     return configs, arrays
 
 
@@ -149,8 +157,8 @@ DOC = """anisocb x{r} super-resolution nets (GeometryNet, BoundaryNet, EnhanceNe
 Input `lr`: float32 (N, 3, H, W), N LR geometry images (x, y, z of grid vertex (row h, col w)
 in channels 0..2) already in the nets' input frame `{frame}`.
 {frame_doc}
-Outputs, all (N, ., {r}H, {r}W) in the same frame: `u` = bicubic align-corners x{r} of lr (Keys
-a = -0.75, PyTorch F.interpolate(mode='bicubic', align_corners=True)); `r` = GeometryNet's
+Outputs, all (N, ., {r}H, {r}W) in the same frame: `u` = cubic align-corners x{r} of lr (Keys
+a = {a}: {upsample}); `r` = GeometryNet's
 residual R; `boundary` = Gamma_b = sigmoid(BoundaryNet logits); `enhance` = Gamma_e =
 sigmoid(EnhanceNet logits). anisocb's pipeline then sets Gamma_b = 1 on the border pixels,
 averages R over +-2 frames (binomial 1 4 6 4 1, cloth-frame models; `--temporal 0` skips
@@ -179,9 +187,10 @@ def build(path):
     configs, arrays = load_bundle(path)
     cfg0 = configs["geometry"]
     r, frame = cfg0["scale"], cfg0.get("input", "domain")
+    upsample = cfg0.get("upsample", "bicubic")
     g = Graph()
     u = g.node("Resize", ["lr", "", g.const("resize.scales", np.array([1, 1, r, r], np.float32))], "u",
-               mode="cubic", cubic_coeff_a=-0.75, exclude_outside=0,
+               mode="cubic", cubic_coeff_a=CUBIC_A[upsample], exclude_outside=0,
                coordinate_transformation_mode="align_corners")
     outs = {"u": u}
     for kind in KINDS:
@@ -194,7 +203,8 @@ def build(path):
     out_info = [helper.make_tensor_value_info(n, TensorProto.FLOAT,
                                               ["N", 3 if n in ("u", "r") else 1, f"{r}H", f"{r}W"])
                 for n in ("u", "r", "boundary", "enhance")]
-    doc = DOC.format(r=r, frame=frame, frame_doc=FRAME_DOC.get(frame, ""))
+    doc = DOC.format(r=r, frame=frame, frame_doc=FRAME_DOC.get(frame, ""), a=CUBIC_A[upsample],
+                     upsample=UPSAMPLE_DOC[upsample])
     graph = helper.make_graph(g.nodes, "anisocb", [lr_info], out_info, initializer=g.inits, doc_string=doc)
     model = helper.make_model(graph, opset_imports=[helper.make_opsetid("", OPSET)],
                               producer_name="anisocb tests/onnx/export_onnx.py", producer_version="1",

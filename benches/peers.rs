@@ -1,0 +1,120 @@
+//! anisocb's side of `make bench-peers` (benches/peers/run.py): the rows that
+//! benches/peers/ort_bench.py (ONNX Runtime) and benches/peers/jax_bench.py (JAX/XLA) time
+//! too, same shapes, same work, one JSON line per row: `{"row": NAME, "ms": MEDIAN}`.
+//!
+//! `cargo bench --bench peers [-- conv|nets|train ...]` (no argument: every group).
+//! Rows (names shared with the peer scripts, see benches/peers/rows.py):
+//!   peak   this machine's fp32 FMA peak (`anisocb::perf::fma_peak_gflops`, all threads):
+//!          `{"row": "fma peak", "gflops": G}`; ort_bench.py's MLAS SGEMM is the cross-check
+//!   conv   3×3 conv forward, zero padding, with bias, N×C×H×W → N×O×H×W
+//!   nets   the three nets (GeometryNet, BoundaryNet, EnhanceNet) on one 32×32 frame → 64×64,
+//!          small and paper configs (weights random: time does not depend on their values)
+//!   train  one GeometryNet training step (forward, backward, Adam) on 32 LR 16×16 patches
+
+use anisocb::nn::{AnisoCb, GeometryNet, NetConfig};
+use anisocb::ops::{AdamParams, Cpu, Ops, Padding};
+use anisocb::train::adam::Adam;
+use anisocb::Tensor;
+use std::time::Instant;
+
+fn random(shape: &[usize], seed: u64) -> Tensor {
+    let mut rng = anisocb::rng::Rng::new(seed);
+    let mut t = Tensor::zeros(shape);
+    t.data.iter_mut().for_each(|v| *v = rng.uniform() - 0.5);
+    t
+}
+
+/// Median wall time of one call in ms: one warm-up call, then calls until both `min_calls`
+/// and `min_secs` are reached (at most 200 calls).
+fn median_ms(min_calls: usize, min_secs: f64, f: &mut dyn FnMut()) -> f64 {
+    f();
+    let start = Instant::now();
+    let mut t = Vec::new();
+    while t.len() < 200 && (t.len() < min_calls || start.elapsed().as_secs_f64() < min_secs) {
+        let s = Instant::now();
+        f();
+        t.push(s.elapsed().as_secs_f64() * 1e3);
+    }
+    t.sort_by(f64::total_cmp);
+    t[t.len() / 2]
+}
+
+fn emit(row: &str, ms: f64) {
+    println!("{{\"row\": \"{row}\", \"ms\": {ms:.5}}}");
+}
+
+/// (N, C, O, H, W) of the conv rows: the three 64-channel shapes, then the shapes of
+/// the shipped small config (C = 32: LR trunk 32², HR tail 64², the C → 3 and C → 1 tails).
+const CONVS: [(usize, usize, usize, usize, usize); 7] = [
+    (1, 64, 64, 32, 32),
+    (16, 64, 64, 32, 32),
+    (1, 64, 64, 128, 128),
+    (1, 32, 32, 32, 32),
+    (1, 32, 32, 64, 64),
+    (1, 32, 3, 64, 64),
+    (1, 32, 1, 64, 64),
+];
+
+fn conv_rows() {
+    for (n, c, o, h, w) in CONVS {
+        let (x, wt, b) = (random(&[n, c, h, w], 1), random(&[o, c, 3, 3], 2), random(&[o], 3));
+        let ms = median_ms(10, 1.0, &mut || {
+            drop(std::hint::black_box(Cpu.conv2d(&x, &wt, Some(&b), Padding::Zero)))
+        });
+        emit(&format!("conv {c}->{o} {n}x{c}x{h}x{w}"), ms);
+    }
+}
+
+fn configs() -> [(&'static str, NetConfig); 2] {
+    [("small", NetConfig::small()), ("paper", NetConfig::paper())]
+}
+
+fn net_rows() {
+    for (name, cfg) in configs() {
+        let bundle = AnisoCb::new(cfg, 5);
+        let frame = random(&[1, 3, 32, 32], 4);
+        let ms =
+            median_ms(10, 1.0, &mut || drop(std::hint::black_box(bundle.forward(&Cpu, &frame).unwrap())));
+        emit(&format!("nets {name} 1x3x32x32"), ms);
+    }
+}
+
+fn train_rows() {
+    for (name, cfg) in configs() {
+        let (b, p) = (32usize, 16usize);
+        let mut net = GeometryNet::new(cfg, 1);
+        let lr = random(&[b, 3, p, p], 2);
+        let hr = random(&[b, 3, 2 * p, 2 * p], 3);
+        let u = anisocb::nn::geometry_net::interpolate(&Cpu, &lr, 2, cfg.upsample);
+        let mut grads = net.trunk.zeros_like();
+        let sizes: Vec<usize> = net.trunk.params().iter().map(|(_, t)| t.len()).collect();
+        let mut adam = Adam::new(AdamParams::default(), &sizes);
+        let ms = median_ms(5, 2.0, &mut || {
+            grads.fill_zero();
+            net.loss(&Cpu, &lr, &u, &hr, Some(&mut grads)).unwrap();
+            let gs: Vec<&[f32]> = grads.params().into_iter().map(|(_, g)| g.data.as_slice()).collect();
+            let mut ps: Vec<&mut [f32]> =
+                net.trunk.params_mut().into_iter().map(|p| p.data.as_mut_slice()).collect();
+            adam.step(&Cpu, &mut ps, &gs);
+        });
+        emit(&format!("train {name} 32x3x16x16"), ms);
+    }
+}
+
+fn main() {
+    let args: Vec<String> = std::env::args().skip(1).filter(|a| !a.starts_with('-')).collect();
+    let want = |g: &str| args.is_empty() || args.iter().any(|a| a == g);
+    if want("peak") {
+        let g = anisocb::perf::fma_peak_gflops(rayon::current_num_threads(), 1.0);
+        println!("{{\"row\": \"fma peak\", \"gflops\": {g:.1}}}");
+    }
+    if want("conv") {
+        conv_rows();
+    }
+    if want("nets") {
+        net_rows();
+    }
+    if want("train") {
+        train_rows();
+    }
+}
