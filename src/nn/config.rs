@@ -304,7 +304,7 @@ mod tests {
             assert_eq!(NetConfig::from_json(&c.to_json(kind)).unwrap(), (kind, c));
         }
         // Files written before the key: Keys bicubic. A bilinear U is refused.
-        let old = NetConfig::small().to_json(NetKind::Geometry).replace(",\"upsample\":\"bicubic\"", "");
+        let old = NetConfig::small().to_json(NetKind::Geometry).replace(", \"upsample\": \"bicubic\"", "");
         assert!(!old.contains("upsample"), "{old}");
         assert_eq!(NetConfig::from_json(&old).unwrap().1.upsample, Interp::Bicubic);
         let bl = NetConfig::small().to_json(NetKind::Geometry).replace("\"bicubic\"", "\"bilinear\"");
