@@ -129,6 +129,22 @@ fn conv_fast_matches_ref_on_random_shapes() {
 }
 
 #[test]
+fn conv_few_outputs_matches_ref_on_wide_rows_and_tails() {
+    // The pixel-vector path (≤ SMALL_OUT_MAX output channels): rows shorter than, equal to and
+    // longer than whole 16-pixel vectors and 4-vector tiles, with the kernel's overhang.
+    assert_eq!(anisocb::ops::conv2d::SMALL_OUT_MAX, 4);
+    let mut rng = Rng::new(11);
+    for (o, w) in [(1, 1), (3, 15), (1, 16), (2, 17), (3, 63), (4, 64), (1, 65), (3, 130)] {
+        for (k, pad) in
+            [(3, Padding::Zero), (3, Padding::Replicate), (5, Padding::Replicate), (1, Padding::Zero)]
+        {
+            let (n, c, h) = (1 + w % 2, 1 + (w % 7) * 5, 1 + w % 9);
+            check_case(&mut rng, n, c, o, h, w, k, k, pad, w % 2 == 1, true);
+        }
+    }
+}
+
+#[test]
 fn conv_fast_is_deterministic() {
     let mut rng = Rng::new(7);
     let x = rng.tensor(&[2, 19, 13, 17], -1.0, 1.0);

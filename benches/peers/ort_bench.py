@@ -54,7 +54,8 @@ def nets_model(channels, blocks, rng):
                   for n, s in ex.param_shapes(kind, cfg)}
         y = ex.add_trunk(g, kind, cfg, arrays, "lr")
         outs.append(g.node("Identity", [y], f"{kind}_out") if kind == "geometry" else g.node("Sigmoid", [y], kind))
-    info = [helper.make_tensor_value_info(o, TensorProto.FLOAT, None) for o in outs]
+    info = [helper.make_tensor_value_info(o, TensorProto.FLOAT, [1, 3 if i < 2 else 1, 64, 64])
+            for i, o in enumerate(outs)]
     graph = helper.make_graph(g.nodes, "anisocb", [helper.make_tensor_value_info("lr", TensorProto.FLOAT,
                                                                                 [1, 3, 32, 32])],
                               info, initializer=g.inits)
