@@ -223,7 +223,11 @@ fn pad_nhwc(x: &Tensor, ph: usize, pw: usize, pad: Padding, extra: usize) -> (Sc
         };
         for ci in 0..c {
             let src = &x.data[((ni * c + ci) * h + sy) * w..][..w];
-            for xx in 0..wp {
+            // Interior columns without a per-pixel padding test, then the pw border columns.
+            for (d, v) in dst[pw * c + ci..].iter_mut().step_by(c).zip(src) {
+                *d = *v;
+            }
+            for xx in (0..pw).chain(pw + w..wp) {
                 if let Some(sx) = pad_index(xx as isize - pw as isize, w, pad) {
                     dst[xx * c + ci] = src[sx];
                 }
@@ -259,15 +263,21 @@ fn pack_weights(
         let ov = ((opad - ob) / L).min(OB / L);
         let wdt = ov * L;
         let jmax = wdt.min(o - ob);
-        // One rayon task per tap (the block is [tap][c_in][wdt]).
-        data[off..off + kh * kw * c * wdt].par_chunks_mut(c * wdt).enumerate().for_each(|(t, dst)| {
-            let (ky, kx) = (t / kw, t % kw);
-            for (ci, row) in dst.chunks_exact_mut(wdt).enumerate() {
-                for (j, d) in row[..jmax].iter_mut().enumerate() {
-                    *d = get(ob + j, ci, ky, kx);
+        // Rayon tasks of whole taps (the block is [tap][c_in][wdt]), ≥ 2¹⁵ floats each: small
+        // layers are packed on one thread, where a task would cost more than the copy.
+        let min_taps = ((1 << 15) / (c * wdt)).max(1);
+        data[off..off + kh * kw * c * wdt]
+            .par_chunks_mut(c * wdt)
+            .with_min_len(min_taps)
+            .enumerate()
+            .for_each(|(t, dst)| {
+                let (ky, kx) = (t / kw, t % kw);
+                for (ci, row) in dst.chunks_exact_mut(wdt).enumerate() {
+                    for (j, d) in row[..jmax].iter_mut().enumerate() {
+                        *d = get(ob + j, ci, ky, kx);
+                    }
                 }
-            }
-        });
+            });
         blocks.push((off, ov));
         off += kh * kw * c * wdt;
     }
