@@ -146,20 +146,26 @@ fn conv_few_outputs_matches_ref_on_wide_rows_and_tails() {
 
 #[test]
 fn conv_fast_is_deterministic() {
-    let mut rng = Rng::new(7);
-    let x = rng.tensor(&[2, 19, 13, 17], -1.0, 1.0);
-    let w = rng.tensor(&[23, 19, 3, 3], -1.0, 1.0);
-    let dy = rng.tensor(&[2, 23, 13, 17], -1.0, 1.0);
-    let run = || {
-        let y = conv2d(&x, &w, None, Padding::Replicate);
-        let mut dx = Tensor::zeros(&x.shape);
-        let mut dw = Tensor::zeros(&w.shape);
-        conv2d_backward(&x, &w, &dy, Padding::Replicate, Some(&mut dx), &mut dw, None);
-        (y, dx, dw)
-    };
-    let a = run();
-    let b = run();
-    assert!(a.0.data.iter().zip(&b.0.data).all(|(p, q)| p.to_bits() == q.to_bits()));
-    assert!(a.1.data.iter().zip(&b.1.data).all(|(p, q)| p.to_bits() == q.to_bits()));
-    assert!(a.2.data.iter().zip(&b.2.data).all(|(p, q)| p.to_bits() == q.to_bits()));
+    // Same bits on every run and for any thread count, on the channel-vector path (23 outputs)
+    // and the pixel-vector path (3 outputs).
+    for o in [23, 3] {
+        let mut rng = Rng::new(7);
+        let x = rng.tensor(&[2, 19, 13, 37], -1.0, 1.0);
+        let w = rng.tensor(&[o, 19, 3, 3], -1.0, 1.0);
+        let dy = rng.tensor(&[2, o, 13, 37], -1.0, 1.0);
+        let run = || {
+            let y = conv2d(&x, &w, None, Padding::Replicate);
+            let mut dx = Tensor::zeros(&x.shape);
+            let mut dw = Tensor::zeros(&w.shape);
+            conv2d_backward(&x, &w, &dy, Padding::Replicate, Some(&mut dx), &mut dw, None);
+            (y, dx, dw)
+        };
+        let bits = |t: &(Tensor, Tensor, Tensor)| {
+            [&t.0, &t.1, &t.2].map(|t| t.data.iter().map(|v| v.to_bits()).collect::<Vec<u32>>())
+        };
+        let a = bits(&run());
+        assert_eq!(a, bits(&run()), "o = {o}: two runs differ");
+        let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
+        assert_eq!(a, bits(&one.install(run)), "o = {o}: 1 thread differs from the default pool");
+    }
 }

@@ -770,6 +770,121 @@ pub fn conv2d_input_grad(w: &Tensor, dy: &Tensor, pad: Padding, dx: &mut Tensor)
     }
 }
 
+/// Weight gradient of one (input channel, kernel row) for O ≤ [`SMALL_OUT_MAX`] output channels
+/// and KW kernel columns, lanes along pixel rows: acc[kx][o] += dy[o](row y, 16 px) ·
+/// x(row y + ky, the same 16 px shifted by kx), over every image and row; returns the lane
+/// sums. `x` points at (image 0, channel, row ky, column 0) of the padded planar input (row
+/// stride `wq`, image stride `xs`); `dy` at (image 0, channel 0, row 0) of dy widened to nv·16
+/// columns with zeros (row stride nv·16, channel stride `os`, image stride `ds`).
+///
+/// # Safety
+/// Rows 0..h (+ ky) of n images, columns 0..nv·16 + KW − 1 of `x` and 0..nv·16 of `dy` in bounds.
+#[inline(always)]
+#[allow(clippy::too_many_arguments, clippy::needless_range_loop)]
+unsafe fn dw_px<const O: usize, const KW: usize>(
+    x: *const f32,
+    wq: usize,
+    xs: usize,
+    dy: *const f32,
+    os: usize,
+    ds: usize,
+    n: usize,
+    h: usize,
+    nv: usize,
+) -> [[f32; O]; KW] {
+    let mut acc = [[f32x16::ZERO; O]; KW];
+    for ni in 0..n {
+        for y in 0..h {
+            let xr = x.add(ni * xs + y * wq);
+            let dr = dy.add(ni * ds + y * nv * L);
+            for v in 0..nv {
+                let mut g = [f32x16::ZERO; O];
+                for o in 0..O {
+                    g[o] = (dr.add(o * os + v * L) as *const f32x16).read_unaligned();
+                }
+                for kx in 0..KW {
+                    let xv = (xr.add(v * L + kx) as *const f32x16).read_unaligned();
+                    for o in 0..O {
+                        acc[kx][o] = xv.mul_add(g[o], acc[kx][o]);
+                    }
+                }
+            }
+        }
+    }
+    let mut out = [[0.0; O]; KW];
+    for kx in 0..KW {
+        for o in 0..O {
+            out[kx][o] = acc[kx][o].reduce_add();
+        }
+    }
+    out
+}
+
+/// dw += ∂L/∂w for o ≤ [`SMALL_OUT_MAX`] and kw ∈ {1, 3, 5} (else returns false and does
+/// nothing): one rayon task per (input channel, kernel row), each summing over every pixel in a
+/// fixed order ([`dw_px`]), so results do not depend on the thread count.
+fn conv2d_weight_grad_small_out(x: &Tensor, dy: &Tensor, pad: Padding, dw: &mut Tensor) -> bool {
+    let (n, c, h, wd) = x.dims4();
+    let (o, _, kh, kw) = dw.dims4();
+    if o > SMALL_OUT_MAX || !matches!(kw, 1 | 3 | 5) {
+        return false;
+    }
+    let (ph, pw) = (kh / 2, kw / 2);
+    let nv = wd.div_ceil(L);
+    let wq = nv * L + kw - 1;
+    let (xp, hp) = pad_planar(x, ph, pw, pad, wq);
+    let rw = nv * L;
+    let mut dyq = Scratch::zeroed(n * o * h * rw);
+    dyq.par_chunks_mut(rw)
+        .enumerate()
+        .for_each(|(r, dst)| dst[..wd].copy_from_slice(&dy.data[r * wd..][..wd]));
+    let sums: Vec<Vec<f32>> = (0..c * kh)
+        .into_par_iter()
+        .map(|task| {
+            let (ci, ky) = (task / kh, task % kh);
+            // SAFETY: image ni, channel ci, rows ky..ky+h ≤ hp, columns < nv·16 + kw − 1 = wq of
+            // xp; dyq holds n·o·h rows of nv·16 floats.
+            unsafe {
+                let xptr = xp.as_ptr().add((ci * hp + ky) * wq);
+                let (xs, os, ds, dyp) = (c * hp * wq, h * rw, o * h * rw, dyq.as_ptr());
+                macro_rules! run {
+                    ($o:literal, $kw:literal) => {
+                        dw_px::<$o, $kw>(xptr, wq, xs, dyp, os, ds, n, h, nv)
+                            .iter()
+                            .flatten()
+                            .copied()
+                            .collect()
+                    };
+                }
+                match (o, kw) {
+                    (1, 1) => run!(1, 1),
+                    (1, 3) => run!(1, 3),
+                    (1, _) => run!(1, 5),
+                    (2, 1) => run!(2, 1),
+                    (2, 3) => run!(2, 3),
+                    (2, _) => run!(2, 5),
+                    (3, 1) => run!(3, 1),
+                    (3, 3) => run!(3, 3),
+                    (3, _) => run!(3, 5),
+                    (_, 1) => run!(4, 1),
+                    (_, 3) => run!(4, 3),
+                    _ => run!(4, 5),
+                }
+            }
+        })
+        .collect();
+    // sums[(ci, ky)] = [kx][o]
+    for (task, v) in sums.iter().enumerate() {
+        let (ci, ky) = (task / kh, task % kh);
+        for kx in 0..kw {
+            for oi in 0..o {
+                dw.data[((oi * c + ci) * kh + ky) * kw + kx] += v[kx * o + oi];
+            }
+        }
+    }
+    true
+}
+
 /// Pixels per inner block of the weight gradient (dy and x blocks stay in L1/L2).
 const DW_SUB: usize = 128;
 
@@ -780,6 +895,9 @@ const DW_SUB: usize = 128;
 /// summed into its own partial dW; the partials are added in a fixed order (deterministic).
 /// x: (N, C, H, W), dy: (N, O, H, W), dw: (O, C, KH, KW).
 pub fn conv2d_weight_grad(x: &Tensor, dy: &Tensor, pad: Padding, dw: &mut Tensor) {
+    if conv2d_weight_grad_small_out(x, dy, pad, dw) {
+        return;
+    }
     let (n, c, h, wd) = x.dims4();
     let (o, _, kh, kw) = dw.dims4();
     let (ph, pw) = (kh / 2, kw / 2);
