@@ -56,8 +56,9 @@ pub struct Args {
     /// Output directory (created if missing; existing frames with the same names are replaced).
     #[arg(long)]
     pub out: PathBuf,
-    /// Wrinkle enhancement η ≥ 0 (Eq 12): 0 = plain predicted detail, larger = deeper wrinkles
-    /// where EnhanceNet sees edges. Smooth cloth and the border are unaffected.
+    /// Wrinkle enhancement η ≥ 0 (Eq 12): 0 = plain predicted detail (the default, chosen on
+    /// validation runs; EnhanceNet is then not run), larger = deeper wrinkles where EnhanceNet
+    /// sees edges. Smooth cloth and the border are unaffected.
     #[arg(long, default_value_t = DEFAULT_ETA)]
     pub eta: f32,
     /// Temporal smoothing radius in frames of the predicted detail, in the cloth's own frame
@@ -543,6 +544,7 @@ pub fn run(a: Args) -> Result<()> {
     }
     let params = UpscaleParams {
         eta: a.eta,
+        enhance_map: a.maps,
         batch: a.batch,
         temporal: a.temporal,
         strain_iters: a.strain_iters,

@@ -82,10 +82,17 @@ impl AnisoCb {
     /// lr (N, 3, H, W) → (U, R, Γb, Γe). Inference only: no activations are kept; run it in
     /// batches that fit memory (≈ 2·C·r²·H·W floats per sample at the widest layer).
     pub fn forward(&self, ops: &dyn Ops, lr: &Tensor) -> Result<SrOutputs> {
+        self.forward_with(ops, lr, true)
+    }
+
+    /// [`AnisoCb::forward`], with EnhanceNet run only if `enhance` (else Γe = 0, which is all
+    /// Eq 12 reads of it at η = 0): a third less work for the default η.
+    pub fn forward_with(&self, ops: &dyn Ops, lr: &Tensor, enhance: bool) -> Result<SrOutputs> {
         check_input(lr, "AnisoCb input")?;
         let (u, r) = self.geometry.forward(ops, lr)?;
         let boundary = self.boundary.probabilities(ops, lr)?;
-        let enhance = self.enhance.probabilities(ops, lr)?;
+        let enhance =
+            if enhance { self.enhance.probabilities(ops, lr)? } else { Tensor::zeros(&boundary.shape) };
         Ok(SrOutputs { u, r, boundary, enhance })
     }
 }

@@ -19,12 +19,14 @@
 use crate::error::{Error, Result};
 use crate::tensor::Tensor;
 
-/// Default enhancement factor η = 0.5: a residual trained with MSE regresses towards the mean
-/// of the plausible wrinkles and so under-shoots their amplitude; a 1.5× gain on the thin
-/// band EnhanceNet marks (a few percent of the pixels) restores visible wrinkle contrast while
-/// leaving the smooth cloth, and hence most of the vertex error, untouched. η = 0 is the
-/// metric-neutral choice (`U + (1 − Γb) R`); the evaluation sweeps η to measure the trade.
-pub const DEFAULT_ETA: f32 = 0.5;
+/// Default enhancement factor η = 0: Γfinal = U + (1 − Γb) R, and EnhanceNet is not run.
+/// Chosen on the validation runs (seed 6 of the training scenarios, `--vary 6`: neither
+/// training nor held out) with the shipped model: η = 0, 0.25, 0.5 give the same result on
+/// the flag and the drape, and on both twists η = 0 is best on every metric (vertex RMSE 18.24
+/// vs 18.45 mm at η = 0.5, STED temporal 2.32 vs 2.52 %). Deepening what EnhanceNet marks
+/// makes the wrinkles it finds flicker more than it brings them closer to the truth; η > 0
+/// stays available (`--eta`) for a stronger look.
+pub const DEFAULT_ETA: f32 = 0.0;
 
 /// Our Eq 12. `gb` / `ge` may be omitted (treated as all-zero maps): `gb = None` is
 /// "anisocb without BoundaryNet", `ge = None` equals `η = 0`.

@@ -48,7 +48,11 @@ pub const DEFAULT_TEMPORAL: usize = 2;
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct UpscaleParams {
     /// Enhancement factor η of Eq 12 (dimensionless, ≥ 0); see [`super::compose::DEFAULT_ETA`].
+    /// At η = 0 EnhanceNet is not run (Γe = 0) unless `enhance_map`.
     pub eta: f32,
+    /// Run EnhanceNet even at η = 0: for its map Γe, or to compose other η later
+    /// ([`Upscaled::with_eta`]).
+    pub enhance_map: bool,
     /// Frames per network forward (memory ≈ batch · 2·C·r²·H·W floats at the widest layer).
     pub batch: usize,
     /// Set Γb = 1 on the grid's border pixels: the topological border is known exactly (it is
@@ -71,6 +75,7 @@ impl Default for UpscaleParams {
     fn default() -> Self {
         UpscaleParams {
             eta: super::compose::DEFAULT_ETA,
+            enhance_map: false,
             batch: 8,
             pin_border: true,
             temporal: DEFAULT_TEMPORAL,
@@ -90,8 +95,10 @@ pub struct Upscaled {
     pub residual: Tensor,
     /// Γb (T, 1, rH, rW).
     pub boundary: Tensor,
-    /// Γe (T, 1, rH, rW).
+    /// Γe (T, 1, rH, rW); all 0 where EnhanceNet was not run (`enhance_ran`).
     pub enhance: Tensor,
+    /// Whether EnhanceNet ran (it does not at η = 0, where Eq 12 ignores Γe).
+    enhance_ran: bool,
     /// Per frame: (domain → nets' frame, back) and the LR frame in the nets' frame (for the
     /// strain limit); `strain_iters` as run.
     maps: Vec<(Affine, Affine)>,
@@ -114,6 +121,7 @@ impl Upscaled {
             residual: cut(&self.residual),
             boundary: cut(&self.boundary),
             enhance: cut(&self.enhance),
+            enhance_ran: self.enhance_ran,
             maps: self.maps[r.clone()].to_vec(),
             lr_net: cut(&self.lr_net),
             strain_iters: self.strain_iters,
@@ -151,6 +159,11 @@ impl Upscaled {
     /// Γfinal for another enhancement factor `eta`, from the same network outputs (Eq 12 and
     /// the same strain limit as [`Upscaled::hr`]).
     pub fn with_eta(&self, eta: f32) -> Result<Tensor> {
+        if eta != 0.0 && !self.enhance_ran {
+            return Err(Error::config(format!(
+                "η = {eta} needs EnhanceNet's map, which was not computed (upscaled with η = 0)"
+            )));
+        }
         let mut g =
             compose(&self.interpolated, &self.residual, Some(&self.boundary), Some(&self.enhance), eta)?;
         self.limit_strain_all(&mut g);
@@ -253,6 +266,7 @@ pub fn run_nets(
         residual: Tensor::zeros(&[t, 3, hh, hw]),
         boundary: Tensor::zeros(&[t, 1, hh, hw]),
         enhance: Tensor::zeros(&[t, 1, hh, hw]),
+        enhance_ran: params.eta != 0.0 || params.enhance_map,
         maps: Vec::with_capacity(t),
         lr_net: Tensor::zeros(&[t, 3, h, w]),
         strain_iters: if model.input_frame() == InputFrame::Cloth { params.strain_iters } else { 0 },
@@ -267,7 +281,7 @@ pub fn run_nets(
             m.0.apply_image(img, true);
         }
         out.lr_net.data[done * 3 * h * w..(done + n) * 3 * h * w].copy_from_slice(&x.data);
-        let mut o = model.forward(ops, &x)?;
+        let mut o = model.forward_with(ops, &x, out.enhance_ran)?;
         if params.pin_border {
             set_border(&mut o.boundary, 1.0);
         }

@@ -200,8 +200,8 @@ def smooth_in_time(x, k):
     return out
 
 
-def upscale_numpy(sess, lr, domain, input_frame, eta=0.5, temporal=2):
-    """The anisocb upscale pipeline (defaults: pin_border, temporal 2, eta 0.5, no strain
+def upscale_numpy(sess, lr, domain, input_frame, eta=0.0, temporal=2):
+    """The anisocb upscale pipeline (defaults: pin_border, temporal 2, eta 0, no strain
     limit) around the ONNX model; lr (T, 3, H, W) in the domain -> (hr, boundary, enhance, x)."""
     bmin, bmax = domain[0], domain[1]
     if input_frame == "cloth-frame":
@@ -277,9 +277,9 @@ def main():
               f"ONNX Runtime vs anisocb audit")
         got, t_ort, t_audit = check_nets(exe, env, work, "demo", a.weights, sess, x, failures)
 
-        # 2. The whole pipeline: numpy + ORT vs anisocb upscale (defaults: eta 0.5, temporal 2).
+        # 2. The whole pipeline: numpy + ORT vs anisocb upscale (defaults: eta 0, temporal 2).
         print(f"\n2. pipeline: README recipe (numpy cloth frame + ORT + border pin + temporal 2 + Eq 12, "
-              f"eta 0.5) vs anisocb upscale")
+              f"eta 0) vs anisocb upscale")
         up = os.path.join(work, "up")
         t_up, _ = run([exe, "upscale", os.path.join(run_dir, "lr"), "--weights", a.weights, "--out", up,
                        "--maps", "--threads", str(a.threads)], env=env)
