@@ -1,6 +1,7 @@
 //! Audit of the fidelity additions against references written by JAX/NumPy
 //! (tests/fixtures/gen_losses.py → tests/fixtures/losses/*.npy; versions in VERSIONS.txt):
-//! the edge-vector loss and its gradient, the combined GeometryNet loss (MSE + w·edge), and
+//! the edge-vector and curvature (Laplacian) losses and their gradients, the combined
+//! GeometryNet loss (MSE + w·edge, and MSE + w_e·edge + w_l·laplacian), and
 //! the cloth frame (origin, unit, rotation as NumPy's SVD polar factor).
 //!
 //! Tolerances (references in f64): losses rtol 1e-5 (f64-accumulated means), gradients
@@ -10,7 +11,7 @@
 use anisocb::geom::cloth_frame::ClothFrame;
 use anisocb::geom::GridMesh;
 use anisocb::io::read_npy;
-use anisocb::nn::geometry_net::estimate_loss;
+use anisocb::nn::geometry_net::{estimate_loss, GeometryLoss};
 use anisocb::ops::{loss, Cpu};
 use anisocb::Tensor;
 use std::path::PathBuf;
@@ -52,9 +53,37 @@ fn geometry_loss_with_edge_term_matches_jax() {
     for (e, r) in est.data.iter_mut().zip(&r.data) {
         *e += r;
     }
-    let (l, g) = estimate_loss(&Cpu, &est, &hr, w);
+    let (l, g) = estimate_loss(&Cpu, &est, &hr, GeometryLoss { edge: w, laplacian: 0.0 });
     close("geometry loss", &[l], &fx("geo_loss").data, 0.0, 1e-5);
     close("geometry grad", &g.data, &fx("geo_grad").data, 1e-8, 1e-5);
+}
+
+#[test]
+fn laplacian_loss_and_gradient_match_jax() {
+    for tag in ["a", "min", "wide"] {
+        let (p, t) = (fx(&format!("lap_{tag}_pred")), fx(&format!("lap_{tag}_target")));
+        let (l, g) = loss::laplacian_mse(&p, &t);
+        close(&format!("laplacian {tag} loss"), &[l], &fx(&format!("lap_{tag}_loss")).data, 0.0, 1e-5);
+        // Gradients up to 2·20·|D|/count: atol scaled like the edge term's.
+        close(&format!("laplacian {tag} grad"), &g.data, &fx(&format!("lap_{tag}_grad")).data, 1e-7, 1e-5);
+    }
+    // Under 3×3 there is no interior pixel: no loss, no gradient.
+    let p = Tensor::zeros(&[1, 3, 2, 9]);
+    let (l, g) = loss::laplacian_mse(&p, &Tensor::full(&[1, 3, 2, 9], 1.0));
+    assert_eq!((l, g.data.iter().all(|&v| v == 0.0)), (0.0, true));
+}
+
+#[test]
+fn geometry_loss_with_edge_and_laplacian_terms_matches_jax() {
+    let (u, r, hr) = (fx("geo2_u"), fx("geo2_r"), fx("geo2_hr"));
+    let w = fx("geo2_weights").data;
+    let mut est = u.clone();
+    for (e, r) in est.data.iter_mut().zip(&r.data) {
+        *e += r;
+    }
+    let (l, g) = estimate_loss(&Cpu, &est, &hr, GeometryLoss { edge: w[0], laplacian: w[1] });
+    close("geometry2 loss", &[l], &fx("geo2_loss").data, 0.0, 1e-5);
+    close("geometry2 grad", &g.data, &fx("geo2_grad").data, 1e-8, 1e-5);
 }
 
 #[test]

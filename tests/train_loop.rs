@@ -65,6 +65,7 @@ fn tiny_opts(out: PathBuf, steps: u64) -> TrainOptions {
         checkpoint_every: 100,
         pos_weight: 2.0,
         edge_weight: 0.5,
+        laplacian_weight: 0.25,
         resume: false,
         out,
     }
@@ -114,6 +115,7 @@ fn tiny_geometry_net_overfits_a_single_pair() {
         adam: AdamParams { lr: 3e-3, ..AdamParams::default() },
         // The paper's loss (Eq 3) alone: the bound below is on the MSE.
         edge_weight: 0.0,
+        laplacian_weight: 0.0,
         ..tiny_opts(tmp("overfit"), 1500)
     };
     let r = train(&Cpu, &data, NetKind::Geometry, &opts, &mut |_| {}).unwrap();

@@ -66,6 +66,11 @@ pub struct Args {
     /// paper's loss alone.
     #[arg(long, default_value_t = 1.0)]
     pub edge_weight: f32,
+    /// GeometryNet: weight of the curvature term (error of the 5-point Laplacian of the
+    /// positions, i.e. of the mean-curvature normal: bumps and dents that show in shading);
+    /// 0 = off.
+    #[arg(long, default_value_t = 0.0)]
+    pub laplacian_weight: f32,
     /// Ridge strength λ of `--net linear` (relative to the features' mean variance).
     #[arg(long, default_value_t = 1e-3)]
     pub ridge: f64,
@@ -100,6 +105,7 @@ pub fn run(a: Args) -> Result<()> {
         checkpoint_every: a.checkpoint_every,
         pos_weight: a.pos_weight,
         edge_weight: a.edge_weight,
+        laplacian_weight: a.laplacian_weight,
         resume: a.resume,
         out: a.out.clone(),
     };

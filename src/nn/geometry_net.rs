@@ -5,7 +5,7 @@
 use super::config::{NetConfig, NetKind, IN_CHANNELS};
 use super::layers::Trunk;
 use crate::error::{Error, Result};
-use crate::ops::loss::edge_mse;
+use crate::ops::loss::{edge_mse, laplacian_mse};
 use crate::ops::{Interp, Ops};
 use crate::tensor::Tensor;
 
@@ -73,19 +73,33 @@ impl GeometryNet {
         hr: &Tensor,
         grads: Option<&mut Trunk>,
     ) -> Result<f32> {
-        geometry_loss(ops, &self.trunk, lr, u, hr, 0.0, grads)
+        geometry_loss(ops, &self.trunk, lr, u, hr, GeometryLoss::default(), grads)
     }
 }
 
+/// Weights (dimensionless) of the terms GeometryNet's loss adds to the position MSE (Eq 3);
+/// all 0 = Eq 3 alone. Both terms are computed on the host whatever the op table.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct GeometryLoss {
+    /// Edge-vector term [`edge_mse`]: swimming edge lengths, noisy normals.
+    pub edge: f32,
+    /// Curvature term [`laplacian_mse`]: bumps and dents that show in shading.
+    pub laplacian: f32,
+}
+
 /// The loss of an HR estimate `est = U + R` against `hr`, and its gradient w.r.t. `est` (= the
-/// gradient w.r.t. R): `mse + edge_weight · edge_mse`.
-pub fn estimate_loss(ops: &dyn Ops, est: &Tensor, hr: &Tensor, edge_weight: f32) -> (f32, Tensor) {
+/// gradient w.r.t. R): `mse + w.edge · edge_mse + w.laplacian · laplacian_mse`.
+pub fn estimate_loss(ops: &dyn Ops, est: &Tensor, hr: &Tensor, w: GeometryLoss) -> (f32, Tensor) {
     let (mut loss, mut grad) = ops.mse(est, hr);
-    if edge_weight != 0.0 {
-        let (le, ge) = edge_mse(est, hr);
-        loss += edge_weight * le;
-        for (d, e) in grad.data.iter_mut().zip(&ge.data) {
-            *d += edge_weight * e;
+    for (weight, term) in
+        [(w.edge, edge_mse as fn(&Tensor, &Tensor) -> (f32, Tensor)), (w.laplacian, laplacian_mse)]
+    {
+        if weight != 0.0 {
+            let (l, g) = term(est, hr);
+            loss += weight * l;
+            for (d, e) in grad.data.iter_mut().zip(&g.data) {
+                *d += weight * e;
+            }
         }
     }
     (loss, grad)
@@ -93,15 +107,14 @@ pub fn estimate_loss(ops: &dyn Ops, est: &Tensor, hr: &Tensor, edge_weight: f32)
 
 /// [`GeometryNet::loss`] on a bare trunk (of kind Geometry).
 ///
-/// `edge_weight` adds `edge_weight · edge_mse(U + R, HR)` ([`crate::ops::loss::edge_mse`],
-/// computed on the host whatever the op table) to the paper's MSE (Eq 3); 0 = Eq 3 alone.
+/// `weights` adds the [`GeometryLoss`] terms of `U + R` against HR to the paper's MSE (Eq 3).
 pub fn geometry_loss(
     ops: &dyn Ops,
     trunk: &Trunk,
     lr: &Tensor,
     u: &Tensor,
     hr: &Tensor,
-    edge_weight: f32,
+    weights: GeometryLoss,
     grads: Option<&mut Trunk>,
 ) -> Result<f32> {
     let r = trunk.config.scale;
@@ -111,12 +124,12 @@ pub fn geometry_loss(
         None => {
             let mut est = trunk.forward(ops, lr);
             ops.add_assign(&mut est, u);
-            estimate_loss(ops, &est, hr, edge_weight).0
+            estimate_loss(ops, &est, hr, weights).0
         }
         Some(g) => {
             let (mut est, tape) = trunk.forward_train(ops, lr);
             ops.add_assign(&mut est, u);
-            let (loss, d_est) = estimate_loss(ops, &est, hr, edge_weight);
+            let (loss, d_est) = estimate_loss(ops, &est, hr, weights);
             drop(est);
             // d(U + R)/dR = identity; U is not trained.
             trunk.backward(ops, &tape, &d_est, g);

@@ -102,6 +102,40 @@ pub fn edge_mse(pred: &Tensor, target: &Tensor) -> (f32, Tensor) {
     ((sum / count as f64) as f32, g)
 }
 
+/// Curvature error (second differences): with `D = pred − target` (N, C, H, W) and the
+/// 5-point Laplacian `ΔD[y, x] = D[y−1, x] + D[y+1, x] + D[y, x−1] + D[y, x+1] − 4 D[y, x]` at
+/// the (H−2)·(W−2) interior pixels, `mean over them and the channels of (ΔD)²`, and its
+/// gradient w.r.t. pred (0 for grids under 3×3). On a geometry image ΔD is the error of the
+/// discrete mean-curvature normal: what shows in shading as bumps and dents that are not in
+/// the truth, and what MSE and the edge term weigh least. Plain loops, f64 sum (small patches).
+pub fn laplacian_mse(pred: &Tensor, target: &Tensor) -> (f32, Tensor) {
+    check(pred, target, "laplacian_mse");
+    let (n, c, h, w) = pred.dims4();
+    let mut g = Tensor::zeros(&pred.shape);
+    if h < 3 || w < 3 {
+        return (0.0, g);
+    }
+    let count = n * c * (h - 2) * (w - 2);
+    let mut sum = 0.0f64;
+    let d = |i: usize| pred.data[i] - target.data[i];
+    for plane in 0..n * c {
+        let base = plane * h * w;
+        for y in 1..h - 1 {
+            for x in 1..w - 1 {
+                let i = base + y * w + x;
+                let l = d(i - w) + d(i + w) + d(i - 1) + d(i + 1) - 4.0 * d(i);
+                sum += (l as f64) * (l as f64);
+                let gl = 2.0 * l / count as f32;
+                for j in [i - w, i + w, i - 1, i + 1] {
+                    g.data[j] += gl;
+                }
+                g.data[i] -= 4.0 * gl;
+            }
+        }
+    }
+    ((sum / count as f64) as f32, g)
+}
+
 /// Mean binary cross-entropy on logits with positive-class weight `pos_weight` (1 = none),
 /// stable for any |z|, and its gradient w.r.t. the logits. target values in [0, 1].
 pub fn bce_with_logits_ref(logits: &Tensor, target: &Tensor, pos_weight: f32) -> (f32, Tensor) {

@@ -16,7 +16,7 @@ use super::data::{gather, interpolate_all, split, PatchSampler, TrainingData};
 use crate::error::{Error, Result};
 use crate::io::json::Object;
 use crate::io::{read_npz, write_atomic_bytes, write_npz, NpzEntries};
-use crate::nn::geometry_net::geometry_loss;
+use crate::nn::geometry_net::{geometry_loss, GeometryLoss};
 use crate::nn::map_net::map_loss;
 use crate::nn::weights::{push_trunk, save_net, trunk_from_npz};
 use crate::nn::{AnisoCb, NetConfig, NetKind, Trunk};
@@ -47,9 +47,18 @@ pub struct TrainOptions {
     /// GeometryNet: weight of the edge-vector term added to the MSE (`ops::loss::edge_mse`;
     /// 0 = the paper's Eq 3 alone).
     pub edge_weight: f32,
+    /// GeometryNet: weight of the curvature term (`ops::loss::laplacian_mse`; 0 = off).
+    pub laplacian_weight: f32,
     /// Continue from `out/checkpoint.npz`.
     pub resume: bool,
     pub out: PathBuf,
+}
+
+impl TrainOptions {
+    /// GeometryNet's loss terms from `edge_weight` and `laplacian_weight`.
+    pub fn geometry_loss(&self) -> GeometryLoss {
+        GeometryLoss { edge: self.edge_weight, laplacian: self.laplacian_weight }
+    }
 }
 
 impl Default for TrainOptions {
@@ -66,6 +75,7 @@ impl Default for TrainOptions {
             checkpoint_every: 500,
             pos_weight: 1.0,
             edge_weight: 0.0,
+            laplacian_weight: 0.0,
             resume: false,
             out: PathBuf::from("out"),
         }
@@ -140,7 +150,7 @@ fn batch_loss(
     grads: Option<&mut Trunk>,
 ) -> Result<f32> {
     match trunk.kind {
-        NetKind::Geometry => geometry_loss(ops, trunk, lr, u, target, o.edge_weight, grads),
+        NetKind::Geometry => geometry_loss(ops, trunk, lr, u, target, o.geometry_loss(), grads),
         _ => map_loss(ops, trunk, lr, target, o.pos_weight, grads),
     }
 }
@@ -183,6 +193,7 @@ fn options_json(net: NetKind, o: &TrainOptions, data_fp: u64, step: u64) -> Stri
         .num("val_frac", o.val_frac)
         .num("pos_weight", o.pos_weight)
         .num("edge_weight", o.edge_weight)
+        .num("laplacian_weight", o.laplacian_weight)
         .str("data", &format!("{data_fp:016x}"))
         .to_json()
 }
@@ -349,7 +360,7 @@ pub fn train(
     let baseline_val = match &u_all {
         Some(u) if !val_idx.is_empty() => {
             let (uv, hv) = (gather(u, &val_idx), gather(&data.hr, &val_idx));
-            Some(ops.mse(&uv, &hv).0 + opts.edge_weight * crate::ops::loss::edge_mse(&uv, &hv).0)
+            Some(crate::nn::geometry_net::estimate_loss(ops, &uv, &hv, opts.geometry_loss()).0)
         }
         _ => None,
     };
