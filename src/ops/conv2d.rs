@@ -652,7 +652,7 @@ pub fn conv2d(x: &Tensor, w: &Tensor, b: Option<&Tensor>, pad: Padding) -> Tenso
     }
     let (ph, pw) = (kh / 2, kw / 2);
     let (xp, hp, wp) = pad_nhwc(x, ph, pw, pad, 0);
-    let pk = pack_weights(o, c, kh, kw, |oi, ci, ky, kx| w.data[w.idx4(oi, ci, ky, kx)]);
+    let pk = pack_weights(o, c, kh, kw, |oi, ci, ky, kx| w.data[((oi * c + ci) * kh + ky) * kw + kx]);
     let bias: Option<Vec<f32>> = b.map(|b| {
         let mut v = vec![0.0; pk.opad];
         v[..o].copy_from_slice(&b.data[..o]);
@@ -713,7 +713,9 @@ pub fn conv2d_input_grad(w: &Tensor, dy: &Tensor, pad: Padding, dx: &mut Tensor)
     let (_, c, kh, kw) = w.dims4();
     let (ph, pw) = (kh / 2, kw / 2);
     // Transposed, flipped weights: w'[c][o][ky][kx] = w[o][c][kh−1−ky][kw−1−kx].
-    let pk = pack_weights(c, o, kh, kw, |ci, oi, ky, kx| w.data[w.idx4(oi, ci, kh - 1 - ky, kw - 1 - kx)]);
+    let pk = pack_weights(c, o, kh, kw, |ci, oi, ky, kx| {
+        w.data[((oi * c + ci) * kh + kh - 1 - ky) * kw + kw - 1 - kx]
+    });
     let opad = pk.opad;
     match pad {
         Padding::Zero => {
