@@ -145,27 +145,54 @@ fn conv_few_outputs_matches_ref_on_wide_rows_and_tails() {
 }
 
 #[test]
+fn conv_winograd_matches_ref_on_odd_sizes_and_channel_tails() {
+    // The Winograd F(2×2, 3×3) path (3×3, C_in a multiple of 16, C_out > 4): images with odd
+    // and even sides down to 1×1 (partial 2×2 tiles), tile rows shorter and longer than one
+    // register tile, output channels that are not whole vectors or whole 64-channel blocks.
+    let mut rng = Rng::new(5);
+    for (n, c, o, h, w) in [
+        (1, 16, 5, 1, 1),
+        (2, 16, 16, 2, 3),
+        (1, 32, 17, 3, 2),
+        (1, 32, 32, 7, 9),
+        (1, 48, 65, 6, 13),
+        (2, 64, 64, 9, 8),
+        (1, 64, 80, 5, 29),
+        (1, 32, 3 * 16, 16, 16),
+    ] {
+        for pad in [Padding::Zero, Padding::Replicate] {
+            check_case(&mut rng, n, c, o, h, w, 3, 3, pad, h % 2 == 1, true);
+        }
+    }
+}
+
+#[test]
 fn conv_fast_is_deterministic() {
-    // Same bits on every run and for any thread count, on the channel-vector path (23 outputs)
-    // and the pixel-vector path (3 outputs).
-    for o in [23, 3] {
+    // Same bits on every run and for any thread count, on the channel-vector path (19 → 23),
+    // the Winograd path (32 → 23) and the pixel-vector path (19 → 3), zero and replicate padding.
+    for (c, o, pad) in [
+        (19, 23, Padding::Replicate),
+        (32, 23, Padding::Zero),
+        (32, 23, Padding::Replicate),
+        (19, 3, Padding::Replicate),
+    ] {
         let mut rng = Rng::new(7);
-        let x = rng.tensor(&[2, 19, 13, 37], -1.0, 1.0);
-        let w = rng.tensor(&[o, 19, 3, 3], -1.0, 1.0);
+        let x = rng.tensor(&[2, c, 13, 37], -1.0, 1.0);
+        let w = rng.tensor(&[o, c, 3, 3], -1.0, 1.0);
         let dy = rng.tensor(&[2, o, 13, 37], -1.0, 1.0);
         let run = || {
-            let y = conv2d(&x, &w, None, Padding::Replicate);
+            let y = conv2d(&x, &w, None, pad);
             let mut dx = Tensor::zeros(&x.shape);
             let mut dw = Tensor::zeros(&w.shape);
-            conv2d_backward(&x, &w, &dy, Padding::Replicate, Some(&mut dx), &mut dw, None);
+            conv2d_backward(&x, &w, &dy, pad, Some(&mut dx), &mut dw, None);
             (y, dx, dw)
         };
         let bits = |t: &(Tensor, Tensor, Tensor)| {
             [&t.0, &t.1, &t.2].map(|t| t.data.iter().map(|v| v.to_bits()).collect::<Vec<u32>>())
         };
         let a = bits(&run());
-        assert_eq!(a, bits(&run()), "o = {o}: two runs differ");
+        assert_eq!(a, bits(&run()), "{c} → {o} {pad:?}: two runs differ");
         let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
-        assert_eq!(a, bits(&one.install(run)), "o = {o}: 1 thread differs from the default pool");
+        assert_eq!(a, bits(&one.install(run)), "{c} → {o} {pad:?}: 1 thread differs from the default pool");
     }
 }

@@ -166,7 +166,8 @@ const POOL_KEEP: usize = 4;
 const POOL_MAX_LEN: usize = 1 << 24;
 
 impl Scratch {
-    fn zeroed(len: usize) -> Scratch {
+    /// A pooled buffer for `len` floats, as it was left (its length and values are stale).
+    fn take(len: usize) -> Vec<f32> {
         let v = POOL.with(|p| {
             let mut p = p.borrow_mut();
             // Prefer the smallest pooled buffer that fits, else the largest one (grown).
@@ -174,8 +175,20 @@ impl Scratch {
             let pick = best.or_else(|| (0..p.len()).max_by_key(|&i| p[i].capacity()));
             pick.map(|i| p.swap_remove(i))
         });
-        let mut v = v.unwrap_or_default();
+        v.unwrap_or_default()
+    }
+
+    fn zeroed(len: usize) -> Scratch {
+        let mut v = Scratch::take(len);
         v.clear();
+        v.resize(len, 0.0);
+        Scratch(v)
+    }
+
+    /// `len` floats with unspecified values (stale ones from the pool, zeros where it grew):
+    /// for callers that write every element before reading it, and skip the zeroing pass.
+    fn overwritten(len: usize) -> Scratch {
+        let mut v = Scratch::take(len);
         v.resize(len, 0.0);
         Scratch(v)
     }
@@ -212,25 +225,45 @@ impl std::ops::DerefMut for Scratch {
 /// pixel (n, Y, X) at ((n·Hp + Y)·Wp + X)·C, holding x[n, :, Y−ph, X−pw] with `pad` applied.
 /// The `extra` trailing pixels are zero (slack for strided views that run past the end).
 fn pad_nhwc(x: &Tensor, ph: usize, pw: usize, pad: Padding, extra: usize) -> (Scratch, usize, usize) {
+    let (_, _, h, w) = x.dims4();
+    pad_nhwc_to(x, ph, pw, pad, h + 2 * ph, w + 2 * pw, extra)
+}
+
+/// [`pad_nhwc`] onto a grid of `hp` × `wp` ≥ (H + 2ph) × (W + 2pw) pixels per image; the rows
+/// and columns beyond H + 2ph, W + 2pw are zero.
+fn pad_nhwc_to(
+    x: &Tensor,
+    ph: usize,
+    pw: usize,
+    pad: Padding,
+    hp: usize,
+    wp: usize,
+    extra: usize,
+) -> (Scratch, usize, usize) {
     let (n, c, h, w) = x.dims4();
-    let (hp, wp) = (h + 2 * ph, w + 2 * pw);
-    let mut out = Scratch::zeroed((n * hp * wp + extra) * c);
+    assert!(hp >= h + 2 * ph && wp >= w + 2 * pw);
+    let mut out = Scratch::overwritten((n * hp * wp + extra) * c);
     let row_len = wp * c;
-    out[..n * hp * row_len].par_chunks_mut(row_len).enumerate().for_each(|(r, dst)| {
+    let (body, tail) = out.split_at_mut(n * hp * row_len);
+    tail.fill(0.0);
+    // Rows per rayon task: ≥ 2¹⁴ floats, so small images are copied on one thread.
+    let min_rows = ((1 << 14) / row_len.max(1)).max(1);
+    body.par_chunks_mut(row_len).with_min_len(min_rows).enumerate().for_each(|(r, dst)| {
         let (ni, yy) = (r / hp, r % hp);
-        let Some(sy) = pad_index(yy as isize - ph as isize, h, pad) else {
+        let sy = if yy < h + 2 * ph { pad_index(yy as isize - ph as isize, h, pad) } else { None };
+        let Some(sy) = sy else {
+            dst.fill(0.0);
             return;
         };
+        dst[(w + 2 * pw) * c..].fill(0.0);
         for ci in 0..c {
             let src = &x.data[((ni * c + ci) * h + sy) * w..][..w];
             // Interior columns without a per-pixel padding test, then the pw border columns.
             for (d, v) in dst[pw * c + ci..].iter_mut().step_by(c).zip(src) {
                 *d = *v;
             }
-            for xx in (0..pw).chain(pw + w..wp) {
-                if let Some(sx) = pad_index(xx as isize - pw as isize, w, pad) {
-                    dst[xx * c + ci] = src[sx];
-                }
+            for xx in (0..pw).chain(pw + w..w + 2 * pw) {
+                dst[xx * c + ci] = pad_index(xx as isize - pw as isize, w, pad).map_or(0.0, |sx| src[sx]);
             }
         }
     });
@@ -287,7 +320,8 @@ fn pack_weights(
 /// Micro-kernel: P pixels × OV vectors of output channels of one output row.
 /// `xp` points at input pixel (Y = y, X = x0) of the padded NHWC buffer (row stride `wp`
 /// pixels, `c` channels); `wk` at the block's packed weights; `acc_out` at the row scratch
-/// (pixel stride `opad`), already holding the initial value (bias or 0), and receives the sum.
+/// (pixel stride `opad`) and receives the sum, added to what it holds if `accumulate` (else
+/// the tile is overwritten: the caller need not zero it).
 ///
 /// # Safety
 /// All reads/writes must be in bounds: rows y..y+kh, columns x0..x0+P+kw−1 of `xp`.
@@ -302,11 +336,14 @@ unsafe fn micro<const OV: usize, const P: usize>(
     wk: *const f32,
     acc_out: *mut f32,
     opad: usize,
+    accumulate: bool,
 ) {
     let mut acc = [[f32x16::ZERO; OV]; P];
-    for p in 0..P {
-        for j in 0..OV {
-            acc[p][j] = (acc_out.add(p * opad + j * L) as *const f32x16).read_unaligned();
+    if accumulate {
+        for p in 0..P {
+            for j in 0..OV {
+                acc[p][j] = (acc_out.add(p * opad + j * L) as *const f32x16).read_unaligned();
+            }
         }
     }
     let wstride = OV * L;
@@ -467,10 +504,10 @@ fn correlate_rows(
                         let wptr = pk.data.as_ptr().add(off);
                         let aptr = row.as_mut_ptr().add(x0 * opad + bi * OB);
                         match ov {
-                            4 => dispatch_p!(micro, 4, np, xptr, wp, c, kh, kw, wptr, aptr, opad),
-                            3 => dispatch_p!(micro, 3, np, xptr, wp, c, kh, kw, wptr, aptr, opad),
-                            2 => dispatch_p!(micro, 2, np, xptr, wp, c, kh, kw, wptr, aptr, opad),
-                            _ => dispatch_p!(micro, 1, np, xptr, wp, c, kh, kw, wptr, aptr, opad),
+                            4 => dispatch_p!(micro, 4, np, xptr, wp, c, kh, kw, wptr, aptr, opad, true),
+                            3 => dispatch_p!(micro, 3, np, xptr, wp, c, kh, kw, wptr, aptr, opad, true),
+                            2 => dispatch_p!(micro, 2, np, xptr, wp, c, kh, kw, wptr, aptr, opad, true),
+                            _ => dispatch_p!(micro, 1, np, xptr, wp, c, kh, kw, wptr, aptr, opad, true),
                         }
                     }
                 }
@@ -651,8 +688,10 @@ pub fn conv2d(x: &Tensor, w: &Tensor, b: Option<&Tensor>, pad: Padding) -> Tenso
         return conv2d_small_out(x, w, b, pad);
     }
     let (ph, pw) = (kh / 2, kw / 2);
-    let (xp, hp, wp) = pad_nhwc(x, ph, pw, pad, 0);
-    let pk = pack_weights(o, c, kh, kw, |oi, ci, ky, kx| w.data[((oi * c + ci) * kh + ky) * kw + kx]);
+    let wino = winograd::eligible(c, o, kh, kw);
+    let (xp, hp, wp) = if wino { winograd::pad_input(x, pad) } else { pad_nhwc(x, ph, pw, pad, 0) };
+    let get = |oi: usize, ci: usize, ky: usize, kx: usize| w.data[((oi * c + ci) * kh + ky) * kw + kx];
+    let pk = if wino { winograd::pack(o, c, get) } else { pack_weights(o, c, kh, kw, get) };
     let bias: Option<Vec<f32>> = b.map(|b| {
         let mut v = vec![0.0; pk.opad];
         v[..o].copy_from_slice(&b.data[..o]);
@@ -671,7 +710,11 @@ pub fn conv2d(x: &Tensor, w: &Tensor, b: Option<&Tensor>, pad: Padding) -> Tenso
             }
         }
     };
-    correlate_rows(&xp, n, hp, wp, c, kh, kw, &pk, bias.as_deref(), h, wd, &single_rows(h), &sink);
+    if wino {
+        winograd::correlate(&xp, n, hp, wp, c, &pk, bias.as_deref(), h, wd, &sink);
+    } else {
+        correlate_rows(&xp, n, hp, wp, c, kh, kw, &pk, bias.as_deref(), h, wd, &single_rows(h), &sink);
+    }
     y
 }
 
@@ -713,13 +756,20 @@ pub fn conv2d_input_grad(w: &Tensor, dy: &Tensor, pad: Padding, dx: &mut Tensor)
     let (_, c, kh, kw) = w.dims4();
     let (ph, pw) = (kh / 2, kw / 2);
     // Transposed, flipped weights: w'[c][o][ky][kx] = w[o][c][kh−1−ky][kw−1−kx].
-    let pk = pack_weights(c, o, kh, kw, |ci, oi, ky, kx| {
+    let flipped = |ci: usize, oi: usize, ky: usize, kx: usize| {
         w.data[((oi * c + ci) * kh + kh - 1 - ky) * kw + kw - 1 - kx]
-    });
+    };
+    // Zero padding: the gradient is a "same" correlation of dy, which the Winograd path takes.
+    let wino = pad == Padding::Zero && winograd::eligible(o, c, kh, kw);
+    let pk = if wino { winograd::pack(c, o, flipped) } else { pack_weights(c, o, kh, kw, flipped) };
     let opad = pk.opad;
     match pad {
         Padding::Zero => {
-            let (dyp, hp, wp) = pad_nhwc(dy, ph, pw, Padding::Zero, 0);
+            let (dyp, hp, wp) = if wino {
+                winograd::pad_input(dy, Padding::Zero)
+            } else {
+                pad_nhwc(dy, ph, pw, Padding::Zero, 0)
+            };
             let dxp = SyncPtr(dx.data.as_mut_ptr());
             let sink = move |ni: usize, yy: usize, row: &[f32]| {
                 for ci in 0..c {
@@ -732,7 +782,11 @@ pub fn conv2d_input_grad(w: &Tensor, dy: &Tensor, pad: Padding, dx: &mut Tensor)
                     }
                 }
             };
-            correlate_rows(&dyp, n, hp, wp, o, kh, kw, &pk, None, h, wd, &single_rows(h), &sink);
+            if wino {
+                winograd::correlate(&dyp, n, hp, wp, o, &pk, None, h, wd, &sink);
+            } else {
+                correlate_rows(&dyp, n, hp, wp, o, kh, kw, &pk, None, h, wd, &single_rows(h), &sink);
+            }
         }
         Padding::Replicate => {
             // Gradient w.r.t. the padded input ((H+2ph) × (W+2pw)): a "full" correlation of dy
@@ -982,3 +1036,5 @@ pub fn conv2d_weight_grad(x: &Tensor, dy: &Tensor, pad: Padding, dw: &mut Tensor
         }
     }
 }
+
+mod winograd;

@@ -1,0 +1,224 @@
+//! Winograd F(2×2, 3×3) for the 3×3 convolutions with many channels (the nets' trunks).
+//!
+//! Direct 3×3 convolution needs 9 multiply-adds per (output pixel, c_in, c_out); F(2×2, 3×3)
+//! needs 16 per 2×2 output tile, 4 per pixel (Lavin & Gray 2016, "Fast Algorithms for
+//! Convolutional Neural Networks"): each 4×4 input tile d and 3×3 kernel g are transformed,
+//! V = Bᵀ d B and U = G g Gᵀ, multiplied element-wise and summed over c_in (16 small GEMMs,
+//! one per tile position), and the 4×4 sum M goes back to the 2×2 output as Aᵀ M A.
+//!
+//!   Bᵀ = [1 0 −1 0; 0 1 1 0; 0 −1 1 0; 0 1 0 −1]
+//!   G  = [1 0 0; ½ ½ ½; ½ −½ ½; 0 0 1]
+//!   Aᵀ = [1 1 1 0; 0 1 −1 −1]
+//!
+//! Every entry is 0, ±1 or ±½, so the transforms add no rounding beyond the adds themselves;
+//! the fast-vs-reference and JAX audits pass at the direct kernel's tolerances.
+//!
+//! Layout: the padded channels-last input of [`super::pad_nhwc_to`], grown to whole tiles; one
+//! rayon task per (image, row of tiles). A task transforms its tiles into V[pos][tile][c_in]
+//! (channel vectors: 16 input channels per SIMD op), runs the direct kernel's register-tiled
+//! micro-kernel as a 1×1 "convolution" per position against U[pos][c_in][c_out] (packed like
+//! the direct weights, positions as taps), and transforms M[pos][tile][c_out] back into two
+//! NHWC output rows for the caller's sink. Same order of operations on every run: results do
+//! not depend on the thread count.
+
+use super::{micro, pad_nhwc_to, pmax, tiles, Packed, Padding, Scratch, L, OB, SMALL_OUT_MAX};
+use crate::tensor::Tensor;
+use rayon::prelude::*;
+use wide::f32x16;
+
+/// Positions of a 4×4 transformed tile.
+const POS: usize = 16;
+
+/// Whether the Winograd path takes a convolution: 3×3 kernel, input channels a whole number of
+/// vectors, more output channels than the pixel-vector path takes.
+pub(super) fn eligible(c: usize, o: usize, kh: usize, kw: usize) -> bool {
+    kh == 3 && kw == 3 && c > 0 && c % L == 0 && o > SMALL_OUT_MAX
+}
+
+/// U = G g Gᵀ (row-major 4×4) of a 3×3 kernel g (row-major), for 16 kernels at once.
+fn kernel_transform(g: [f32x16; 9]) -> [f32x16; POS] {
+    let half = f32x16::splat(0.5);
+    // G g: 4×3.
+    let mut t = [[f32x16::ZERO; 3]; 4];
+    for kx in 0..3 {
+        let (g0, g1, g2) = (g[kx], g[3 + kx], g[6 + kx]);
+        t[0][kx] = g0;
+        t[1][kx] = half * (g0 + g1 + g2);
+        t[2][kx] = half * (g0 - g1 + g2);
+        t[3][kx] = g2;
+    }
+    // (G g) Gᵀ: 4×4.
+    let mut u = [f32x16::ZERO; POS];
+    for (i, [a, b, c]) in t.into_iter().enumerate() {
+        u[i * 4] = a;
+        u[i * 4 + 1] = half * (a + b + c);
+        u[i * 4 + 2] = half * (a - b + c);
+        u[i * 4 + 3] = c;
+    }
+    u
+}
+
+/// Transformed weights packed like [`super::pack_weights`] with the 16 positions as taps: per
+/// block of ≤ 64 output channels, [pos][c_in][ov·16] (lanes past `o` zero). `get(o, c, ky, kx)`
+/// reads the 3×3 weight.
+pub(super) fn pack(o: usize, c: usize, get: impl Fn(usize, usize, usize, usize) -> f32 + Sync) -> Packed {
+    let opad = o.div_ceil(L) * L;
+    let mut data = Scratch::overwritten(opad * c * POS);
+    let mut blocks = Vec::new();
+    let mut off = 0;
+    for ob in (0..opad).step_by(OB) {
+        let ov = ((opad - ob) / L).min(OB / L);
+        let wdt = ov * L;
+        let block = &mut data[off..off + POS * c * wdt];
+        for ci in 0..c {
+            for jv in 0..ov {
+                // 16 output channels' kernels, one per lane (lanes past `o` zero).
+                let mut g = [[0.0f32; L]; 9];
+                for l in 0..L.min(o.saturating_sub(ob + jv * L)) {
+                    for (t, gt) in g.iter_mut().enumerate() {
+                        gt[l] = get(ob + jv * L + l, ci, t / 3, t % 3);
+                    }
+                }
+                let taps = g.map(f32x16::from);
+                let dst = &mut block[ci * wdt + jv * L..];
+                assert!(dst.len() >= (POS - 1) * c * wdt + L);
+                for (pos, u) in kernel_transform(taps).into_iter().enumerate() {
+                    // SAFETY: pos·c·wdt + 16 ≤ dst.len() (asserted).
+                    unsafe { st(dst.as_mut_ptr().add(pos * c * wdt), u) };
+                }
+            }
+        }
+        blocks.push((off, ov));
+        off += POS * c * wdt;
+    }
+    Packed { data, blocks, opad }
+}
+
+/// Padded channels-last copy of `x` for the tiles of an H × W output: (H + 2) × (W + 2) pixels
+/// with `pad` applied, grown with zeros to (2⌈H/2⌉ + 2) × (2⌈W/2⌉ + 2). Returns (buffer, hp, wp).
+pub(super) fn pad_input(x: &Tensor, pad: Padding) -> (Scratch, usize, usize) {
+    let (_, _, h, w) = x.dims4();
+    pad_nhwc_to(x, 1, 1, pad, 2 * h.div_ceil(2) + 2, 2 * w.div_ceil(2) + 2, 0)
+}
+
+/// Unaligned vector load / store.
+#[inline(always)]
+unsafe fn ld(p: *const f32) -> f32x16 {
+    (p as *const f32x16).read_unaligned()
+}
+
+#[inline(always)]
+unsafe fn st(p: *mut f32, v: f32x16) {
+    (p as *mut f32x16).write_unaligned(v)
+}
+
+/// 3×3 correlation of a padded NHWC input (n images of hp × wp pixels, c channels, with
+/// hp ≥ 2⌈out_h/2⌉ + 2 and wp ≥ 2⌈out_w/2⌉ + 2) with weights from [`pack`], into out_h × out_w
+/// outputs per image: out[y][x] = init + Σ_{ky,kx,c} w · xp[y + ky][x + kx]. For every output
+/// row, `sink(n, y, row)` gets the row as NHWC scratch (out_w or more pixels × opad floats).
+#[allow(clippy::too_many_arguments, clippy::needless_range_loop)]
+pub(super) fn correlate(
+    xp: &[f32],
+    n: usize,
+    hp: usize,
+    wp: usize,
+    c: usize,
+    pk: &Packed,
+    init: Option<&[f32]>,
+    out_h: usize,
+    out_w: usize,
+    sink: &(dyn Fn(usize, usize, &[f32]) + Sync),
+) {
+    let (th, tw) = (out_h.div_ceil(2), out_w.div_ceil(2));
+    assert!(c % L == 0 && hp >= 2 * th + 2 && wp >= 2 * tw + 2);
+    assert!(xp.len() >= n * hp * wp * c);
+    let opad = pk.opad;
+    assert!(pk.data.len() >= POS * c * opad && init.is_none_or(|b| b.len() >= opad));
+    let row_len = 2 * tw * opad; // one output row of the task, NHWC
+                                 // Position strides of V and M: one cache line more than the data, so the 16 streams a
+                                 // transform reads or writes are not 4 KiB apart (4K aliasing stalls loads behind stores).
+    let (vs, ms) = (tw * c + L, tw * opad + L);
+    (0..n * th).into_par_iter().for_each_init(
+        || (Vec::new(), Vec::new(), Vec::new()),
+        |(v, m, out): &mut (Vec<f32>, Vec<f32>, Vec<f32>), task| {
+            let (ni, ty) = (task / th, task % th);
+            // V[pos][tile][c] = Bᵀ d B, 16 channels at a time.
+            v.resize(POS * vs, 0.0);
+            for tx in 0..tw {
+                // SAFETY: the tile's 4×4 pixels (rows 2ty..2ty+4 ≤ hp, columns 2tx..2tx+4 ≤ wp of
+                // image ni, asserted above) and V's tile tx at every position are in bounds.
+                unsafe {
+                    let xb = xp.as_ptr().add(((ni * hp + 2 * ty) * wp + 2 * tx) * c);
+                    let vb = v.as_mut_ptr().add(tx * c);
+                    for k in (0..c).step_by(L) {
+                        let d = |i: usize, j: usize| ld(xb.add((i * wp + j) * c + k));
+                        let mut t = [[f32x16::ZERO; 4]; 4];
+                        for j in 0..4 {
+                            let (d0, d1, d2, d3) = (d(0, j), d(1, j), d(2, j), d(3, j));
+                            t[0][j] = d0 - d2;
+                            t[1][j] = d1 + d2;
+                            t[2][j] = d2 - d1;
+                            t[3][j] = d1 - d3;
+                        }
+                        for (i, [t0, t1, t2, t3]) in t.into_iter().enumerate() {
+                            for (j, r) in [t0 - t2, t1 + t2, t2 - t1, t1 - t3].into_iter().enumerate() {
+                                st(vb.add((i * 4 + j) * vs + k), r);
+                            }
+                        }
+                    }
+                }
+            }
+            // M[pos][tile][o] = Σ_c V[pos][tile][c] · U[pos][c][o] (every element written).
+            m.resize(POS * ms, 0.0);
+            for pos in 0..POS {
+                for (bi, &(off, ov)) in pk.blocks.iter().enumerate() {
+                    for (x0, np) in tiles(tw, pmax(ov)) {
+                        // SAFETY: tiles x0..x0+np < tw of position pos in V (c floats each) and
+                        // in M (opad floats each, channels bi·64..bi·64+ov·16 ≤ opad); the
+                        // block's position pos holds c rows of ov·16 weights.
+                        unsafe {
+                            let xptr = v.as_ptr().add(pos * vs + x0 * c);
+                            let wptr = pk.data.as_ptr().add(off + pos * c * ov * L);
+                            let aptr = m.as_mut_ptr().add(pos * ms + x0 * opad + bi * OB);
+                            match ov {
+                                4 => dispatch_p!(micro, 4, np, xptr, 0, c, 1, 1, wptr, aptr, opad, false),
+                                3 => dispatch_p!(micro, 3, np, xptr, 0, c, 1, 1, wptr, aptr, opad, false),
+                                2 => dispatch_p!(micro, 2, np, xptr, 0, c, 1, 1, wptr, aptr, opad, false),
+                                _ => dispatch_p!(micro, 1, np, xptr, 0, c, 1, 1, wptr, aptr, opad, false),
+                            }
+                        }
+                    }
+                }
+            }
+            // Two output rows: init + Aᵀ M A.
+            out.resize(2 * row_len, 0.0);
+            for tx in 0..tw {
+                // SAFETY: tile tx of M at every position, and pixels 2tx, 2tx+1 of both rows of
+                // `out` (2tw pixels of opad floats each) are in bounds; init has opad floats.
+                unsafe {
+                    let mb = m.as_ptr().add(tx * opad);
+                    let ob = out.as_mut_ptr().add(2 * tx * opad);
+                    for k in (0..opad).step_by(L) {
+                        let mm = |i: usize, j: usize| ld(mb.add((i * 4 + j) * ms + k));
+                        let b0 = init.map_or(f32x16::ZERO, |b| ld(b.as_ptr().add(k)));
+                        let mut s = [[f32x16::ZERO; 4]; 2];
+                        for j in 0..4 {
+                            let (m0, m1, m2, m3) = (mm(0, j), mm(1, j), mm(2, j), mm(3, j));
+                            s[0][j] = m0 + m1 + m2;
+                            s[1][j] = m1 - m2 - m3;
+                        }
+                        for (r, [s0, s1, s2, s3]) in s.into_iter().enumerate() {
+                            st(ob.add(r * row_len + k), b0 + (s0 + s1 + s2));
+                            st(ob.add(r * row_len + opad + k), b0 + (s1 - s2 - s3));
+                        }
+                    }
+                }
+            }
+            for (r, row) in out.chunks_exact(row_len).enumerate() {
+                if 2 * ty + r < out_h {
+                    sink(ni, 2 * ty + r, row);
+                }
+            }
+        },
+    );
+}
