@@ -91,7 +91,8 @@ fn train_rows() {
         let mut adam = Adam::new(AdamParams::default(), &sizes);
         let ms = median_ms(5, 2.0, &mut || {
             grads.fill_zero();
-            net.loss(&Cpu, &lr, &u, &hr, Some(&mut grads)).unwrap();
+            // As the trainer runs it: the forward and backward entered into the op table.
+            anisocb::ops::entered(&Cpu, || net.loss(&Cpu, &lr, &u, &hr, Some(&mut grads))).unwrap();
             let gs: Vec<&[f32]> = grads.params().into_iter().map(|(_, g)| g.data.as_slice()).collect();
             let mut ps: Vec<&mut [f32]> =
                 net.trunk.params_mut().into_iter().map(|p| p.data.as_mut_slice()).collect();

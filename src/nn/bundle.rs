@@ -89,10 +89,12 @@ impl AnisoCb {
     /// Eq 12 reads of it at η = 0): a third less work for the default η.
     pub fn forward_with(&self, ops: &dyn Ops, lr: &Tensor, enhance: bool) -> Result<SrOutputs> {
         check_input(lr, "AnisoCb input")?;
-        let (u, r) = self.geometry.forward(ops, lr)?;
-        let boundary = self.boundary.probabilities(ops, lr)?;
-        let enhance =
-            if enhance { self.enhance.probabilities(ops, lr)? } else { Tensor::zeros(&boundary.shape) };
-        Ok(SrOutputs { u, r, boundary, enhance })
+        crate::ops::entered(ops, || {
+            let (u, r) = self.geometry.forward(ops, lr)?;
+            let boundary = self.boundary.probabilities(ops, lr)?;
+            let enhance =
+                if enhance { self.enhance.probabilities(ops, lr)? } else { Tensor::zeros(&boundary.shape) };
+            Ok(SrOutputs { u, r, boundary, enhance })
+        })
     }
 }

@@ -53,6 +53,10 @@ impl Ops for Cpu {
     fn bce_with_logits(&self, logits: &Tensor, target: &Tensor, pos_weight: f32) -> (f32, Tensor) {
         loss::bce_with_logits(logits, target, pos_weight)
     }
+    fn enter(&self, f: &mut (dyn FnMut() + Send)) {
+        // From a non-worker thread, rayon::scope hands the closure to the pool and blocks.
+        rayon::scope(|_| f())
+    }
     fn adam_update(
         &self,
         p: &mut [f32],

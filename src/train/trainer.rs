@@ -379,7 +379,9 @@ pub fn train(
     while st.step < opts.steps {
         let b = sampler.batch(data, u_all.as_ref(), net, st.step);
         grads.fill_zero();
-        let loss = batch_loss(ops, &st.trunk, &b.lr, &b.u, &b.target, opts, Some(&mut grads))?;
+        let loss = crate::ops::entered(ops, || {
+            batch_loss(ops, &st.trunk, &b.lr, &b.u, &b.target, opts, Some(&mut grads))
+        })?;
         let bad_grad =
             grads.params().into_iter().find_map(|(n, g)| g.first_non_finite().map(|(_, v)| (n, v)));
         if !loss.is_finite() || bad_grad.is_some() {
