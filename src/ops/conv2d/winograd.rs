@@ -21,7 +21,7 @@
 //! NHWC output rows for the caller's sink. Same order of operations on every run: results do
 //! not depend on the thread count.
 
-use super::{micro, pad_nhwc_to, pmax, tiles, Packed, Padding, Scratch, L, OB, SMALL_OUT_MAX};
+use super::{micro, pad_nhwc_to, pmax, tiles, Packed, Padding, Scratch, SyncPtr, L, OB, SMALL_OUT_MAX};
 use crate::tensor::Tensor;
 use rayon::prelude::*;
 use wide::f32x16;
@@ -70,7 +70,9 @@ pub(super) fn pack(o: usize, c: usize, get: impl Fn(usize, usize, usize, usize) 
         let ov = ((opad - ob) / L).min(OB / L);
         let wdt = ov * L;
         let block = &mut data[off..off + POS * c * wdt];
-        for ci in 0..c {
+        let bp = SyncPtr(block.as_mut_ptr());
+        // Rayon tasks of ≥ 2048 kernels (≈ 20 µs): smaller layers are packed on one thread.
+        (0..c).into_par_iter().with_min_len(2048 / wdt).for_each(|ci| {
             for jv in 0..ov {
                 // 16 output channels' kernels, one per lane (lanes past `o` zero).
                 let mut g = [[0.0f32; L]; 9];
@@ -79,15 +81,13 @@ pub(super) fn pack(o: usize, c: usize, get: impl Fn(usize, usize, usize, usize) 
                         gt[l] = get(ob + jv * L + l, ci, t / 3, t % 3);
                     }
                 }
-                let taps = g.map(f32x16::from);
-                let dst = &mut block[ci * wdt + jv * L..];
-                assert!(dst.len() >= (POS - 1) * c * wdt + L);
-                for (pos, u) in kernel_transform(taps).into_iter().enumerate() {
-                    // SAFETY: pos·c·wdt + 16 ≤ dst.len() (asserted).
-                    unsafe { st(dst.as_mut_ptr().add(pos * c * wdt), u) };
+                for (pos, u) in kernel_transform(g.map(f32x16::from)).into_iter().enumerate() {
+                    // SAFETY: (pos·c + ci)·wdt + jv·16 + 16 ≤ 16·c·wdt, the block's length;
+                    // input channel ci's vectors are written by this task only.
+                    unsafe { st(bp.get().add((pos * c + ci) * wdt + jv * L), u) };
                 }
             }
-        }
+        });
         blocks.push((off, ov));
         off += POS * c * wdt;
     }
