@@ -169,10 +169,11 @@ fn conv_winograd_matches_ref_on_odd_sizes_and_channel_tails() {
 #[test]
 fn conv_fast_is_deterministic() {
     // Same bits on every run and for any thread count, on the channel-vector path (19 → 23),
-    // the Winograd path (32 → 23) and the pixel-vector path (19 → 3), zero and replicate padding.
+    // the Winograd paths (32 → 23: forward and input gradient; 32 → 32: the weight gradient
+    // too) and the pixel-vector path (19 → 3), zero and replicate padding.
     for (c, o, pad) in [
         (19, 23, Padding::Replicate),
-        (32, 23, Padding::Zero),
+        (32, 32, Padding::Zero),
         (32, 23, Padding::Replicate),
         (19, 3, Padding::Replicate),
     ] {

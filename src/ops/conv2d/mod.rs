@@ -954,6 +954,10 @@ pub fn conv2d_weight_grad(x: &Tensor, dy: &Tensor, pad: Padding, dw: &mut Tensor
     if conv2d_weight_grad_small_out(x, dy, pad, dw) {
         return;
     }
+    let (o, c, kh, kw) = dw.dims4();
+    if winograd::eligible_weight_grad(c, o, kh, kw) {
+        return winograd::weight_grad(x, dy, pad, dw);
+    }
     let (n, c, h, wd) = x.dims4();
     let (o, _, kh, kw) = dw.dims4();
     let (ph, pw) = (kh / 2, kw / 2);

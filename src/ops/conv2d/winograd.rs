@@ -21,7 +21,9 @@
 //! NHWC output rows for the caller's sink. Same order of operations on every run: results do
 //! not depend on the thread count.
 
-use super::{micro, pad_nhwc_to, pmax, tiles, Packed, Padding, Scratch, SyncPtr, L, OB, SMALL_OUT_MAX};
+use super::{
+    micro, micro_dw, pad_nhwc_to, pmax, tiles, Packed, Padding, Scratch, SyncPtr, L, OB, SMALL_OUT_MAX,
+};
 use crate::tensor::Tensor;
 use rayon::prelude::*;
 use wide::f32x16;
@@ -112,6 +114,36 @@ unsafe fn st(p: *mut f32, v: f32x16) {
     (p as *mut f32x16).write_unaligned(v)
 }
 
+/// V[pos][t][c] = (Bᵀ d B)[pos] for the `tw` 4×4 input tiles of one row of tiles: `xb` points at
+/// the row's top-left pixel of a padded NHWC buffer (row stride `wp` pixels, `c` channels, a
+/// multiple of 16), tile t at columns 2t..2t+4; `v` receives tile t at t·c, position stride `vs`.
+///
+/// # Safety
+/// Rows 0..4 and columns 0..2tw+2 of `xb`, and 16 positions × tw tiles of `v` in bounds.
+#[inline(always)]
+#[allow(clippy::needless_range_loop)]
+unsafe fn input_tiles(xb: *const f32, wp: usize, c: usize, tw: usize, v: *mut f32, vs: usize) {
+    for tx in 0..tw {
+        let (xb, vb) = (xb.add(2 * tx * c), v.add(tx * c));
+        for k in (0..c).step_by(L) {
+            let d = |i: usize, j: usize| ld(xb.add((i * wp + j) * c + k));
+            let mut t = [[f32x16::ZERO; 4]; 4];
+            for j in 0..4 {
+                let (d0, d1, d2, d3) = (d(0, j), d(1, j), d(2, j), d(3, j));
+                t[0][j] = d0 - d2;
+                t[1][j] = d1 + d2;
+                t[2][j] = d2 - d1;
+                t[3][j] = d1 - d3;
+            }
+            for (i, [t0, t1, t2, t3]) in t.into_iter().enumerate() {
+                for (j, r) in [t0 - t2, t1 + t2, t2 - t1, t1 - t3].into_iter().enumerate() {
+                    st(vb.add((i * 4 + j) * vs + k), r);
+                }
+            }
+        }
+    }
+}
+
 /// 3×3 correlation of a padded NHWC input (n images of hp × wp pixels, c channels, with
 /// hp ≥ 2⌈out_h/2⌉ + 2 and wp ≥ 2⌈out_w/2⌉ + 2) with weights from [`pack`], into out_h × out_w
 /// outputs per image: out[y][x] = init + Σ_{ky,kx,c} w · xp[y + ky][x + kx]. For every output
@@ -142,32 +174,13 @@ pub(super) fn correlate(
         || (Vec::new(), Vec::new(), Vec::new()),
         |(v, m, out): &mut (Vec<f32>, Vec<f32>, Vec<f32>), task| {
             let (ni, ty) = (task / th, task % th);
-            // V[pos][tile][c] = Bᵀ d B, 16 channels at a time.
+            // V[pos][tile][c] = Bᵀ d B.
             v.resize(POS * vs, 0.0);
-            for tx in 0..tw {
-                // SAFETY: the tile's 4×4 pixels (rows 2ty..2ty+4 ≤ hp, columns 2tx..2tx+4 ≤ wp of
-                // image ni, asserted above) and V's tile tx at every position are in bounds.
-                unsafe {
-                    let xb = xp.as_ptr().add(((ni * hp + 2 * ty) * wp + 2 * tx) * c);
-                    let vb = v.as_mut_ptr().add(tx * c);
-                    for k in (0..c).step_by(L) {
-                        let d = |i: usize, j: usize| ld(xb.add((i * wp + j) * c + k));
-                        let mut t = [[f32x16::ZERO; 4]; 4];
-                        for j in 0..4 {
-                            let (d0, d1, d2, d3) = (d(0, j), d(1, j), d(2, j), d(3, j));
-                            t[0][j] = d0 - d2;
-                            t[1][j] = d1 + d2;
-                            t[2][j] = d2 - d1;
-                            t[3][j] = d1 - d3;
-                        }
-                        for (i, [t0, t1, t2, t3]) in t.into_iter().enumerate() {
-                            for (j, r) in [t0 - t2, t1 + t2, t2 - t1, t1 - t3].into_iter().enumerate() {
-                                st(vb.add((i * 4 + j) * vs + k), r);
-                            }
-                        }
-                    }
-                }
-            }
+            // SAFETY: the row's tiles cover rows 2ty..2ty+4 ≤ hp, columns ..2tw+2 ≤ wp of image
+            // ni (asserted above); V holds tw tiles at every position (stride vs ≥ tw·c).
+            unsafe {
+                input_tiles(xp.as_ptr().add((ni * hp + 2 * ty) * wp * c), wp, c, tw, v.as_mut_ptr(), vs)
+            };
             // M[pos][tile][o] = Σ_c V[pos][tile][c] · U[pos][c][o] (every element written).
             m.resize(POS * ms, 0.0);
             for pos in 0..POS {
@@ -221,4 +234,156 @@ pub(super) fn correlate(
             }
         },
     );
+}
+
+// ---------------------------------------------------------------------------------------------
+// Weight gradient. The forward is y = Aᵀ [U ⊙ V] A per tile with U = G g Gᵀ, so
+//   ∂L/∂g = Gᵀ [ Σ_tiles (A dY Aᵀ) ⊙ (Bᵀ d B) ] G,
+// where dY is the tile's 2×2 output gradient (0 past the image). The sum over tiles is one GEMM
+// per position, dU[pos][c][o] = Σ_t V[pos][t][c] · Z[pos][t][o] with Z = A dY Aᵀ: 16 multiply-
+// adds per tile per (c, o) instead of 36.
+// ---------------------------------------------------------------------------------------------
+
+/// Whether [`weight_grad`] takes a gradient: 3×3, input and output channels whole vectors.
+pub(super) fn eligible_weight_grad(c: usize, o: usize, kh: usize, kw: usize) -> bool {
+    kh == 3 && kw == 3 && c > 0 && c % L == 0 && o > 0 && o % L == 0
+}
+
+/// Tiles per part of the weight gradient's sum (V and Z of a part stay in L2).
+const DW_TILES: usize = 128;
+
+/// dw += ∂L/∂w (same contract as [`super::conv2d_weight_grad`]) for [`eligible_weight_grad`]
+/// shapes. The rows of tiles are cut into parts of about [`DW_TILES`] tiles (from the problem
+/// size, not the thread count), each summed into its own partial dU; the partials are added in
+/// a fixed order, so results do not depend on the thread count.
+#[allow(clippy::needless_range_loop)]
+pub(super) fn weight_grad(x: &Tensor, dy: &Tensor, pad: Padding, dw: &mut Tensor) {
+    let (n, c, h, w) = x.dims4();
+    let o = dy.shape[1];
+    assert!(eligible_weight_grad(c, o, 3, 3) && dw.shape == [o, c, 3, 3]);
+    let (th, tw) = (h.div_ceil(2), w.div_ceil(2));
+    let (xp, hp, wp) = pad_input(x, pad);
+    // dy channels-last on the 2th × 2tw tile grid, zero past the image.
+    let (dq, _, _) = pad_nhwc_to(dy, 0, 0, Padding::Zero, 2 * th, 2 * tw, 0);
+    let rows = n * th; // rows of tiles
+    let rows_per_part = (DW_TILES / tw).clamp(1, rows);
+    let parts = rows.div_ceil(rows_per_part);
+    let (vs, zs) = (rows_per_part * tw * c + L, rows_per_part * tw * o + L);
+    let oblocks: Vec<(usize, usize)> =
+        (0..o).step_by(OB).map(|ob| (ob, ((o - ob) / L).min(OB / L))).collect();
+    let partials: Vec<Scratch> = (0..parts)
+        .into_par_iter()
+        .map(|pi| {
+            let (r0, r1) = (pi * rows_per_part, ((pi + 1) * rows_per_part).min(rows));
+            let nt = (r1 - r0) * tw; // tiles in this part
+            let mut v = Scratch::overwritten(POS * vs);
+            let mut z = Scratch::overwritten(POS * zs);
+            for r in r0..r1 {
+                let (ni, ty) = (r / th, r % th);
+                let t0 = (r - r0) * tw;
+                // SAFETY: tile row ty of image ni lies inside xp (hp ≥ 2th + 2, wp ≥ 2tw + 2) and
+                // dq (2th × 2tw pixels of o channels); V and Z hold nt ≤ rows_per_part·tw tiles.
+                unsafe {
+                    input_tiles(
+                        xp.as_ptr().add((ni * hp + 2 * ty) * wp * c),
+                        wp,
+                        c,
+                        tw,
+                        v.as_mut_ptr().add(t0 * c),
+                        vs,
+                    );
+                    grad_tiles(
+                        dq.as_ptr().add((ni * 2 * th + 2 * ty) * 2 * tw * o),
+                        tw,
+                        o,
+                        z.as_mut_ptr().add(t0 * o),
+                        zs,
+                    );
+                }
+            }
+            // dU[pos][c][o] = Σ_t V[pos][t][c] · Z[pos][t][o].
+            let mut du = Scratch::zeroed(POS * c * o);
+            for pos in 0..POS {
+                for &(ob, ov) in &oblocks {
+                    for (c0, np) in tiles(c, pmax(ov)) {
+                        // SAFETY: nt tiles of V (stride c) and Z (stride o) at position pos,
+                        // channels c0..c0+np of V, ob..ob+16·ov ≤ o of Z and of dU.
+                        unsafe {
+                            let xptr = v.as_ptr().add(pos * vs + c0);
+                            let dptr = z.as_ptr().add(pos * zs + ob);
+                            let aptr = du.as_mut_ptr().add((pos * c + c0) * o + ob);
+                            match ov {
+                                4 => dispatch_p!(micro_dw, 4, np, xptr, c, dptr, o, nt, aptr, o),
+                                3 => dispatch_p!(micro_dw, 3, np, xptr, c, dptr, o, nt, aptr, o),
+                                2 => dispatch_p!(micro_dw, 2, np, xptr, c, dptr, o, nt, aptr, o),
+                                _ => dispatch_p!(micro_dw, 1, np, xptr, c, dptr, o, nt, aptr, o),
+                            }
+                        }
+                    }
+                }
+            }
+            du
+        })
+        .collect();
+    // Fixed-order sum of the partials, then dw[o][c] += Gᵀ dU G.
+    let mut partials = partials.into_iter();
+    let Some(mut du) = partials.next() else {
+        return;
+    };
+    let rest: Vec<Scratch> = partials.collect();
+    du.par_chunks_mut(4096).enumerate().for_each(|(i, dst)| {
+        for p in &rest {
+            dst.iter_mut().zip(&p[i * 4096..]).for_each(|(d, v)| *d += v);
+        }
+    });
+    for ci in 0..c {
+        for oi in 0..o {
+            let m = |i: usize, j: usize| du[((i * 4 + j) * c + ci) * o + oi];
+            // Gᵀ M: 3×4, then (Gᵀ M) G: 3×3.
+            let mut t = [[0.0f32; 4]; 3];
+            for j in 0..4 {
+                let (m0, m1, m2, m3) = (m(0, j), m(1, j), m(2, j), m(3, j));
+                t[0][j] = m0 + 0.5 * (m1 + m2);
+                t[1][j] = 0.5 * (m1 - m2);
+                t[2][j] = 0.5 * (m1 + m2) + m3;
+            }
+            let g = &mut dw.data[(oi * c + ci) * 9..][..9];
+            for (ky, [t0, t1, t2, t3]) in t.into_iter().enumerate() {
+                g[ky * 3] += t0 + 0.5 * (t1 + t2);
+                g[ky * 3 + 1] += 0.5 * (t1 - t2);
+                g[ky * 3 + 2] += 0.5 * (t1 + t2) + t3;
+            }
+        }
+    }
+}
+
+/// Z[pos][t][o] = (A dY Aᵀ)[pos] for the `tw` 2×2 output-gradient tiles of one row of tiles:
+/// `dq` points at the row's top-left pixel of an NHWC buffer (row stride 2tw pixels, `o`
+/// channels, a multiple of 16); `z` receives tile t at t·o, position stride `zs`.
+///
+/// # Safety
+/// Rows 0..2 and columns 0..2tw of `dq`, and 16 positions × tw tiles of `z` in bounds.
+#[inline(always)]
+#[allow(clippy::needless_range_loop)]
+unsafe fn grad_tiles(dq: *const f32, tw: usize, o: usize, z: *mut f32, zs: usize) {
+    for tx in 0..tw {
+        let (db, zb) = (dq.add(2 * tx * o), z.add(tx * o));
+        for k in (0..o).step_by(L) {
+            let d = |a: usize, b: usize| ld(db.add((a * 2 * tw + b) * o + k));
+            // A dY: 4×2 (rows dY0, dY0 + dY1, dY0 − dY1, −dY1), then (A dY) Aᵀ: 4×4.
+            let mut t = [[f32x16::ZERO; 2]; 4];
+            for b in 0..2 {
+                let (d0, d1) = (d(0, b), d(1, b));
+                t[0][b] = d0;
+                t[1][b] = d0 + d1;
+                t[2][b] = d0 - d1;
+                t[3][b] = f32x16::ZERO - d1;
+            }
+            for (i, [t0, t1]) in t.into_iter().enumerate() {
+                for (j, r) in [t0, t0 + t1, t0 - t1, f32x16::ZERO - t1].into_iter().enumerate() {
+                    st(zb.add((i * 4 + j) * zs + k), r);
+                }
+            }
+        }
+    }
 }
