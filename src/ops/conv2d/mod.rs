@@ -115,7 +115,13 @@ pub fn conv2d_backward_ref(
 }
 
 // ---------------------------------------------------------------------------------------------
-// Fast path.
+// Fast path. Three kernels, chosen by shape (each checked against `conv2d_ref` and
+// `conv2d_backward_ref` in tests/conv_fast_vs_ref.rs):
+//   - C_out ≤ 4 (the nets' last convs): the pixel-vector kernel below (lanes along the row);
+//   - 3×3 with C_in a multiple of 16 (the trunks): Winograd F(2×2, 3×3), `winograd.rs`; its
+//     weight gradient also needs C_out a multiple of 16, and its input gradient zero padding;
+//   - everything else (the 3 → C first conv, odd channel counts, 1×1 / 5×5 / 3×5 kernels): the
+//     direct channel-vector kernel described here.
 //
 // Layout: activations are repacked at the op boundary into a padded, channels-last ("NHWC")
 // buffer, so one input pixel's channels are contiguous and the padding (zero or replicate) is
@@ -126,9 +132,10 @@ pub fn conv2d_backward_ref(
 // the row is accumulated in a small NHWC scratch and scattered to NCHW at the end (no extra
 // pass over memory). The input gradient is the same kernel with flipped, transposed weights on
 // the padded dy ("full" correlation + fold of the border for replicate padding). The weight
-// gradient is one GEMM per tap (dW_tap += dY · X_shift) through faer, on the padded pixel grid
-// so that X_shift is a plain strided view; the K axis is cut into fixed chunks (independent of
-// the thread count) whose partial sums are added in a fixed order, so results are
+// gradient accumulates dW_tap += dY · X_shift per tap with the `micro_dw` kernel (P input
+// channels × OV·16 output channels in registers, summed over pixels), on the padded pixel grid
+// so that X_shift is a plain strided view; the pixels are cut into fixed chunks (independent
+// of the thread count) whose partial sums are added in a fixed order, so results are
 // deterministic.
 // ---------------------------------------------------------------------------------------------
 

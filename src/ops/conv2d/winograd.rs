@@ -30,6 +30,8 @@ use wide::f32x16;
 
 /// Positions of a 4×4 transformed tile.
 const POS: usize = 16;
+/// Tiles per chunk of a row of tiles in the forward (V and M of a chunk stay in L2).
+const TW_CHUNK: usize = 32;
 
 /// Whether the Winograd path takes a convolution: 3×3 kernel, input channels a whole number of
 /// vectors, more output channels than the pixel-vector path takes.
@@ -166,63 +168,69 @@ pub(super) fn correlate(
     assert!(xp.len() >= n * hp * wp * c);
     let opad = pk.opad;
     assert!(pk.data.len() >= POS * c * opad && init.is_none_or(|b| b.len() >= opad));
-    let row_len = 2 * tw * opad; // one output row of the task, NHWC
-                                 // Position strides of V and M: one cache line more than the data, so the 16 streams a
-                                 // transform reads or writes are not 4 KiB apart (4K aliasing stalls loads behind stores).
-    let (vs, ms) = (tw * c + L, tw * opad + L);
+    // One output row of the task, NHWC.
+    let row_len = 2 * tw * opad;
+    // A row of tiles is done in chunks of ≤ TW_CHUNK tiles, so V and M stay in L2 on wide
+    // images. Their position strides are one cache line more than the data, so the 16 streams
+    // a transform reads or writes are not 4 KiB apart (4K aliasing stalls loads behind stores).
+    let chunk = tw.min(TW_CHUNK);
+    let (vs, ms) = (chunk * c + L, chunk * opad + L);
     (0..n * th).into_par_iter().for_each_init(
         || (Vec::new(), Vec::new(), Vec::new()),
         |(v, m, out): &mut (Vec<f32>, Vec<f32>, Vec<f32>), task| {
             let (ni, ty) = (task / th, task % th);
-            // V[pos][tile][c] = Bᵀ d B.
             v.resize(POS * vs, 0.0);
-            // SAFETY: the row's tiles cover rows 2ty..2ty+4 ≤ hp, columns ..2tw+2 ≤ wp of image
-            // ni (asserted above); V holds tw tiles at every position (stride vs ≥ tw·c).
-            unsafe {
-                input_tiles(xp.as_ptr().add((ni * hp + 2 * ty) * wp * c), wp, c, tw, v.as_mut_ptr(), vs)
-            };
-            // M[pos][tile][o] = Σ_c V[pos][tile][c] · U[pos][c][o] (every element written).
             m.resize(POS * ms, 0.0);
-            for pos in 0..POS {
-                for (bi, &(off, ov)) in pk.blocks.iter().enumerate() {
-                    for (x0, np) in tiles(tw, pmax(ov)) {
-                        // SAFETY: tiles x0..x0+np < tw of position pos in V (c floats each) and
-                        // in M (opad floats each, channels bi·64..bi·64+ov·16 ≤ opad); the
-                        // block's position pos holds c rows of ov·16 weights.
-                        unsafe {
-                            let xptr = v.as_ptr().add(pos * vs + x0 * c);
-                            let wptr = pk.data.as_ptr().add(off + pos * c * ov * L);
-                            let aptr = m.as_mut_ptr().add(pos * ms + x0 * opad + bi * OB);
-                            match ov {
-                                4 => dispatch_p!(micro, 4, np, xptr, 0, c, 1, 1, wptr, aptr, opad, false),
-                                3 => dispatch_p!(micro, 3, np, xptr, 0, c, 1, 1, wptr, aptr, opad, false),
-                                2 => dispatch_p!(micro, 2, np, xptr, 0, c, 1, 1, wptr, aptr, opad, false),
-                                _ => dispatch_p!(micro, 1, np, xptr, 0, c, 1, 1, wptr, aptr, opad, false),
+            out.resize(2 * row_len, 0.0);
+            for (tx0, ntw) in tiles(tw, chunk) {
+                // V[pos][tile][c] = Bᵀ d B.
+                // SAFETY: the chunk's tiles cover rows 2ty..2ty+4 ≤ hp, columns 2tx0..2(tx0+ntw)+2
+                // ≤ wp of image ni (asserted above); V holds ntw ≤ chunk tiles per position.
+                unsafe {
+                    let xb = xp.as_ptr().add(((ni * hp + 2 * ty) * wp + 2 * tx0) * c);
+                    input_tiles(xb, wp, c, ntw, v.as_mut_ptr(), vs)
+                };
+                // M[pos][tile][o] = Σ_c V[pos][tile][c] · U[pos][c][o] (every element written).
+                for pos in 0..POS {
+                    for (bi, &(off, ov)) in pk.blocks.iter().enumerate() {
+                        for (x0, np) in tiles(ntw, pmax(ov)) {
+                            // SAFETY: tiles x0..x0+np < ntw of position pos in V (c floats each)
+                            // and in M (opad floats each, channels bi·64..bi·64+ov·16 ≤ opad);
+                            // the block's position pos holds c rows of ov·16 weights.
+                            unsafe {
+                                let xptr = v.as_ptr().add(pos * vs + x0 * c);
+                                let wptr = pk.data.as_ptr().add(off + pos * c * ov * L);
+                                let aptr = m.as_mut_ptr().add(pos * ms + x0 * opad + bi * OB);
+                                match ov {
+                                    4 => dispatch_p!(micro, 4, np, xptr, 0, c, 1, 1, wptr, aptr, opad, false),
+                                    3 => dispatch_p!(micro, 3, np, xptr, 0, c, 1, 1, wptr, aptr, opad, false),
+                                    2 => dispatch_p!(micro, 2, np, xptr, 0, c, 1, 1, wptr, aptr, opad, false),
+                                    _ => dispatch_p!(micro, 1, np, xptr, 0, c, 1, 1, wptr, aptr, opad, false),
+                                }
                             }
                         }
                     }
                 }
-            }
-            // Two output rows: init + Aᵀ M A.
-            out.resize(2 * row_len, 0.0);
-            for tx in 0..tw {
-                // SAFETY: tile tx of M at every position, and pixels 2tx, 2tx+1 of both rows of
-                // `out` (2tw pixels of opad floats each) are in bounds; init has opad floats.
-                unsafe {
-                    let mb = m.as_ptr().add(tx * opad);
-                    let ob = out.as_mut_ptr().add(2 * tx * opad);
-                    for k in (0..opad).step_by(L) {
-                        let mm = |i: usize, j: usize| ld(mb.add((i * 4 + j) * ms + k));
-                        let b0 = init.map_or(f32x16::ZERO, |b| ld(b.as_ptr().add(k)));
-                        let mut s = [[f32x16::ZERO; 4]; 2];
-                        for j in 0..4 {
-                            let (m0, m1, m2, m3) = (mm(0, j), mm(1, j), mm(2, j), mm(3, j));
-                            s[0][j] = m0 + m1 + m2;
-                            s[1][j] = m1 - m2 - m3;
-                        }
-                        for (r, [s0, s1, s2, s3]) in s.into_iter().enumerate() {
-                            st(ob.add(r * row_len + k), b0 + (s0 + s1 + s2));
-                            st(ob.add(r * row_len + opad + k), b0 + (s1 - s2 - s3));
+                // Two output rows: init + Aᵀ M A.
+                for tx in 0..ntw {
+                    // SAFETY: tile tx of M at every position, and pixels 2(tx0+tx), +1 of both
+                    // rows of `out` (2tw pixels of opad floats each); init has opad floats.
+                    unsafe {
+                        let mb = m.as_ptr().add(tx * opad);
+                        let ob = out.as_mut_ptr().add(2 * (tx0 + tx) * opad);
+                        for k in (0..opad).step_by(L) {
+                            let mm = |i: usize, j: usize| ld(mb.add((i * 4 + j) * ms + k));
+                            let b0 = init.map_or(f32x16::ZERO, |b| ld(b.as_ptr().add(k)));
+                            let mut s = [[f32x16::ZERO; 4]; 2];
+                            for j in 0..4 {
+                                let (m0, m1, m2, m3) = (mm(0, j), mm(1, j), mm(2, j), mm(3, j));
+                                s[0][j] = m0 + m1 + m2;
+                                s[1][j] = m1 - m2 - m3;
+                            }
+                            for (r, [s0, s1, s2, s3]) in s.into_iter().enumerate() {
+                                st(ob.add(r * row_len + k), b0 + (s0 + s1 + s2));
+                                st(ob.add(r * row_len + opad + k), b0 + (s1 - s2 - s3));
+                            }
                         }
                     }
                 }
