@@ -948,6 +948,22 @@ fn conv2d_weight_grad_small_out(x: &Tensor, dy: &Tensor, pad: Padding, dw: &mut 
     true
 }
 
+/// Σ of equal-length partial sums, added in their order (contiguous, vectorised, in parallel
+/// over 4096-float chunks): the same bits for any thread count. None if there are none.
+fn sum_partials(partials: Vec<Scratch>) -> Option<Scratch> {
+    let mut partials = partials.into_iter();
+    let mut sum = partials.next()?;
+    let rest: Vec<Scratch> = partials.collect();
+    sum.par_chunks_mut(4096).enumerate().for_each(|(i, dst)| {
+        for p in &rest {
+            for (d, v) in dst.iter_mut().zip(&p[i * 4096..]) {
+                *d += v;
+            }
+        }
+    });
+    Some(sum)
+}
+
 /// Pixels per inner block of the weight gradient (dy and x blocks stay in L1/L2).
 const DW_SUB: usize = 128;
 
@@ -1025,19 +1041,10 @@ pub fn conv2d_weight_grad(x: &Tensor, dy: &Tensor, pad: Padding, dw: &mut Tensor
             part
         })
         .collect();
-    // Fixed-order sum of the partials (contiguous, vectorised), then scatter into dw (OIHW).
-    let mut partials = partials.into_iter();
-    let Some(mut sum) = partials.next() else {
+    // Fixed-order sum of the partials, then scatter into dw (OIHW).
+    let Some(sum) = sum_partials(partials) else {
         return;
     };
-    let rest: Vec<Scratch> = partials.collect();
-    sum.par_chunks_mut(4096).enumerate().for_each(|(i, dst)| {
-        for p in &rest {
-            for (d, v) in dst.iter_mut().zip(&p[i * 4096..]) {
-                *d += v;
-            }
-        }
-    });
     for t in 0..taps {
         for ci in 0..c {
             let src = &sum[(t * c + ci) * opad..][..o];

@@ -22,7 +22,8 @@
 //! not depend on the thread count.
 
 use super::{
-    micro, micro_dw, pad_nhwc_to, pmax, tiles, Packed, Padding, Scratch, SyncPtr, L, OB, SMALL_OUT_MAX,
+    micro, micro_dw, pad_nhwc_to, pmax, sum_partials, tiles, Packed, Padding, Scratch, SyncPtr, L, OB,
+    SMALL_OUT_MAX,
 };
 use crate::tensor::Tensor;
 use rayon::prelude::*;
@@ -334,16 +335,9 @@ pub(super) fn weight_grad(x: &Tensor, dy: &Tensor, pad: Padding, dw: &mut Tensor
         })
         .collect();
     // Fixed-order sum of the partials, then dw[o][c] += Gᵀ dU G.
-    let mut partials = partials.into_iter();
-    let Some(mut du) = partials.next() else {
+    let Some(du) = sum_partials(partials) else {
         return;
     };
-    let rest: Vec<Scratch> = partials.collect();
-    du.par_chunks_mut(4096).enumerate().for_each(|(i, dst)| {
-        for p in &rest {
-            dst.iter_mut().zip(&p[i * 4096..]).for_each(|(d, v)| *d += v);
-        }
-    });
     for ci in 0..c {
         for oi in 0..o {
             let m = |i: usize, j: usize| du[((i * 4 + j) * c + ci) * o + oi];
