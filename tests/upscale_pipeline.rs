@@ -94,6 +94,48 @@ fn shipped_model_does_not_shrink_the_border_and_is_deterministic() {
     }
 }
 
+/// `pin_border` keeps the outermost ring exactly where the interpolated input puts it; without
+/// it (the default) the nets correct the border too.
+#[test]
+fn pin_border_keeps_the_outline_exactly_the_interpolated_inputs() {
+    let model = embedded_model().expect("embedded weights decode");
+    let frames = small_run(4);
+    let d = Domain::enclosing(&frames, 0.05);
+    let lr = sequence_to_images(&frames, &d);
+    let run = |pin_border| {
+        let p = UpscaleParams { pin_border, ..UpscaleParams::default() };
+        upscale_images(&Cpu, &model, &lr, &d, &p, &mut |_| {}).unwrap()
+    };
+    let (pinned, free) = (run(true), run(false));
+    // U in the geometry image (the model's Catmull-Rom): equal to the model's U mapped back
+    // from the cloth frame up to the rounding of that affine round trip.
+    let (t, c, h, w) = lr.dims4();
+    let u = Cpu.resize(&lr, 2 * h, 2 * w, Interp::CatmullRom);
+    let border_off = |hr: &anisocb::Tensor| {
+        let (hh, hw) = (2 * h, 2 * w);
+        let mut worst = 0.0f32;
+        for k in 0..t * c {
+            for y in 0..hh {
+                for x in 0..hw {
+                    if y == 0 || x == 0 || y == hh - 1 || x == hw - 1 {
+                        let i = (k * hh + y) * hw + x;
+                        worst = worst.max((hr.data[i] - u.data[i]).abs());
+                    }
+                }
+            }
+        }
+        worst
+    };
+    let (pinned_off, free_off) = (border_off(&pinned.hr), border_off(&free.hr));
+    // Geometry-image units: the domain box is ≈ 1.1 cloth widths, so 1e-5 ≈ 0.01 mm on a 1 m cloth.
+    assert!(pinned_off < 1e-5, "a pinned border moved {pinned_off} off the interpolated input");
+    assert!(
+        free_off > 100.0 * pinned_off.max(1e-6),
+        "the unpinned border stays on the interpolated input ({free_off}): the option does nothing"
+    );
+    assert!(!UpscaleParams::default().pin_border, "the measured default is an unpinned border");
+}
+
 fn bin() -> &'static str {
     env!("CARGO_BIN_EXE_anisocb")
 }

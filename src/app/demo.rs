@@ -254,7 +254,7 @@ fn write_pictures(
         {
             t.label(&l, 1);
         }
-        // Grey gaps: the pinned border of Γb is white and would vanish against white.
+        // Grey gaps: where Γb is white along the border it would vanish against white.
         map_rows.push(hstack(&tiles, 6, [128; 3]));
     }
     for (name, rows) in [("compare.png", rows), ("error.png", err_rows), ("maps.png", map_rows)] {

@@ -73,6 +73,11 @@ pub struct Args {
     /// a lot (rubber, strongly twisted strips), where it makes the result worse.
     #[arg(long, default_value_t = crate::sr::upscale::DEFAULT_STRAIN_ITERS)]
     pub strain_iters: usize,
+    /// Keep the outermost ring of vertices exactly where the interpolated input puts them
+    /// (the outline is then the LR outline's interpolation, whatever the nets predict there).
+    /// Off by default: the nets correct the border too, which measured closer to the truth.
+    #[arg(long)]
+    pub pin_border: bool,
     /// Weights file (.npz bundle of the three nets) instead of the embedded ×2 model.
     #[arg(long)]
     pub weights: Option<PathBuf>,
@@ -548,7 +553,7 @@ pub fn run(a: Args) -> Result<()> {
         batch: a.batch,
         temporal: a.temporal,
         strain_iters: a.strain_iters,
-        ..UpscaleParams::default()
+        pin_border: a.pin_border,
     };
     let start = Instant::now();
     // A point cache plays on an HR rest mesh: the rest OBJ upscaled on its own.

@@ -197,7 +197,9 @@ pub fn build(
 /// pixel, with `D = HR − U` and the residual `R` (both in the nets' frame), the gain
 /// `g* = clamp(⟨D, R⟩ / |R|², 0, 1)` that brings `U + g·R` closest to HR, and the target
 /// `1 − g*` (soft, for BCE): 0 where the residual is right, 1 where it points the wrong way.
-/// The grid's border stays 1 (it is pinned anyway). Frames in batches of 32.
+/// The grid's border is judged like every other pixel: GeometryNet is trained on whole frames,
+/// so its residual there is learned from real borders and `upscale` no longer pins the border
+/// by default. Frames in batches of 32.
 pub fn benefit_boundary(ds: &mut Dataset, ops: &dyn Ops, net: &GeometryNet) -> Result<()> {
     let n = ds.lr.shape[0];
     let (hh, wh) = (ds.hr.shape[2], ds.hr.shape[3]);
@@ -211,11 +213,6 @@ pub fn benefit_boundary(ds: &mut Dataset, ops: &dyn Ops, net: &GeometryNet) -> R
             let (u, r) = (&u.data[k * 3 * px..(k + 1) * 3 * px], &r.data[k * 3 * px..(k + 1) * 3 * px]);
             let dst = &mut ds.boundary.data[f * px..(f + 1) * px];
             for (p, d) in dst.iter_mut().enumerate() {
-                let (y, x) = (p / wh, p % wh);
-                if y == 0 || x == 0 || y + 1 == hh || x + 1 == wh {
-                    *d = 1.0;
-                    continue;
-                }
                 let (mut dr, mut rr) = (0.0f64, 0.0f64);
                 for c in 0..3 {
                     let i = c * px + p;
@@ -358,12 +355,9 @@ mod tests {
         for (sign, inside) in [(1.0f32, 0.0f32), (-1.0, 1.0), (0.5, 0.5)] {
             let mut ds = dataset_with_hr(&net, sign);
             benefit_boundary(&mut ds, &Cpu, &net).unwrap();
-            let (hh, wh) = (ds.hr.shape[2], ds.hr.shape[3]);
+            // The border too: it is judged like every other pixel.
             for (p, &v) in ds.boundary.data.iter().enumerate() {
-                let (y, x) = ((p / wh) % hh, p % wh);
-                let border = y == 0 || x == 0 || y + 1 == hh || x + 1 == wh;
-                let want = if border { 1.0 } else { inside };
-                assert!((v - want).abs() < 1e-4, "sign {sign}, pixel {p}: {v} vs {want}");
+                assert!((v - inside).abs() < 1e-4, "sign {sign}, pixel {p}: {v} vs {inside}");
             }
         }
     }

@@ -9,7 +9,7 @@ no harm) and the packages of tests/onnx/requirements.txt. Exits 1 if any check f
 1. nets:     the held-out demo frames (flag-sphere, seed 1000), put in the nets' input frame by
              anisocb itself (`anisocb dataset`, the same `InputFrame::image_maps` as upscale),
              through `anisocb audit` and through ONNX Runtime: u, r, boundary, enhance.
-2. pipeline: the README recipe in numpy (cloth frame, border pin, temporal smoothing, back to
+2. pipeline: the README recipe in numpy (cloth frame, temporal smoothing, back to
              the domain, Eq 12) around ONNX Runtime, against `anisocb upscale`'s geometry.npy.
 3. replicate: the same weights relabelled `padding: replicate` (Pad(mode=edge) + Conv path),
              exported and compared with anisocb's audit of that file.
@@ -200,8 +200,8 @@ def smooth_in_time(x, k):
     return out
 
 
-def upscale_numpy(sess, lr, domain, input_frame, eta=0.0, temporal=2):
-    """The anisocb upscale pipeline (defaults: pin_border, temporal 2, eta 0, no strain
+def upscale_numpy(sess, lr, domain, input_frame, eta=0.0, temporal=2, pin_border=False):
+    """The anisocb upscale pipeline (defaults: border not pinned, temporal 2, eta 0, no strain
     limit) around the ONNX model; lr (T, 3, H, W) in the domain -> (hr, boundary, enhance, x)."""
     bmin, bmax = domain[0], domain[1]
     if input_frame == "cloth-frame":
@@ -212,7 +212,8 @@ def upscale_numpy(sess, lr, domain, input_frame, eta=0.0, temporal=2):
     x = np.stack([apply(m[0], img, True) for m, img in zip(maps, lr)])
     o = dict(zip(OUTPUTS, sess.run(None, {"lr": x})))
     gb = o["boundary"].copy()
-    gb[:, :, 0, :] = gb[:, :, -1, :] = gb[:, :, :, 0] = gb[:, :, :, -1] = 1.0  # set_border
+    if pin_border:  # `upscale --pin-border`: set_border
+        gb[:, :, 0, :] = gb[:, :, -1, :] = gb[:, :, :, 0] = gb[:, :, :, -1] = 1.0
     r = smooth_in_time(o["r"], temporal) if temporal > 0 else o["r"]
     u = np.stack([apply(m[1], img, True) for m, img in zip(maps, o["u"])])
     r = np.stack([apply(m[1], img, False) for m, img in zip(maps, r)])
@@ -278,7 +279,7 @@ def main():
         got, t_ort, t_audit = check_nets(exe, env, work, "demo", a.weights, sess, x, failures)
 
         # 2. The whole pipeline: numpy + ORT vs anisocb upscale (defaults: eta 0, temporal 2).
-        print(f"\n2. pipeline: README recipe (numpy cloth frame + ORT + border pin + temporal 2 + Eq 12, "
+        print(f"\n2. pipeline: README recipe (numpy cloth frame + ORT + temporal 2 + Eq 12, "
               f"eta 0) vs anisocb upscale")
         up = os.path.join(work, "up")
         t_up, _ = run([exe, "upscale", os.path.join(run_dir, "lr"), "--weights", a.weights, "--out", up,
