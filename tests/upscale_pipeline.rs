@@ -8,7 +8,9 @@ use anisocb::geom::{Domain, GridMesh};
 use anisocb::nn::bundle::AnisoCb;
 use anisocb::nn::config::NetConfig;
 use anisocb::ops::{Cpu, Interp, Ops};
-use anisocb::sr::upscale::{embedded_model, upscale_images, upscale_meshes, UpscaleParams};
+use anisocb::sr::upscale::{
+    embedded_model, finish, run_nets, smooth_in_time, upscale_images, upscale_meshes, UpscaleParams,
+};
 use std::path::Path;
 use std::process::Command;
 
@@ -91,6 +93,31 @@ fn shipped_model_does_not_shrink_the_border_and_is_deterministic() {
             worst < 0.02 * size,
             "border vertex moved {worst} m from the interpolated border (cloth ≈ {size} m)"
         );
+    }
+}
+
+/// Temporal smoothing gives the maps that gate the residual (Γb, Γe) the residual's window:
+/// what `finish` composes equals the per-frame nets' outputs each smoothed in time, and radius 0
+/// leaves all three as the nets made them.
+#[test]
+fn temporal_smoothing_smooths_the_gating_maps_with_the_residual() {
+    let model = embedded_model().expect("embedded weights decode");
+    let frames = small_run(7);
+    let d = Domain::enclosing(&frames, 0.05);
+    let lr = sequence_to_images(&frames, &d);
+    for k in [0, 2] {
+        let p = UpscaleParams { temporal: k, enhance_map: true, ..UpscaleParams::default() };
+        let raw = run_nets(&Cpu, &model, &lr, &d, &p, &mut |_| {}).unwrap();
+        let (b, e) = (raw.boundary.clone(), raw.enhance.clone());
+        let up = finish(raw, &model, &p).unwrap();
+        assert!(b.max_abs_diff(&e) > 0.0, "the two maps must differ for the test to tell them apart");
+        for (name, got, want) in [("Γb", &up.boundary, &b), ("Γe", &up.enhance, &e)] {
+            let want = if k == 0 { want.clone() } else { smooth_in_time(want, k) };
+            assert_eq!(got.data, want.data, "{name} at radius {k}");
+        }
+        if k > 0 {
+            assert!(up.boundary.max_abs_diff(&b) > 1e-6, "Γb must change at radius {k} on a moving drape");
+        }
     }
 }
 

@@ -160,10 +160,11 @@ in channels 0..2) already in the nets' input frame `{frame}`.
 Outputs, all (N, ., {r}H, {r}W) in the same frame: `u` = cubic align-corners x{r} of lr (Keys
 a = {a}: {upsample}); `r` = GeometryNet's
 residual R; `boundary` = Gamma_b = sigmoid(BoundaryNet logits); `enhance` = Gamma_e =
-sigmoid(EnhanceNet logits). anisocb's pipeline then sets Gamma_b = 1 on the border pixels,
-averages R over +-2 frames (binomial 1 4 6 4 1, cloth-frame models; `--temporal 0` skips
-it), maps u (points) and R (displacements) back out of the frame and composes
-HR = U + (1 - Gamma_b)(1 + eta Gamma_e) R (eta = 0.5); see tests/onnx/README.md."""
+sigmoid(EnhanceNet logits). anisocb's pipeline then (with `--pin-border` only) sets
+Gamma_b = 1 on the border pixels, averages R, Gamma_b and Gamma_e over +-2 frames (binomial
+1 4 6 4 1, cloth-frame models; `--temporal 0` skips it), maps u (points) and R
+(displacements) back out of the frame and composes HR = U + (1 - Gamma_b)(1 + eta Gamma_e) R
+(eta = 0 by default); see tests/onnx/README.md."""
 
 FRAME_DOC = {
     "cloth-frame": (
