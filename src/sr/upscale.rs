@@ -73,8 +73,8 @@ pub struct UpscaleParams {
     /// domain frame (their residuals are not comparable across frames). Detail that stays on
     /// the cloth is kept; detail that flips from frame to frame (what shows as shading flicker
     /// and swimming edges) is averaged out. Smoothing Γb as well as R lowered STED temporal on
-    /// every seed-6 validation run (twist-materials 2.35 → 2.31 %) and moved vertex RMSE by
-    /// ≤ 0.03 % (weights/README.md).
+    /// every seed-6 validation run (twist-materials 2.35 → 2.31 %) and lowered vertex RMSE by
+    /// ≤ 0.16 % (weights/README.md).
     pub temporal: usize,
     /// Strain limit: Jacobi iterations pulling the HR grid's edge lengths toward those implied
     /// by the LR frame's own edges ([`hr_edge_targets`], [`limit_strain`]), in the cloth frame;

@@ -981,8 +981,7 @@ pub fn conv2d_weight_grad(x: &Tensor, dy: &Tensor, pad: Padding, dw: &mut Tensor
     if winograd::eligible_weight_grad(c, o, kh, kw) {
         return winograd::weight_grad(x, dy, pad, dw);
     }
-    let (n, c, h, wd) = x.dims4();
-    let (o, _, kh, kw) = dw.dims4();
+    let (n, _, h, wd) = x.dims4();
     let (ph, pw) = (kh / 2, kw / 2);
     let (hp, wp) = (h + 2 * ph, wd + 2 * pw);
     let extra = (kh - 1) * wp + (kw - 1);
