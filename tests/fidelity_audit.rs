@@ -1,7 +1,8 @@
 //! Audit of the fidelity additions against references written by JAX/NumPy
 //! (tests/fixtures/gen_losses.py → tests/fixtures/losses/*.npy; versions in VERSIONS.txt):
-//! the edge-vector and curvature (Laplacian) losses and their gradients, the combined
-//! GeometryNet loss (MSE + w·edge, and MSE + w_e·edge + w_l·laplacian), and
+//! the edge-vector, curvature (Laplacian) and edge-length losses and their gradients, the
+//! combined GeometryNet loss (MSE + w·edge, MSE + w_e·edge + w_l·laplacian and
+//! MSE + w_e·edge + w_n·length), and
 //! the cloth frame (origin, unit, rotation as NumPy's SVD polar factor).
 //!
 //! Tolerances (references in f64): losses rtol 1e-5 (f64-accumulated means), gradients
@@ -53,7 +54,7 @@ fn geometry_loss_with_edge_term_matches_jax() {
     for (e, r) in est.data.iter_mut().zip(&r.data) {
         *e += r;
     }
-    let (l, g) = estimate_loss(&Cpu, &est, &hr, GeometryLoss { edge: w, laplacian: 0.0 });
+    let (l, g) = estimate_loss(&Cpu, &est, &hr, GeometryLoss { edge: w, laplacian: 0.0, length: 0.0 });
     close("geometry loss", &[l], &fx("geo_loss").data, 0.0, 1e-5);
     close("geometry grad", &g.data, &fx("geo_grad").data, 1e-8, 1e-5);
 }
@@ -81,9 +82,37 @@ fn geometry_loss_with_edge_and_laplacian_terms_matches_jax() {
     for (e, r) in est.data.iter_mut().zip(&r.data) {
         *e += r;
     }
-    let (l, g) = estimate_loss(&Cpu, &est, &hr, GeometryLoss { edge: w[0], laplacian: w[1] });
+    let (l, g) = estimate_loss(&Cpu, &est, &hr, GeometryLoss { edge: w[0], laplacian: w[1], length: 0.0 });
     close("geometry2 loss", &[l], &fx("geo2_loss").data, 0.0, 1e-5);
     close("geometry2 grad", &g.data, &fx("geo2_grad").data, 1e-8, 1e-5);
+}
+
+#[test]
+fn edge_length_loss_and_gradient_match_jax() {
+    for tag in ["a", "row", "two"] {
+        let (p, t) = (fx(&format!("len_{tag}_pred")), fx(&format!("len_{tag}_target")));
+        let (l, g) = loss::edge_length_mse(&p, &t);
+        close(&format!("length {tag} loss"), &[l], &fx(&format!("len_{tag}_loss")).data, 0.0, 1e-5);
+        close(&format!("length {tag} grad"), &g.data, &fx(&format!("len_{tag}_grad")).data, 1e-8, 1e-5);
+    }
+    // A zero-length edge of pred has no direction: no gradient from it, and no NaN.
+    let p = Tensor::zeros(&[1, 3, 1, 2]);
+    let (l, g) =
+        loss::edge_length_mse(&p, &Tensor { shape: vec![1, 3, 1, 2], data: vec![0., 1., 0., 0., 0., 0.] });
+    assert_eq!((l, g.data.iter().all(|&v| v == 0.0)), (1.0, true));
+}
+
+#[test]
+fn geometry_loss_with_edge_and_length_terms_matches_jax() {
+    let (u, r, hr) = (fx("geo3_u"), fx("geo3_r"), fx("geo3_hr"));
+    let w = fx("geo3_weights").data;
+    let mut est = u.clone();
+    for (e, r) in est.data.iter_mut().zip(&r.data) {
+        *e += r;
+    }
+    let (l, g) = estimate_loss(&Cpu, &est, &hr, GeometryLoss { edge: w[0], laplacian: 0.0, length: w[1] });
+    close("geometry3 loss", &[l], &fx("geo3_loss").data, 0.0, 1e-5);
+    close("geometry3 grad", &g.data, &fx("geo3_grad").data, 1e-8, 1e-5);
 }
 
 #[test]

@@ -66,6 +66,7 @@ fn tiny_opts(out: PathBuf, steps: u64) -> TrainOptions {
         pos_weight: 2.0,
         edge_weight: 0.5,
         laplacian_weight: 0.25,
+        length_weight: 0.5,
         resume: false,
         out,
     }
@@ -116,6 +117,7 @@ fn tiny_geometry_net_overfits_a_single_pair() {
         // The paper's loss (Eq 3) alone: the bound below is on the MSE.
         edge_weight: 0.0,
         laplacian_weight: 0.0,
+        length_weight: 0.0,
         ..tiny_opts(tmp("overfit"), 1500)
     };
     let r = train(&Cpu, &data, NetKind::Geometry, &opts, &mut |_| {}).unwrap();

@@ -71,6 +71,11 @@ pub struct Args {
     /// 0 = off.
     #[arg(long, default_value_t = 0.0)]
     pub laplacian_weight: f32,
+    /// GeometryNet: weight of the edge-length term (error of every mesh edge's length: a net
+    /// that averages wrinkles it cannot place shrinks the cloth in its plane, and this prices
+    /// the shortening); 0 = off.
+    #[arg(long, default_value_t = 0.0)]
+    pub length_weight: f32,
     /// Ridge strength λ of `--net linear` (relative to the features' mean variance).
     #[arg(long, default_value_t = 1e-3)]
     pub ridge: f64,
@@ -106,6 +111,7 @@ pub fn run(a: Args) -> Result<()> {
         pos_weight: a.pos_weight,
         edge_weight: a.edge_weight,
         laplacian_weight: a.laplacian_weight,
+        length_weight: a.length_weight,
         resume: a.resume,
         out: a.out.clone(),
     };

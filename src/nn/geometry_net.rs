@@ -5,7 +5,7 @@
 use super::config::{NetConfig, NetKind, IN_CHANNELS};
 use super::layers::Trunk;
 use crate::error::{Error, Result};
-use crate::ops::loss::{edge_mse, laplacian_mse};
+use crate::ops::loss::{edge_length_mse, edge_mse, laplacian_mse};
 use crate::ops::{Interp, Ops};
 use crate::tensor::Tensor;
 
@@ -85,15 +85,20 @@ pub struct GeometryLoss {
     pub edge: f32,
     /// Curvature term [`laplacian_mse`]: bumps and dents that show in shading.
     pub laplacian: f32,
+    /// Edge-length term [`edge_length_mse`]: the in-plane shrinking of an averaged surface.
+    pub length: f32,
 }
 
 /// The loss of an HR estimate `est = U + R` against `hr`, and its gradient w.r.t. `est` (= the
-/// gradient w.r.t. R): `mse + w.edge · edge_mse + w.laplacian · laplacian_mse`.
+/// gradient w.r.t. R): `mse + w.edge · edge_mse + w.laplacian · laplacian_mse
+/// + w.length · edge_length_mse`.
 pub fn estimate_loss(ops: &dyn Ops, est: &Tensor, hr: &Tensor, w: GeometryLoss) -> (f32, Tensor) {
     let (mut loss, mut grad) = ops.mse(est, hr);
-    for (weight, term) in
-        [(w.edge, edge_mse as fn(&Tensor, &Tensor) -> (f32, Tensor)), (w.laplacian, laplacian_mse)]
-    {
+    for (weight, term) in [
+        (w.edge, edge_mse as fn(&Tensor, &Tensor) -> (f32, Tensor)),
+        (w.laplacian, laplacian_mse),
+        (w.length, edge_length_mse),
+    ] {
         if weight != 0.0 {
             let (l, g) = term(est, hr);
             loss += weight * l;

@@ -49,15 +49,17 @@ pub struct TrainOptions {
     pub edge_weight: f32,
     /// GeometryNet: weight of the curvature term (`ops::loss::laplacian_mse`; 0 = off).
     pub laplacian_weight: f32,
+    /// GeometryNet: weight of the edge-length term (`ops::loss::edge_length_mse`; 0 = off).
+    pub length_weight: f32,
     /// Continue from `out/checkpoint.npz`.
     pub resume: bool,
     pub out: PathBuf,
 }
 
 impl TrainOptions {
-    /// GeometryNet's loss terms from `edge_weight` and `laplacian_weight`.
+    /// GeometryNet's loss terms from `edge_weight`, `laplacian_weight` and `length_weight`.
     pub fn geometry_loss(&self) -> GeometryLoss {
-        GeometryLoss { edge: self.edge_weight, laplacian: self.laplacian_weight }
+        GeometryLoss { edge: self.edge_weight, laplacian: self.laplacian_weight, length: self.length_weight }
     }
 }
 
@@ -76,6 +78,7 @@ impl Default for TrainOptions {
             pos_weight: 1.0,
             edge_weight: 0.0,
             laplacian_weight: 0.0,
+            length_weight: 0.0,
             resume: false,
             out: PathBuf::from("out"),
         }
@@ -194,6 +197,7 @@ fn options_json(net: NetKind, o: &TrainOptions, data_fp: u64, step: u64) -> Stri
         .num("pos_weight", o.pos_weight)
         .num("edge_weight", o.edge_weight)
         .num("laplacian_weight", o.laplacian_weight)
+        .num("length_weight", o.length_weight)
         .str("data", &format!("{data_fp:016x}"))
         .to_json()
 }

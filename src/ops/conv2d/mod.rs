@@ -766,8 +766,32 @@ pub fn conv2d_input_grad(w: &Tensor, dy: &Tensor, pad: Padding, dx: &mut Tensor)
     let flipped = |ci: usize, oi: usize, ky: usize, kx: usize| {
         w.data[((oi * c + ci) * kh + kh - 1 - ky) * kw + kw - 1 - kx]
     };
+    let wino = winograd::eligible(o, c, kh, kw);
+    if pad == Padding::Replicate && wino {
+        // The gradient w.r.t. the padded input ((H+2ph) × (W+2pw)) is the zero-padding "same"
+        // gradient of dy framed by (ph, pw) zeros, which the Winograd path takes; the frame's
+        // pixels are then folded onto the border pixels they replicate.
+        let (hp, wp) = (h + 2 * ph, wd + 2 * pw);
+        let mut dye = Tensor::zeros(&[n, o, hp, wp]);
+        dye.data.par_chunks_mut(hp * wp).zip(dy.data.par_chunks(h * wd)).for_each(|(dst, src)| {
+            for (y, row) in src.chunks_exact(wd).enumerate() {
+                dst[(y + ph) * wp + pw..][..wd].copy_from_slice(row);
+            }
+        });
+        let mut dxe = Tensor::zeros(&[n, c, hp, wp]);
+        conv2d_input_grad(w, &dye, Padding::Zero, &mut dxe);
+        dx.data.par_chunks_mut(h * wd).zip(dxe.data.par_chunks(hp * wp)).for_each(|(dst, src)| {
+            for (y, row) in src.chunks_exact(wp).enumerate() {
+                let dr = &mut dst[(y.saturating_sub(ph)).min(h - 1) * wd..][..wd];
+                for (x, v) in row.iter().enumerate() {
+                    dr[x.saturating_sub(pw).min(wd - 1)] += v;
+                }
+            }
+        });
+        return;
+    }
     // Zero padding: the gradient is a "same" correlation of dy, which the Winograd path takes.
-    let wino = pad == Padding::Zero && winograd::eligible(o, c, kh, kw);
+    let wino = wino && pad == Padding::Zero;
     let pk = if wino { winograd::pack(c, o, flipped) } else { pack_weights(c, o, kh, kw, flipped) };
     let opad = pk.opad;
     match pad {
