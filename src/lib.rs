@@ -41,6 +41,7 @@ pub mod io;
 pub mod nn;
 pub mod ops;
 pub mod perf;
+pub mod pool;
 pub mod rng;
 pub mod sr;
 pub mod tensor;

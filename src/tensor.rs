@@ -2,20 +2,38 @@
 //! (PyTorch's layout), so weights move to and from PyTorch/JAX through `.npz` unchanged.
 
 use crate::error::{Error, Result};
+use crate::pool;
 
-#[derive(Clone, Debug, PartialEq)]
+/// A dense f32 tensor. Its buffer comes from and goes back to the per-thread pool
+/// ([`crate::pool`]): activations of the same sizes are made and dropped at every layer.
+#[derive(Debug, PartialEq)]
 pub struct Tensor {
     pub shape: Vec<usize>,
     pub data: Vec<f32>,
 }
 
+impl Clone for Tensor {
+    fn clone(&self) -> Self {
+        let mut data = pool::take(self.data.len());
+        data.clear();
+        data.extend_from_slice(&self.data);
+        Tensor { shape: self.shape.clone(), data }
+    }
+}
+
+impl Drop for Tensor {
+    fn drop(&mut self) {
+        pool::give(std::mem::take(&mut self.data));
+    }
+}
+
 impl Tensor {
     pub fn zeros(shape: &[usize]) -> Self {
-        Tensor { shape: shape.to_vec(), data: vec![0.0; shape.iter().product()] }
+        Tensor { shape: shape.to_vec(), data: pool::zeroed(shape.iter().product()) }
     }
 
     pub fn full(shape: &[usize], v: f32) -> Self {
-        Tensor { shape: shape.to_vec(), data: vec![v; shape.iter().product()] }
+        Tensor { shape: shape.to_vec(), data: pool::filled(shape.iter().product(), v) }
     }
 
     pub fn from_vec(shape: &[usize], data: Vec<f32>) -> Result<Self> {
@@ -24,6 +42,11 @@ impl Tensor {
             return Err(Error::shape(format!("shape {:?} needs {} values, got {}", shape, n, data.len())));
         }
         Ok(Tensor { shape: shape.to_vec(), data })
+    }
+
+    /// The values, moved out (the buffer leaves the pool's care).
+    pub fn into_data(mut self) -> Vec<f32> {
+        std::mem::take(&mut self.data)
     }
 
     pub fn len(&self) -> usize {

@@ -77,7 +77,7 @@ fn laplacian_loss_and_gradient_match_jax() {
 #[test]
 fn geometry_loss_with_edge_and_laplacian_terms_matches_jax() {
     let (u, r, hr) = (fx("geo2_u"), fx("geo2_r"), fx("geo2_hr"));
-    let w = fx("geo2_weights").data;
+    let w = fx("geo2_weights").into_data();
     let mut est = u.clone();
     for (e, r) in est.data.iter_mut().zip(&r.data) {
         *e += r;
@@ -105,7 +105,7 @@ fn edge_length_loss_and_gradient_match_jax() {
 #[test]
 fn geometry_loss_with_edge_and_length_terms_matches_jax() {
     let (u, r, hr) = (fx("geo3_u"), fx("geo3_r"), fx("geo3_hr"));
-    let w = fx("geo3_weights").data;
+    let w = fx("geo3_weights").into_data();
     let mut est = u.clone();
     for (e, r) in est.data.iter_mut().zip(&r.data) {
         *e += r;

@@ -279,5 +279,5 @@ pub(super) fn dims4(shape: &[usize], what: &str) -> [usize; 4] {
 /// Copy a device result into an existing host tensor (same length).
 pub(super) fn store(dst: &mut Tensor, src: Tensor) {
     debug_assert_eq!(dst.data.len(), src.data.len());
-    dst.data = src.data;
+    dst.data = src.into_data();
 }

@@ -74,12 +74,12 @@ mod tests {
         let mut rng = TestRng::new(8);
         let hp = AdamParams { lr: 1e-3, ..Default::default() };
         for n in [1, 5, 16, 33, PAR_MIN + 7, 2 * CHUNK + 1] {
-            let mut pa = rng.tensor(&[n], -1.0, 1.0).data;
+            let mut pa = rng.tensor(&[n], -1.0, 1.0).into_data();
             let mut pb = pa.clone();
             let (mut ma, mut va) = (vec![0.0; n], vec![0.0; n]);
             let (mut mb, mut vb) = (vec![0.0; n], vec![0.0; n]);
             for step in 1..=3 {
-                let g = rng.tensor(&[n], -1.0, 1.0).data;
+                let g = rng.tensor(&[n], -1.0, 1.0).into_data();
                 adam_update(&mut pa, &g, &mut ma, &mut va, step, &hp);
                 adam_update_ref(&mut pb, &g, &mut mb, &mut vb, step, &hp);
             }

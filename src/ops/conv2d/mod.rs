@@ -3,6 +3,7 @@
 //!
 //! x: (N, C, H, W), w: (O, C, KH, KW) (OIHW), b: (O), y: (N, O, H, W).
 
+use crate::pool;
 use crate::tensor::Tensor;
 
 /// How pixels outside the image are read.
@@ -159,59 +160,25 @@ impl SyncPtr {
     }
 }
 
-/// A zero-filled f32 buffer taken from a small per-thread pool and returned to it on drop, so
-/// repeated calls do not pay for fresh pages (page faults cost about as much as the
-/// arithmetic on small images).
+/// A zero-filled f32 buffer taken from the per-thread pool ([`crate::pool`]) and returned to it
+/// on drop, so repeated calls do not pay for fresh pages.
 struct Scratch(Vec<f32>);
 
-thread_local! {
-    static POOL: std::cell::RefCell<Vec<Vec<f32>>> = const { std::cell::RefCell::new(Vec::new()) };
-}
-
-/// Buffers kept per thread, and the largest one kept (floats).
-const POOL_KEEP: usize = 4;
-const POOL_MAX_LEN: usize = 1 << 24;
-
 impl Scratch {
-    /// A pooled buffer for `len` floats, as it was left (its length and values are stale).
-    fn take(len: usize) -> Vec<f32> {
-        let v = POOL.with(|p| {
-            let mut p = p.borrow_mut();
-            // Prefer the smallest pooled buffer that fits, else the largest one (grown).
-            let best = (0..p.len()).filter(|&i| p[i].capacity() >= len).min_by_key(|&i| p[i].capacity());
-            let pick = best.or_else(|| (0..p.len()).max_by_key(|&i| p[i].capacity()));
-            pick.map(|i| p.swap_remove(i))
-        });
-        v.unwrap_or_default()
-    }
-
     fn zeroed(len: usize) -> Scratch {
-        let mut v = Scratch::take(len);
-        v.clear();
-        v.resize(len, 0.0);
-        Scratch(v)
+        Scratch(pool::zeroed(len))
     }
 
     /// `len` floats with unspecified values (stale ones from the pool, zeros where it grew):
     /// for callers that write every element before reading it, and skip the zeroing pass.
     fn overwritten(len: usize) -> Scratch {
-        let mut v = Scratch::take(len);
-        v.resize(len, 0.0);
-        Scratch(v)
+        Scratch(pool::overwritten(len))
     }
 }
 
 impl Drop for Scratch {
     fn drop(&mut self) {
-        let v = std::mem::take(&mut self.0);
-        if v.capacity() <= POOL_MAX_LEN {
-            POOL.with(|p| {
-                let mut p = p.borrow_mut();
-                if p.len() < POOL_KEEP {
-                    p.push(v);
-                }
-            });
-        }
+        pool::give(std::mem::take(&mut self.0));
     }
 }
 
