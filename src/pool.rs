@@ -1,23 +1,28 @@
-//! A small per-thread pool of f32 buffers, shared by [`crate::Tensor`] and the conv kernels'
-//! scratch space. Freeing a large buffer lets the allocator hand its pages back to the kernel
-//! (glibc trims a thread's heap with `madvise`), and the next buffer of that size then pays a
-//! page fault per 4 KiB page before the arithmetic starts: on one 32×32 frame through the three
-//! small nets that cost about a third of the time (benches/peers.rs `nets`, 2-core machine).
-//! Buffers dropped on a thread are kept there for the next allocation of a similar size.
+//! A small process-wide pool of f32 buffers for [`crate::Tensor`] (the conv kernels keep their
+//! scratch space in a per-thread pool of their own, `ops::conv2d::Scratch`). Freeing a large
+//! buffer lets glibc hand its pages back to the kernel (munmap above its mmap threshold, madvise
+//! when it trims a heap), and the next buffer of that size then pays a page fault per 4 KiB page
+//! before the arithmetic starts: on one 32×32 frame through the three small nets that was about
+//! a third of the time (benches/peers.rs `nets`: 6.5 → 4.4 ms with the pool, 2-core machine).
+//! One pool for every thread: activations are made on rayon's workers and often dropped on the
+//! caller's thread.
 
-use std::cell::RefCell;
+use std::sync::Mutex;
 
-thread_local! {
-    static POOL: RefCell<Vec<Vec<f32>>> = const { RefCell::new(Vec::new()) };
-}
+static POOL: Mutex<Vec<Vec<f32>>> = Mutex::new(Vec::new());
 
-/// Buffers kept per thread.
-const KEEP: usize = 8;
+/// Buffers kept.
+const KEEP: usize = 16;
 /// Smallest buffer worth keeping (floats): the allocator serves small ones from its own lists.
 const MIN_LEN: usize = 4096;
-/// Largest buffer kept (floats, 64 MiB) and most floats kept per thread (256 MiB).
+/// Largest buffer kept (floats, 64 MiB) and most floats kept in all (256 MiB).
 const MAX_LEN: usize = 1 << 24;
 const MAX_TOTAL: usize = 1 << 26;
+
+fn pool() -> std::sync::MutexGuard<'static, Vec<Vec<f32>>> {
+    // A panic while holding the lock leaves a valid list of buffers: keep using it.
+    POOL.lock().unwrap_or_else(|e| e.into_inner())
+}
 
 /// A buffer with room for `len` floats, as it was left (its length and values are stale): the
 /// smallest pooled one that fits, else the largest one (to be grown), else a new one.
@@ -25,13 +30,10 @@ pub fn take(len: usize) -> Vec<f32> {
     if len < MIN_LEN {
         return Vec::new();
     }
-    let v = POOL.with(|p| {
-        let mut p = p.borrow_mut();
-        let best = (0..p.len()).filter(|&i| p[i].capacity() >= len).min_by_key(|&i| p[i].capacity());
-        let pick = best.or_else(|| (0..p.len()).max_by_key(|&i| p[i].capacity()));
-        pick.map(|i| p.swap_remove(i))
-    });
-    v.unwrap_or_default()
+    let mut p = pool();
+    let best = (0..p.len()).filter(|&i| p[i].capacity() >= len).min_by_key(|&i| p[i].capacity());
+    let pick = best.or_else(|| (0..p.len()).max_by_key(|&i| p[i].capacity()));
+    pick.map(|i| p.swap_remove(i)).unwrap_or_default()
 }
 
 /// `len` zeros.
@@ -55,20 +57,23 @@ pub fn overwritten(len: usize) -> Vec<f32> {
     b
 }
 
-/// Return a buffer to this thread's pool (oldest buffers leave first when it is full).
+/// Return a buffer to the pool (the oldest buffers leave first when it is full).
 pub fn give(v: Vec<f32>) {
-    let cap = v.capacity();
-    if !(MIN_LEN..=MAX_LEN).contains(&cap) {
+    if !(MIN_LEN..=MAX_LEN).contains(&v.capacity()) {
         return;
     }
-    // try_with: a tensor dropped while the thread's locals are torn down is simply freed.
-    let _ = POOL.try_with(|p| {
-        let mut p = p.borrow_mut();
+    let evicted: Vec<Vec<f32>> = {
+        let mut p = pool();
         p.push(v);
-        while p.len() > KEEP || p.iter().map(Vec::capacity).sum::<usize>() > MAX_TOTAL {
-            p.remove(0);
+        let mut total: usize = p.iter().map(Vec::capacity).sum();
+        let mut cut = 0;
+        while p.len() - cut > KEEP || total > MAX_TOTAL {
+            total -= p[cut].capacity();
+            cut += 1;
         }
-    });
+        p.drain(..cut).collect()
+    };
+    drop(evicted); // freed outside the lock
 }
 
 #[cfg(test)]

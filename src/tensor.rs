@@ -32,6 +32,12 @@ impl Tensor {
         Tensor { shape: shape.to_vec(), data: pool::zeroed(shape.iter().product()) }
     }
 
+    /// A tensor whose values are unspecified (stale ones from the pool): for kernels that write
+    /// every element before anything reads it, and skip the zeroing pass.
+    pub fn for_overwrite(shape: &[usize]) -> Self {
+        Tensor { shape: shape.to_vec(), data: pool::overwritten(shape.iter().product()) }
+    }
+
     pub fn full(shape: &[usize], v: f32) -> Self {
         Tensor { shape: shape.to_vec(), data: pool::filled(shape.iter().product(), v) }
     }

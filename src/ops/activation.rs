@@ -53,7 +53,7 @@ pub fn relu_ref(x: &Tensor) -> Tensor {
 
 /// Fast [`relu_ref`].
 pub fn relu(x: &Tensor) -> Tensor {
-    let mut y = Tensor::zeros(&x.shape);
+    let mut y = Tensor::for_overwrite(&x.shape);
     par_zip_mut(&mut y.data, &x.data, |o, a| {
         for (o, &a) in o.iter_mut().zip(a) {
             *o = relu1(a);
@@ -116,7 +116,7 @@ pub fn sigmoid_ref(x: &Tensor) -> Tensor {
 
 /// Fast [`sigmoid_ref`] (threads only: `exp` is libm's scalar, kept for bitwise agreement).
 pub fn sigmoid(x: &Tensor) -> Tensor {
-    let mut y = Tensor::zeros(&x.shape);
+    let mut y = Tensor::for_overwrite(&x.shape);
     par_zip_mut(&mut y.data, &x.data, |o, a| {
         for (o, &a) in o.iter_mut().zip(a) {
             *o = sigmoid1(a);

@@ -65,7 +65,7 @@ pub fn pixel_shuffle(x: &Tensor, r: usize) -> Tensor {
     assert!(r >= 1 && cr2 % (r * r) == 0, "pixel_shuffle: {cr2} channels not divisible by r²={}", r * r);
     let c = cr2 / (r * r);
     let (ho, wo) = (h * r, w * r);
-    let mut y = Tensor::zeros(&[n, c, ho, wo]);
+    let mut y = Tensor::for_overwrite(&[n, c, ho, wo]);
     if y.is_empty() {
         return y;
     }

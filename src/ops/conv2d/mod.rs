@@ -3,7 +3,6 @@
 //!
 //! x: (N, C, H, W), w: (O, C, KH, KW) (OIHW), b: (O), y: (N, O, H, W).
 
-use crate::pool;
 use crate::tensor::Tensor;
 
 /// How pixels outside the image are read.
@@ -160,25 +159,62 @@ impl SyncPtr {
     }
 }
 
-/// A zero-filled f32 buffer taken from the per-thread pool ([`crate::pool`]) and returned to it
-/// on drop, so repeated calls do not pay for fresh pages.
+/// A zero-filled f32 buffer taken from a small per-thread pool and returned to it on drop, so
+/// repeated calls do not pay for fresh pages (page faults cost about as much as the
+/// arithmetic on small images). The per-task buffers of the kernels come from here too: with
+/// the tensors pooled ([`crate::pool`]) glibc no longer sees large frees, keeps its mmap
+/// threshold at 128 KiB and would map and unmap every per-task buffer above it (a
+/// 1×64×128×128 conv took 190 000 page faults and 1.4× the time until they were pooled).
 struct Scratch(Vec<f32>);
 
+thread_local! {
+    static POOL: std::cell::RefCell<Vec<Vec<f32>>> = const { std::cell::RefCell::new(Vec::new()) };
+}
+
+/// Buffers kept per thread, and the largest one kept (floats).
+const POOL_KEEP: usize = 8;
+const POOL_MAX_LEN: usize = 1 << 24;
+
 impl Scratch {
+    /// A pooled buffer for `len` floats, as it was left (its length and values are stale).
+    fn take(len: usize) -> Vec<f32> {
+        let v = POOL.with(|p| {
+            let mut p = p.borrow_mut();
+            // Prefer the smallest pooled buffer that fits, else the largest one (grown).
+            let best = (0..p.len()).filter(|&i| p[i].capacity() >= len).min_by_key(|&i| p[i].capacity());
+            let pick = best.or_else(|| (0..p.len()).max_by_key(|&i| p[i].capacity()));
+            pick.map(|i| p.swap_remove(i))
+        });
+        v.unwrap_or_default()
+    }
+
     fn zeroed(len: usize) -> Scratch {
-        Scratch(pool::zeroed(len))
+        let mut v = Scratch::take(len);
+        v.clear();
+        v.resize(len, 0.0);
+        Scratch(v)
     }
 
     /// `len` floats with unspecified values (stale ones from the pool, zeros where it grew):
     /// for callers that write every element before reading it, and skip the zeroing pass.
     fn overwritten(len: usize) -> Scratch {
-        Scratch(pool::overwritten(len))
+        let mut v = Scratch::take(len);
+        v.resize(len, 0.0);
+        Scratch(v)
     }
 }
 
 impl Drop for Scratch {
     fn drop(&mut self) {
-        pool::give(std::mem::take(&mut self.0));
+        let v = std::mem::take(&mut self.0);
+        if v.capacity() <= POOL_MAX_LEN {
+            POOL.with(|p| {
+                let mut p = p.borrow_mut();
+                if p.len() < POOL_KEEP {
+                    p.push(v);
+                }
+            });
+        }
     }
 }
 
@@ -456,10 +492,12 @@ fn correlate_rows(
     assert!(groups.iter().all(|&(y0, r)| y0 + r <= out_h));
     let opad = pk.opad;
     let row_len = out_w * opad;
-    (0..n * groups.len()).into_par_iter().for_each_init(Vec::new, |buf: &mut Vec<f32>, task| {
+    let most = groups.iter().map(|g| g.1).max().unwrap_or(0);
+    let fresh = || Scratch::overwritten(most * row_len);
+    (0..n * groups.len()).into_par_iter().for_each_init(fresh, |buf: &mut Scratch, task| {
         let (ni, gi) = (task / groups.len(), task % groups.len());
         let (y0, rows) = groups[gi];
-        buf.resize(rows * row_len, 0.0);
+        let buf = &mut buf[..rows * row_len];
         for (ri, row) in buf.chunks_exact_mut(row_len).enumerate() {
             let y = y0 + ri;
             for dst in row.chunks_exact_mut(opad) {
@@ -487,7 +525,7 @@ fn correlate_rows(
                 }
             }
         }
-        sink(ni, gi, &buf[..rows * row_len]);
+        sink(ni, gi, buf);
     });
 }
 
@@ -611,15 +649,15 @@ fn conv2d_small_out(x: &Tensor, w: &Tensor, b: Option<&Tensor>, pad: Padding) ->
         let (oi, t) = (i % o, i / o);
         *v = w.data[oi * c * kh * kw + t];
     }
-    let mut y = Tensor::zeros(&[n, o, h, wd]);
+    let mut y = Tensor::for_overwrite(&[n, o, h, wd]);
     let yp = SyncPtr(y.data.as_mut_ptr());
     let row_len = nv * L;
     // Rows per task: ≈ 2¹⁸ multiply-adds or more, so rayon's overhead stays small on small images.
     let rows_per_task = ((1 << 18) / (o * c * kh * kw * row_len).max(1)).clamp(1, h);
     let tasks = h.div_ceil(rows_per_task);
-    (0..n * tasks).into_par_iter().for_each_init(Vec::new, |buf: &mut Vec<f32>, task| {
+    let fresh = || Scratch::overwritten(o * row_len);
+    (0..n * tasks).into_par_iter().for_each_init(fresh, |buf: &mut Scratch, task| {
         let (ni, ti) = (task / tasks, task % tasks);
-        buf.resize(o * row_len, 0.0);
         for yy in ti * rows_per_task..((ti + 1) * rows_per_task).min(h) {
             for (oi, dst) in buf.chunks_exact_mut(row_len).enumerate() {
                 dst.fill(b.map_or(0.0, |b| b.data[oi]));
@@ -671,7 +709,7 @@ pub fn conv2d(x: &Tensor, w: &Tensor, b: Option<&Tensor>, pad: Padding) -> Tenso
         v[..o].copy_from_slice(&b.data[..o]);
         v
     });
-    let mut y = Tensor::zeros(&[n, o, h, wd]);
+    let mut y = Tensor::for_overwrite(&[n, o, h, wd]);
     let yp = SyncPtr(y.data.as_mut_ptr());
     let opad = pk.opad;
     let sink = move |ni: usize, yy: usize, row: &[f32]| {

@@ -177,12 +177,15 @@ pub(super) fn correlate(
     let chunk = tw.min(TW_CHUNK);
     let (vs, ms) = (chunk * c + L, chunk * opad + L);
     (0..n * th).into_par_iter().for_each_init(
-        || (Vec::new(), Vec::new(), Vec::new()),
-        |(v, m, out): &mut (Vec<f32>, Vec<f32>, Vec<f32>), task| {
+        || {
+            (
+                Scratch::overwritten(POS * vs),
+                Scratch::overwritten(POS * ms),
+                Scratch::overwritten(2 * row_len),
+            )
+        },
+        |(v, m, out): &mut (Scratch, Scratch, Scratch), task| {
             let (ni, ty) = (task / th, task % th);
-            v.resize(POS * vs, 0.0);
-            m.resize(POS * ms, 0.0);
-            out.resize(2 * row_len, 0.0);
             for (tx0, ntw) in tiles(tw, chunk) {
                 // V[pos][tile][c] = Bᵀ d B.
                 // SAFETY: the chunk's tiles cover rows 2ty..2ty+4 ≤ hp, columns 2tx0..2(tx0+ntw)+2
