@@ -11,13 +11,14 @@ use std::sync::Mutex;
 
 static POOL: Mutex<Vec<Vec<f32>>> = Mutex::new(Vec::new());
 
-/// Buffers kept.
-const KEEP: usize = 16;
+/// Buffers kept: a training step's tape (a few dozen activations) fits.
+const KEEP: usize = 64;
 /// Smallest buffer worth keeping (floats): the allocator serves small ones from its own lists.
 const MIN_LEN: usize = 4096;
-/// Largest buffer kept (floats, 64 MiB) and most floats kept in all (256 MiB).
+/// Largest buffer kept (floats, 64 MiB) and most floats kept in all (512 MiB; [`release`]
+/// hands them back).
 const MAX_LEN: usize = 1 << 24;
-const MAX_TOTAL: usize = 1 << 26;
+const MAX_TOTAL: usize = 1 << 27;
 
 fn pool() -> std::sync::MutexGuard<'static, Vec<Vec<f32>>> {
     // A panic while holding the lock leaves a valid list of buffers: keep using it.
@@ -25,15 +26,17 @@ fn pool() -> std::sync::MutexGuard<'static, Vec<Vec<f32>>> {
 }
 
 /// A buffer with room for `len` floats, as it was left (its length and values are stale): the
-/// smallest pooled one that fits, else the largest one (to be grown), else a new one.
+/// smallest pooled one with room for `len` and at most twice that, else a new one. (Growing a
+/// pooled buffer would copy its stale contents; handing a small request a large buffer would
+/// leave the next large request without one.)
 pub fn take(len: usize) -> Vec<f32> {
     if len < MIN_LEN {
         return Vec::new();
     }
     let mut p = pool();
-    let best = (0..p.len()).filter(|&i| p[i].capacity() >= len).min_by_key(|&i| p[i].capacity());
-    let pick = best.or_else(|| (0..p.len()).max_by_key(|&i| p[i].capacity()));
-    pick.map(|i| p.swap_remove(i)).unwrap_or_default()
+    let fits = |v: &Vec<f32>| (len..=2 * len).contains(&v.capacity());
+    let best = (0..p.len()).filter(|&i| fits(&p[i])).min_by_key(|&i| p[i].capacity());
+    best.map(|i| p.swap_remove(i)).unwrap_or_else(|| Vec::with_capacity(len))
 }
 
 /// `len` zeros.
@@ -74,6 +77,12 @@ pub fn give(v: Vec<f32>) {
         p.drain(..cut).collect()
     };
     drop(evicted); // freed outside the lock
+}
+
+/// Free every pooled buffer (for a caller that is done computing and wants its memory back).
+pub fn release() {
+    let all = std::mem::take(&mut *pool());
+    drop(all);
 }
 
 #[cfg(test)]
