@@ -103,6 +103,25 @@ impl Tensor {
         Tensor { shape, data: self.data[n0 * per..(n0 + count) * per].to_vec() }
     }
 
+    /// A (N, C, H, W) tensor mirrored along its rows (`flip_rows`: row i ↔ H − 1 − i) and/or
+    /// its columns (`flip_cols`: column j ↔ W − 1 − j). Its own inverse.
+    pub fn flipped(&self, flip_rows: bool, flip_cols: bool) -> Tensor {
+        let (n, c, h, w) = (self.shape[0], self.shape[1], self.shape[2], self.shape[3]);
+        let mut out = Tensor::for_overwrite(&self.shape);
+        for (dst, src) in out.data.chunks_exact_mut(h * w).zip(self.data.chunks_exact(h * w)).take(n * c) {
+            for i in 0..h {
+                let si = if flip_rows { h - 1 - i } else { i };
+                let (d, s) = (&mut dst[i * w..(i + 1) * w], &src[si * w..(si + 1) * w]);
+                if flip_cols {
+                    d.iter_mut().zip(s.iter().rev()).for_each(|(a, b)| *a = *b);
+                } else {
+                    d.copy_from_slice(s);
+                }
+            }
+        }
+        out
+    }
+
     /// Append `other`'s samples (same trailing shape) after this tensor's.
     pub fn append_batch(&mut self, other: &Tensor) {
         assert_eq!(self.shape[1..], other.shape[1..], "append_batch: trailing shapes differ");
@@ -125,5 +144,23 @@ impl Tensor {
     pub fn max_abs_diff(&self, other: &Tensor) -> f32 {
         assert_eq!(self.shape, other.shape);
         self.data.iter().zip(&other.data).map(|(a, b)| (a - b).abs()).fold(0.0, f32::max)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn flipped_mirrors_rows_and_columns_and_is_its_own_inverse() {
+        // (2, 1, 2, 3): sample 1 is sample 0 + 10.
+        let t =
+            Tensor::from_vec(&[2, 1, 2, 3], (0..12).map(|v| (v / 6 * 10 + v % 6) as f32).collect()).unwrap();
+        assert_eq!(t.flipped(false, true).data[..6], [2.0, 1.0, 0.0, 5.0, 4.0, 3.0]);
+        assert_eq!(t.flipped(true, false).data[6..], [13.0, 14.0, 15.0, 10.0, 11.0, 12.0]);
+        assert_eq!(t.flipped(true, true).data[..6], [5.0, 4.0, 3.0, 2.0, 1.0, 0.0]);
+        for (r, c) in [(false, false), (false, true), (true, false), (true, true)] {
+            assert_eq!(t.flipped(r, c).flipped(r, c), t);
+        }
     }
 }

@@ -331,6 +331,47 @@ fn shipped_model_output_scales_with_the_cloth() {
     assert!(dev < INVARIANCE_TOL, "scale: {dev} LR edges");
 }
 
+/// A grid mirrored left-right (`cols`) and/or top-bottom (`rows`): the same surface.
+fn mirror_grid(m: &GridMesh, rows: bool, cols: bool) -> GridMesh {
+    let at = |k: usize| {
+        let (i, j) = (k % m.w, k / m.w);
+        let (i, j) = (if cols { m.w - 1 - i } else { i }, if rows { m.h - 1 - j } else { j });
+        m.pos[m.idx(i, j)]
+    };
+    GridMesh::new(m.w, m.h, (0..m.pos.len()).map(at).collect())
+}
+
+/// Mirror averaging takes every mirror of the grid in its own cloth frame, so upscaling a
+/// mirrored grid gives the mirrored output (a wrong frame or pixel mapping for one mirror
+/// breaks this); without it the nets depend on which way the grid runs.
+#[test]
+fn mirror_averaged_output_does_not_depend_on_which_way_the_grid_runs() {
+    let model = embedded_model().unwrap();
+    let frames = small_run(4);
+    let d = Domain::enclosing(&frames, 0.05);
+    let edge = frames[0].longest_edge() as f64;
+    let deviation = |mirrors: bool, rows: bool, cols: bool| {
+        let p = UpscaleParams { mirrors, ..UpscaleParams::default() };
+        let up = |seq: &[GridMesh]| upscale_meshes(&Cpu, &model, seq, &d, &p, &mut |_| {}).unwrap().0;
+        let mirrored: Vec<GridMesh> = frames.iter().map(|m| mirror_grid(m, rows, cols)).collect();
+        let (a, b) = (up(&frames), up(&mirrored));
+        let mut worst = 0.0f64;
+        for (a, b) in a.iter().zip(&b) {
+            let back = mirror_grid(b, rows, cols);
+            for (p, q) in a.pos.iter().zip(&back.pos) {
+                worst = worst.max(anisocb::geom::mesh::dist(*p, *q) as f64 / edge);
+            }
+        }
+        worst
+    };
+    for (rows, cols) in [(false, true), (true, false), (true, true)] {
+        let with = deviation(true, rows, cols);
+        assert!(with < INVARIANCE_TOL, "mirror rows {rows} cols {cols}: {with} LR edges");
+        let without = deviation(false, rows, cols);
+        assert!(without > 10.0 * INVARIANCE_TOL, "the test must tell: {without} LR edges without averaging");
+    }
+}
+
 /// A grid written the way Blender's OBJ exporter writes a UV-unwrapped cloth: header comments,
 /// `mtllib`, `o`, `v`, `vn`, `vt`, `s`, `usemtl`, then `v/vt/vn` quads wound (i,j) → (i+1,j) →
 /// (i+1,j+1) → (i,j+1) (opposite to `GridMesh::quads`), one `vt` per vertex; Blender writes one

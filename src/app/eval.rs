@@ -184,6 +184,13 @@ fn methods_for_run(
             name: format!("anisocb per frame (no temporal smoothing), eta={DEFAULT_ETA}"),
             meshes: images_to_sequence(&pf.hr, domain),
         });
+        let mp = UpscaleParams { mirrors: !p.mirrors, ..p };
+        let mi = upscale_images(ops, model, lr, domain, &mp, &mut |_| {})?;
+        let what = if mp.mirrors { "+ mirror averaging" } else { "without mirror averaging" };
+        out.push(Method {
+            name: format!("anisocb {what}, eta={DEFAULT_ETA}"),
+            meshes: images_to_sequence(&mi.hr, domain),
+        });
     }
     for &eta in etas {
         out.push(Method {

@@ -73,6 +73,12 @@ pub struct Args {
     /// a lot (rubber, strongly twisted strips), where it makes the result worse.
     #[arg(long, default_value_t = crate::sr::upscale::DEFAULT_STRAIN_ITERS)]
     pub strain_iters: usize,
+    /// Average the nets over the grid's four mirror images (as given, flipped left-right,
+    /// top-bottom, both; each in its own cloth frame): the detail no longer depends on which
+    /// way the grid runs, and what one view invents is averaged out (smoother shading, less
+    /// flicker). 4× the network time; `--mirrors false` for one pass.
+    #[arg(long, default_value_t = crate::sr::upscale::DEFAULT_MIRRORS, action = clap::ArgAction::Set)]
+    pub mirrors: bool,
     /// Keep the outermost ring of vertices exactly where the interpolated input puts them
     /// (the outline is then the LR outline's interpolation, whatever the nets predict there).
     /// Off by default: the nets correct the border too, which measured closer to the truth.
@@ -554,6 +560,7 @@ pub fn run(a: Args) -> Result<()> {
         temporal: a.temporal,
         strain_iters: a.strain_iters,
         pin_border: a.pin_border,
+        mirrors: a.mirrors,
     };
     let start = Instant::now();
     // A point cache plays on an HR rest mesh: the rest OBJ upscaled on its own.

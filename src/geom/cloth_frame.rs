@@ -206,6 +206,19 @@ impl ClothFrame {
     }
 }
 
+/// The grid's four mirror images, as (flip rows, flip columns): the grid as given, flipped
+/// left-right, top-bottom, both. Each is the same surface with another parametrisation.
+pub const GRID_MIRRORS: [(bool, bool); 4] = [(false, false), (false, true), (true, false), (true, true)];
+
+/// Which net coordinates a grid mirror reverses (`n ↦ 1 − n`), given the frame the mirrored
+/// grid gets from [`ClothFrame::of_mesh`]: flipping the columns turns q = (column, row) into
+/// (−column, row) about the centre, so M's first column, e1 and e3 = e1 × e2 change sign and
+/// the mirrored frame is the original turned 180° about e2 (origin and unit unchanged);
+/// flipping the rows does the same to e2 and e3. Exact wherever M has full rank.
+pub fn mirrored_axes(flip_rows: bool, flip_cols: bool) -> [bool; 3] {
+    [flip_cols, flip_rows, flip_rows ^ flip_cols]
+}
+
 /// Orthonormal polar factor `[a b]·(SᵀS)^(−1/2)` of the 3×2 matrix with columns a, b; when the
 /// matrix has (nearly) lost rank, Gram–Schmidt starting from the longer column.
 fn polar_3x2(a: [f64; 3], b: [f64; 3]) -> ([f64; 3], [f64; 3]) {
@@ -307,6 +320,30 @@ mod tests {
                 + r[0][2] * (r[1][0] * r[2][1] - r[1][1] * r[2][0])
         };
         assert!((det - 1.0).abs() < 1e-12, "a proper rotation, det {det}");
+    }
+
+    #[test]
+    fn a_mirrored_grid_sees_the_cloth_turned_180_degrees_as_mirrored_axes_says() {
+        let (w, h) = (9, 7);
+        let m = wavy(w, h);
+        let f = ClothFrame::of_mesh(&m);
+        for (rows, cols) in GRID_MIRRORS {
+            let at = |i: usize, j: usize| {
+                let (si, sj) = (if cols { w - 1 - i } else { i }, if rows { h - 1 - j } else { j });
+                m.pos[sj * w + si]
+            };
+            let mirrored = GridMesh::new(w, h, (0..w * h).map(|k| at(k % w, k / w)).collect());
+            let fm = ClothFrame::of_mesh(&mirrored);
+            let axes = mirrored_axes(rows, cols);
+            for (k, p) in mirrored.pos.iter().enumerate() {
+                let a = fm.to_net().point(p.map(|v| v as f64));
+                let b = f.to_net().point(p.map(|v| v as f64));
+                for c in 0..3 {
+                    let want = if axes[c] { 1.0 - b[c] } else { b[c] };
+                    assert!((a[c] - want).abs() < 1e-9, "mirror {rows} {cols}, vertex {k}, axis {c}");
+                }
+            }
+        }
     }
 
     #[test]

@@ -10,7 +10,7 @@
 //! uninterrupted run would, with nothing but `(seed, s)` saved.
 
 use crate::error::{Error, Result};
-use crate::geom::cloth_frame::InputFrame;
+use crate::geom::cloth_frame::{mirrored_axes, InputFrame, GRID_MIRRORS};
 use crate::io::json::Value;
 use crate::io::read_npz;
 use crate::nn::geometry_net::interpolate;
@@ -172,6 +172,24 @@ fn crop_into(src: &Tensor, n: usize, y0: usize, x0: usize, dst: &mut Tensor, b: 
     debug_assert!(y0 + h <= sh && x0 + w <= sw);
 }
 
+/// Mirror sample `b` of `t` (B, C, H, W) in place: its pixels by the grid mirror (`rows`,
+/// `cols`) and, for positions (C = 3), the coordinates `axes` marks (`n ↦ 1 − n`). An empty `t`
+/// is left alone.
+fn mirror_sample(t: &mut Tensor, b: usize, rows: bool, cols: bool, axes: [bool; 3]) {
+    if t.data.is_empty() {
+        return;
+    }
+    let mut m = t.slice_batch(b, 1).flipped(rows, cols);
+    let (_, c, h, w) = m.dims4();
+    if c == 3 {
+        for (plane, _) in m.data.chunks_exact_mut(h * w).zip(axes).filter(|(_, a)| *a) {
+            plane.iter_mut().for_each(|v| *v = 1.0 - *v);
+        }
+    }
+    let per = m.len();
+    t.data[b * per..(b + 1) * per].copy_from_slice(&m.data);
+}
+
 /// Seeded random patches from the training frames.
 #[derive(Clone, Debug)]
 pub struct PatchSampler {
@@ -180,6 +198,10 @@ pub struct PatchSampler {
     pub batch: usize,
     /// LR patch size (rows, cols); the HR patch is r× it at r× the offset.
     pub patch: (usize, usize),
+    /// Mirror each sample at random into one of the grid's four mirror images
+    /// ([`GRID_MIRRORS`]), LR, U and target together; in the cloth frame the positions get the
+    /// mirrored grid's own frame ([`mirrored_axes`]).
+    pub mirror: bool,
     perm_cache: Option<(u64, Vec<usize>)>,
 }
 
@@ -196,7 +218,14 @@ impl PatchSampler {
             return Err(Error::config("need at least one training frame, batch ≥ 1 and patch ≥ 1"));
         }
         let (h, w) = data.lr_size();
-        Ok(PatchSampler { train, seed, batch, patch: (patch.min(h), patch.min(w)), perm_cache: None })
+        Ok(PatchSampler {
+            train,
+            seed,
+            batch,
+            patch: (patch.min(h), patch.min(w)),
+            mirror: false,
+            perm_cache: None,
+        })
     }
 
     /// Frame of global sample `g`: epoch `g / n` visits the training frames in a seeded order.
@@ -236,6 +265,16 @@ impl PatchSampler {
             crop_into(target_src, n, r * y0, r * x0, &mut target, b);
             if let Some(u) = u {
                 crop_into(u, n, r * y0, r * x0, &mut ub, b);
+            }
+            if self.mirror {
+                let (rows, cols) = GRID_MIRRORS[rng.below(GRID_MIRRORS.len())];
+                let axes = match data.input_frame {
+                    InputFrame::Cloth => mirrored_axes(rows, cols),
+                    InputFrame::Domain => [false; 3],
+                };
+                for t in [&mut lr, &mut target, &mut ub] {
+                    mirror_sample(t, b, rows, cols, axes);
+                }
             }
         }
         Batch { lr, u: ub, target }

@@ -51,6 +51,9 @@ pub struct TrainOptions {
     pub laplacian_weight: f32,
     /// GeometryNet: weight of the edge-length term (`ops::loss::edge_length_mse`; 0 = off).
     pub length_weight: f32,
+    /// Mirror every training sample at random into one of the grid's four mirror images
+    /// ([`PatchSampler::mirror`]): the nets learn cloth whichever way its grid runs.
+    pub mirror: bool,
     /// Continue from `out/checkpoint.npz`.
     pub resume: bool,
     pub out: PathBuf,
@@ -79,6 +82,7 @@ impl Default for TrainOptions {
             edge_weight: 0.0,
             laplacian_weight: 0.0,
             length_weight: 0.0,
+            mirror: false,
             resume: false,
             out: PathBuf::from("out"),
         }
@@ -360,6 +364,7 @@ pub fn train(
     };
     let (train_idx, val_idx) = split(data.len(), opts.val_frac)?;
     let mut sampler = PatchSampler::new(data, train_idx.clone(), opts.seed, opts.batch, opts.patch)?;
+    sampler.mirror = opts.mirror;
     let u_all = (net == NetKind::Geometry).then(|| interpolate_all(ops, data, opts.config.upsample));
     let baseline_val = match &u_all {
         Some(u) if !val_idx.is_empty() => {
