@@ -219,6 +219,25 @@ pub fn mirrored_axes(flip_rows: bool, flip_cols: bool) -> [bool; 3] {
     [flip_cols, flip_rows, flip_rows ^ flip_cols]
 }
 
+/// Net-frame images (N, 3, H, W) mirrored by the grid mirror (`rows`, `cols`) and re-expressed
+/// in the frame the mirrored grid gets: positions (`as_points`) `n ↦ 1 − n` and vectors (a
+/// residual) `v ↦ −v` on the [`mirrored_axes`]. In the paper's domain frame (`frame` =
+/// [`InputFrame::Domain`]) the coordinates do not depend on the grid: pixels only. Its own
+/// inverse.
+pub fn mirror_net_images(t: &Tensor, rows: bool, cols: bool, frame: InputFrame, as_points: bool) -> Tensor {
+    let mut m = t.flipped(rows, cols);
+    let axes = match frame {
+        InputFrame::Cloth => mirrored_axes(rows, cols),
+        InputFrame::Domain => [false; 3],
+    };
+    let (_, c, h, w) = m.dims4();
+    debug_assert_eq!(c, 3, "mirror_net_images: xyz images");
+    for (plane, _) in m.data.chunks_exact_mut(h * w).zip(axes.iter().cycle()).filter(|(_, a)| **a) {
+        plane.iter_mut().for_each(|v| *v = if as_points { 1.0 - *v } else { -*v });
+    }
+    m
+}
+
 /// Orthonormal polar factor `[a b]·(SᵀS)^(−1/2)` of the 3×2 matrix with columns a, b; when the
 /// matrix has (nearly) lost rank, Gram–Schmidt starting from the longer column.
 fn polar_3x2(a: [f64; 3], b: [f64; 3]) -> ([f64; 3], [f64; 3]) {

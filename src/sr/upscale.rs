@@ -8,7 +8,7 @@
 
 use super::compose::compose;
 use crate::error::{Error, Result};
-use crate::geom::cloth_frame::{Affine, InputFrame, GRID_MIRRORS};
+use crate::geom::cloth_frame::{mirror_net_images, Affine, InputFrame, GRID_MIRRORS};
 use crate::geom::geometry_image::{images_to_sequence, sequence_to_images};
 use crate::geom::{Domain, GridMesh};
 use crate::io::npz::npz_from_bytes;
@@ -306,41 +306,31 @@ pub fn run_nets(
     let mut done = 0;
     while done < t {
         let n = params.batch.min(t - done);
-        let lr_batch = lr.slice_batch(done, n);
-        let mirrors = if params.mirrors { &GRID_MIRRORS[..] } else { &GRID_MIRRORS[..1] };
-        let (r_at, m_at) = (done * px3..(done + n) * px3, done * px1..(done + n) * px1);
-        for (k, &(rows, cols)) in mirrors.iter().enumerate() {
-            // (n, 3, h, w) in the domain, mirrored; each frame into the mirror's own frame.
-            let mut x = lr_batch.flipped(rows, cols);
-            let maps: Vec<_> = (0..n).map(|f| model.input_frame().image_maps(&x, f, domain)).collect();
-            for (img, m) in x.data.chunks_exact_mut(3 * h * w).zip(&maps) {
-                m.0.apply_image(img, true);
-            }
-            let o = model.forward_with(ops, &x, out.enhance_ran)?;
-            if k == 0 {
-                out.maps.extend(maps);
-                out.lr_net.data[done * 3 * h * w..(done + n) * 3 * h * w].copy_from_slice(&x.data);
-                out.interpolated.data[r_at.clone()].copy_from_slice(&o.u.data);
-                out.residual.data[r_at.clone()].copy_from_slice(&o.r.data);
-                out.boundary.data[m_at.clone()].copy_from_slice(&o.boundary.data);
-                out.enhance.data[m_at.clone()].copy_from_slice(&o.enhance.data);
-                continue;
-            }
-            // R from the mirror's frame into the unmirrored frame's (a vector: linear parts
-            // only), then everything back onto the unmirrored grid.
-            let mut r = o.r;
-            for (f, img) in r.data.chunks_exact_mut(px3).enumerate() {
-                out.maps[done + f].0.after(&maps[f].1).apply_image(img, false);
-            }
-            let add = |acc: &mut [f32], t: &Tensor| {
-                acc.iter_mut().zip(&t.flipped(rows, cols).data).for_each(|(a, b)| *a += b);
-            };
-            add(&mut out.residual.data[r_at.clone()], &r);
-            add(&mut out.boundary.data[m_at.clone()], &o.boundary);
-            add(&mut out.enhance.data[m_at.clone()], &o.enhance);
+        out.maps.extend((done..done + n).map(|f| model.input_frame().image_maps(lr, f, domain)));
+        let mut x = lr.slice_batch(done, n);
+        for (img, m) in x.data.chunks_exact_mut(3 * h * w).zip(&out.maps[done..]) {
+            m.0.apply_image(img, true);
         }
-        if mirrors.len() > 1 {
-            let s = 1.0 / mirrors.len() as f32;
+        out.lr_net.data[done * 3 * h * w..(done + n) * 3 * h * w].copy_from_slice(&x.data);
+        let o = model.forward_with(ops, &x, out.enhance_ran)?;
+        let (r_at, m_at) = (done * px3..(done + n) * px3, done * px1..(done + n) * px1);
+        out.interpolated.data[r_at.clone()].copy_from_slice(&o.u.data);
+        out.residual.data[r_at.clone()].copy_from_slice(&o.r.data);
+        out.boundary.data[m_at.clone()].copy_from_slice(&o.boundary.data);
+        out.enhance.data[m_at.clone()].copy_from_slice(&o.enhance.data);
+        // The other mirrors of the grid, each in its own frame; their outputs back onto this one.
+        let mirrors = if params.mirrors { &GRID_MIRRORS[1..] } else { &[] };
+        for &(rows, cols) in mirrors {
+            let frame = model.input_frame();
+            let o =
+                model.forward_with(ops, &mirror_net_images(&x, rows, cols, frame, true), out.enhance_ran)?;
+            let add = |acc: &mut [f32], t: &Tensor| acc.iter_mut().zip(&t.data).for_each(|(a, b)| *a += b);
+            add(&mut out.residual.data[r_at.clone()], &mirror_net_images(&o.r, rows, cols, frame, false));
+            add(&mut out.boundary.data[m_at.clone()], &o.boundary.flipped(rows, cols));
+            add(&mut out.enhance.data[m_at.clone()], &o.enhance.flipped(rows, cols));
+        }
+        if !mirrors.is_empty() {
+            let s = 1.0 / (1 + mirrors.len()) as f32;
             out.residual.data[r_at].iter_mut().for_each(|v| *v *= s);
             out.enhance.data[m_at.clone()].iter_mut().for_each(|v| *v *= s);
             out.boundary.data[m_at.clone()].iter_mut().for_each(|v| *v *= s);

@@ -10,7 +10,7 @@
 //! uninterrupted run would, with nothing but `(seed, s)` saved.
 
 use crate::error::{Error, Result};
-use crate::geom::cloth_frame::{mirrored_axes, InputFrame, GRID_MIRRORS};
+use crate::geom::cloth_frame::{mirror_net_images, InputFrame, GRID_MIRRORS};
 use crate::io::json::Value;
 use crate::io::read_npz;
 use crate::nn::geometry_net::interpolate;
@@ -172,20 +172,18 @@ fn crop_into(src: &Tensor, n: usize, y0: usize, x0: usize, dst: &mut Tensor, b: 
     debug_assert!(y0 + h <= sh && x0 + w <= sw);
 }
 
-/// Mirror sample `b` of `t` (B, C, H, W) in place: its pixels by the grid mirror (`rows`,
-/// `cols`) and, for positions (C = 3), the coordinates `axes` marks (`n ↦ 1 − n`). An empty `t`
-/// is left alone.
-fn mirror_sample(t: &mut Tensor, b: usize, rows: bool, cols: bool, axes: [bool; 3]) {
+/// Mirror sample `b` of `t` (B, C, H, W) in place by the grid mirror (`rows`, `cols`): pixels,
+/// and for positions (C = 3) the coordinates ([`mirror_net_images`]). An empty `t` is left alone.
+fn mirror_sample(t: &mut Tensor, b: usize, rows: bool, cols: bool, frame: InputFrame) {
     if t.data.is_empty() {
         return;
     }
-    let mut m = t.slice_batch(b, 1).flipped(rows, cols);
-    let (_, c, h, w) = m.dims4();
-    if c == 3 {
-        for (plane, _) in m.data.chunks_exact_mut(h * w).zip(axes).filter(|(_, a)| *a) {
-            plane.iter_mut().for_each(|v| *v = 1.0 - *v);
-        }
-    }
+    let one = t.slice_batch(b, 1);
+    let m = if one.shape[1] == 3 {
+        mirror_net_images(&one, rows, cols, frame, true)
+    } else {
+        one.flipped(rows, cols)
+    };
     let per = m.len();
     t.data[b * per..(b + 1) * per].copy_from_slice(&m.data);
 }
@@ -268,12 +266,8 @@ impl PatchSampler {
             }
             if self.mirror {
                 let (rows, cols) = GRID_MIRRORS[rng.below(GRID_MIRRORS.len())];
-                let axes = match data.input_frame {
-                    InputFrame::Cloth => mirrored_axes(rows, cols),
-                    InputFrame::Domain => [false; 3],
-                };
                 for t in [&mut lr, &mut target, &mut ub] {
-                    mirror_sample(t, b, rows, cols, axes);
+                    mirror_sample(t, b, rows, cols, data.input_frame);
                 }
             }
         }
