@@ -48,7 +48,7 @@ pub const DEFAULT_TEMPORAL: usize = 2;
 /// training nor held out) with the shipped model, against one pass: the smooth flag's
 /// normal-angle error 1.06 → 0.98× bicubic's and its STED temporal 1.015 → 0.981× (the only
 /// per-run targets the single pass missed there), its mean-curvature error 0.347 → 0.271 1/m,
-/// STED temporal lower on all five runs (−0.6 to −4.1 %); vertex RMSE −0.9 % (flag), −3.2 %
+/// STED temporal lower on all five runs (−0.6 to −4.2 %); vertex RMSE −0.9 % (flag), −3.2 %
 /// (smooth flag), but +0.9 % (drape), +4.0 % (twist) and +2.8 % (twist-materials), whose
 /// training clips twist one way, so a mirrored view is less familiar to the nets. Training
 /// with mirrored samples (`train --mirror-augment`) raised GeometryNet's validation loss by
