@@ -9,8 +9,9 @@ no harm) and the packages of tests/onnx/requirements.txt. Exits 1 if any check f
 1. nets:     the held-out demo frames (flag-sphere, seed 1000), put in the nets' input frame by
              anisocb itself (`anisocb dataset`, the same `InputFrame::image_maps` as upscale),
              through `anisocb audit` and through ONNX Runtime: u, r, boundary, enhance.
-2. pipeline: the README recipe in numpy (cloth frame, temporal smoothing, back to
-             the domain, Eq 12) around ONNX Runtime, against `anisocb upscale`'s geometry.npy.
+2. pipeline: the README recipe in numpy (cloth frame, the grid's four mirrors each in its
+             own frame, temporal smoothing, back to the domain, Eq 12) around ONNX Runtime,
+             against `anisocb upscale`'s geometry.npy.
 3. padding:  the same weights relabelled with the other padding (zero <-> replicate: the
              Conv(pads=1) or the Pad(mode=edge) + Conv path, whichever the shipped model does
              not use), exported and compared with anisocb's audit of that file.
@@ -201,17 +202,45 @@ def smooth_in_time(x, k):
     return out
 
 
-def upscale_numpy(sess, lr, domain, input_frame, eta=0.0, temporal=2, pin_border=False):
+def compose_maps(a, b):
+    """`Affine::after`: a ∘ b."""
+    return a[0] @ b[0], a[0] @ b[1] + a[1]
+
+
+def upscale_numpy(sess, lr, domain, input_frame, eta=0.0, temporal=2, pin_border=False, mirrors=True):
     """The anisocb upscale pipeline (defaults: border not pinned, temporal 2, eta 0, no strain
-    limit) around the ONNX model; lr (T, 3, H, W) in the domain -> (hr, boundary, enhance, x)."""
+    limit, mirror averaging) around the ONNX model; lr (T, 3, H, W) in the domain ->
+    (hr, boundary, enhance, x)."""
     bmin, bmax = domain[0], domain[1]
-    if input_frame == "cloth-frame":
-        maps = [frame_maps(img, bmin, bmax) for img in lr]
-    else:  # "domain": the nets read the stored geometry image; no temporal smoothing
-        ident = (np.eye(3), np.zeros(3))
-        maps, temporal = [(ident, ident)] * len(lr), 0
+    ident = (np.eye(3), np.zeros(3))
+    if input_frame != "cloth-frame":  # "domain": the nets read the stored geometry image
+        temporal = 0  # and their residuals are not smoothed in time
+
+    def frame_maps_of(img):
+        return frame_maps(img, bmin, bmax) if input_frame == "cloth-frame" else (ident, ident)
+
+    maps = [frame_maps_of(img) for img in lr]
     x = np.stack([apply(m[0], img, True) for m, img in zip(maps, lr)])
     o = dict(zip(OUTPUTS, sess.run(None, {"lr": x})))
+    if mirrors:
+        # `upscale --mirrors`: every mirror of the LR grid gets its own cloth frame, computed
+        # from scratch here (upscale.rs derives it from the grid mirror, cloth_frame.rs
+        # `mirror_net_images`); its R goes back through that frame to the domain and into the
+        # unmirrored frame, its maps back onto the unmirrored grid; the four are averaged.
+        r_sum, b_sum, e_sum = o["r"].astype(np.float64), o["boundary"].astype(np.float64), \
+            o["enhance"].astype(np.float64)
+        for rows, cols in ((False, True), (True, False), (True, True)):
+            axes = tuple(ax for ax, f in ((-2, rows), (-1, cols)) if f)
+            lr_m = np.ascontiguousarray(np.flip(lr, axis=axes))
+            maps_m = [frame_maps_of(img) for img in lr_m]
+            x_m = np.stack([apply(m[0], img, True) for m, img in zip(maps_m, lr_m)])
+            om = dict(zip(OUTPUTS, sess.run(None, {"lr": x_m})))
+            r_m = np.stack([apply(compose_maps(m[0], mm[1]), img, False)
+                            for m, mm, img in zip(maps, maps_m, om["r"])])
+            r_sum += np.flip(r_m, axis=axes)
+            b_sum += np.flip(om["boundary"], axis=axes)
+            e_sum += np.flip(om["enhance"], axis=axes)
+        o["r"], o["boundary"], o["enhance"] = (np.float32(v / 4) for v in (r_sum, b_sum, e_sum))
     gb = o["boundary"].copy()
     if pin_border:  # `upscale --pin-border`: set_border
         gb[:, :, 0, :] = gb[:, :, -1, :] = gb[:, :, :, 0] = gb[:, :, :, -1] = 1.0
@@ -289,8 +318,8 @@ def main():
         got, t_ort, t_audit = check_nets(exe, env, work, "demo", a.weights, sess, x, failures)
 
         # 2. The whole pipeline: numpy + ORT vs anisocb upscale (defaults: eta 0, temporal 2).
-        print(f"\n2. pipeline: README recipe (numpy cloth frame + ORT + temporal 2 + Eq 12, "
-              f"eta 0) vs anisocb upscale")
+        print(f"\n2. pipeline: README recipe (numpy cloth frame + ORT on the grid's four mirrors + "
+              f"temporal 2 + Eq 12, eta 0) vs anisocb upscale")
         up = os.path.join(work, "up")
         t_up, _ = run([exe, "upscale", os.path.join(run_dir, "lr"), "--weights", a.weights, "--out", up,
                        "--maps", "--threads", str(a.threads)], env=env)
