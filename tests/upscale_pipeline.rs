@@ -468,12 +468,14 @@ fn frame_slices_concatenate_to_the_whole_shot_byte_for_byte() {
     }
     let inp = input.to_str().unwrap();
     let (whole, sliced) = (dir.join("whole"), dir.join("sliced"));
-    upscale_cli(&[inp, "--out", whole.to_str().unwrap()]);
+    // Temporal smoothing on (off by default), so the slices need their neighbours' frames.
+    let up = |args: &[&str]| upscale_cli(&[args, &["--temporal", "2"]].concat());
+    up(&[inp, "--out", whole.to_str().unwrap()]);
     // Slices of different lengths, chunks and batches, smaller than the temporal window.
     let s = sliced.to_str().unwrap();
-    upscale_cli(&[inp, "--out", s, "--frames", "0:2", "--chunk", "1"]);
-    upscale_cli(&[inp, "--out", s, "--frames", "2:5", "--batch", "2"]);
-    upscale_cli(&[inp, "--out", s, "--frames", "5:", "--chunk", "3"]);
+    up(&[inp, "--out", s, "--frames", "0:2", "--chunk", "1"]);
+    up(&[inp, "--out", s, "--frames", "2:5", "--batch", "2"]);
+    up(&[inp, "--out", s, "--frames", "5:", "--chunk", "3"]);
     for k in 0..7 {
         let name = format!("f_{k:03}.obj");
         let a = std::fs::read(whole.join(&name)).unwrap();
@@ -486,8 +488,8 @@ fn frame_slices_concatenate_to_the_whole_shot_byte_for_byte() {
     anisocb::io::write_npy(&run.join("geometry.npy"), &sequence_to_images(&frames, &d)).unwrap();
     anisocb::io::write_npy(&run.join("domain.npy"), &d.to_tensor()).unwrap();
     let (wn, sn) = (dir.join("wn"), dir.join("sn"));
-    upscale_cli(&[run.to_str().unwrap(), "--out", wn.to_str().unwrap(), "--chunk", "2"]);
-    upscale_cli(&[run.to_str().unwrap(), "--out", sn.to_str().unwrap(), "--frames", "3:6"]);
+    up(&[run.to_str().unwrap(), "--out", wn.to_str().unwrap(), "--chunk", "2"]);
+    up(&[run.to_str().unwrap(), "--out", sn.to_str().unwrap(), "--frames", "3:6"]);
     let a = anisocb::io::read_npy(&wn.join("geometry.npy")).unwrap();
     let b = anisocb::io::read_npy(&sn.join("geometry.3-6.npy")).unwrap();
     assert_eq!(b.shape, [3, 3, 24, 24]);

@@ -179,9 +179,17 @@ fn methods_for_run(
             name: format!("anisocb + strain limit ({EVAL_STRAIN_ITERS} iterations), eta={DEFAULT_ETA}"),
             meshes: images_to_sequence(&sl.hr, domain),
         });
-        let pf = upscale_images(ops, model, lr, domain, &UpscaleParams { temporal: 0, ..p }, &mut |_| {})?;
+        // The other side of the temporal-smoothing choice: off if it is on by default, radius
+        // 2 (the earlier default) if it is off.
+        let tp = UpscaleParams { temporal: if p.temporal == 0 { 2 } else { 0 }, ..p };
+        let pf = upscale_images(ops, model, lr, domain, &tp, &mut |_| {})?;
+        let what = if tp.temporal == 0 {
+            "per frame (no temporal smoothing)".to_string()
+        } else {
+            format!("+ temporal smoothing (radius {})", tp.temporal)
+        };
         out.push(Method {
-            name: format!("anisocb per frame (no temporal smoothing), eta={DEFAULT_ETA}"),
+            name: format!("anisocb {what}, eta={DEFAULT_ETA}"),
             meshes: images_to_sequence(&pf.hr, domain),
         });
         let mp = UpscaleParams { mirrors: !p.mirrors, ..p };

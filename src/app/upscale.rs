@@ -63,8 +63,10 @@ pub struct Args {
     pub eta: f32,
     /// Temporal smoothing radius in frames of the predicted detail and of the boundary and
     /// wrinkle maps that gate it, in the cloth's own frame (1 = weights ¼ ½ ¼ over the
-    /// previous, this and the next frame; 0 = every frame on its own). Removes frame-to-frame
-    /// flicker of the detail; wrinkles that stay on the cloth are kept.
+    /// previous, this and the next frame; 0 = every frame on its own, the default). Off by
+    /// default because mirror averaging already removes the detail's frame-to-frame noise and
+    /// smoothing then measured worse (most on cloth that keeps turning); it can still calm a
+    /// one-pass (`--mirrors false`) result.
     #[arg(long, default_value_t = crate::sr::upscale::DEFAULT_TEMPORAL)]
     pub temporal: usize,
     /// Strain limit: iterations pulling the output's edge lengths toward those of the input

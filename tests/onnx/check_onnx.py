@@ -208,9 +208,9 @@ def compose_maps(a, b):
 
 
 def upscale_numpy(sess, lr, domain, input_frame, eta=0.0, temporal=2, pin_border=False, mirrors=True):
-    """The anisocb upscale pipeline (defaults: border not pinned, temporal 2, eta 0, no strain
-    limit, mirror averaging) around the ONNX model; lr (T, 3, H, W) in the domain ->
-    (hr, boundary, enhance, x)."""
+    """The anisocb upscale pipeline (defaults: border not pinned, eta 0, no strain limit,
+    mirror averaging; temporal smoothing is off by default, radius 2 here as the check runs it)
+    around the ONNX model; lr (T, 3, H, W) in the domain -> (hr, boundary, enhance, x)."""
     bmin, bmax = domain[0], domain[1]
     ident = (np.eye(3), np.zeros(3))
     if input_frame != "cloth-frame":  # "domain": the nets read the stored geometry image
@@ -317,12 +317,13 @@ def main():
               f"ONNX Runtime vs anisocb audit")
         got, t_ort, t_audit = check_nets(exe, env, work, "demo", a.weights, sess, x, failures)
 
-        # 2. The whole pipeline: numpy + ORT vs anisocb upscale (defaults: eta 0, temporal 2).
+        # 2. The whole pipeline: numpy + ORT vs anisocb upscale (defaults, eta 0, and temporal 2).
         print(f"\n2. pipeline: README recipe (numpy cloth frame + ORT on the grid's four mirrors + "
               f"temporal 2 + Eq 12, eta 0) vs anisocb upscale")
         up = os.path.join(work, "up")
+        # `--temporal 2` (off by default) so the check covers the temporal window too.
         t_up, _ = run([exe, "upscale", os.path.join(run_dir, "lr"), "--weights", a.weights, "--out", up,
-                       "--maps", "--threads", str(a.threads)], env=env)
+                       "--maps", "--temporal", "2", "--threads", str(a.threads)], env=env)
         lr_dom = np.load(os.path.join(run_dir, "lr", "geometry.npy"))
         domain = np.load(os.path.join(run_dir, "lr", "domain.npy"))
         hr, gb, ge, x_np = upscale_numpy(sess, lr_dom, domain, meta.get("anisocb.input_frame"))

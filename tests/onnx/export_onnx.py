@@ -160,9 +160,11 @@ in channels 0..2) already in the nets' input frame `{frame}`.
 Outputs, all (N, ., {r}H, {r}W) in the same frame: `u` = cubic align-corners x{r} of lr (Keys
 a = {a}: {upsample}); `r` = GeometryNet's
 residual R; `boundary` = Gamma_b = sigmoid(BoundaryNet logits); `enhance` = Gamma_e =
-sigmoid(EnhanceNet logits). anisocb's pipeline then (with `--pin-border` only) sets
-Gamma_b = 1 on the border pixels, averages R, Gamma_b and Gamma_e over +-2 frames (binomial
-1 4 6 4 1, cloth-frame models; `--temporal 0` skips it), maps u (points) and R
+sigmoid(EnhanceNet logits). anisocb's pipeline runs the model on the LR grid's four mirror
+images (each in its own frame; `--mirrors false` skips it) and averages R, Gamma_b and Gamma_e
+mapped back onto the grid, then (with `--pin-border` only) sets Gamma_b = 1 on the border
+pixels, with `--temporal k` (off by default) averages R, Gamma_b and Gamma_e over +-k frames
+(binomial, cloth-frame models), maps u (points) and R
 (displacements) back out of the frame and composes HR = U + (1 - Gamma_b)(1 + eta Gamma_e) R
 (eta = 0 by default); see tests/onnx/README.md."""
 
