@@ -1,5 +1,7 @@
-//! The upscale pipeline: LR geometry images → the nets' input frame → the three nets → Eq 12
-//! → back to the geometry image's domain → HR meshes (Eq 2, with the input's domain).
+//! The upscale pipeline: LR geometry images → the nets' input frame → the three nets (on the
+//! grid's four mirror images, averaged: [`UpscaleParams::mirrors`]) → optional temporal
+//! smoothing → back to the geometry image's domain → Eq 12 → HR meshes (Eq 2, with the input's
+//! domain).
 //!
 //! lr: (T, 3, H, W) → hr: (T, 3, rH, rW), maps (T, 1, rH, rW). Inputs and outputs are geometry
 //! images in the sequence's domain (Eq 1, the format on disk); a model trained in the cloth
