@@ -167,6 +167,9 @@ fn resume_refuses_changed_options_and_fresh_runs_refuse_to_overwrite() {
     let err = train(&Cpu, &data, NetKind::Enhance, &changed, &mut |_| {}).unwrap_err().to_string();
     println!("{err}");
     assert!(err.contains("batch"), "{err}");
+    let unmirrored = TrainOptions { resume: true, mirror: false, ..tiny_opts(dir.clone(), 4) };
+    let err = train(&Cpu, &data, NetKind::Enhance, &unmirrored, &mut |_| {}).unwrap_err().to_string();
+    assert!(err.contains("mirror"), "{err}");
     let other = synthetic(5, 6, 6);
     let err = train(
         &Cpu,

@@ -198,7 +198,7 @@ pub struct PatchSampler {
     pub patch: (usize, usize),
     /// Mirror each sample at random into one of the grid's four mirror images
     /// ([`GRID_MIRRORS`]), LR, U and target together; in the cloth frame the positions get the
-    /// mirrored grid's own frame ([`mirrored_axes`]).
+    /// mirrored grid's own frame ([`crate::geom::cloth_frame::mirrored_axes`]).
     pub mirror: bool,
     perm_cache: Option<(u64, Vec<usize>)>,
 }

@@ -185,7 +185,7 @@ fn validation_loss(
 }
 
 fn options_json(net: NetKind, o: &TrainOptions, data_fp: u64, step: u64) -> String {
-    Object::default()
+    let obj = Object::default()
         .str("format", "anisocb-checkpoint")
         .num("version", 1)
         .str("net", net.name())
@@ -202,8 +202,10 @@ fn options_json(net: NetKind, o: &TrainOptions, data_fp: u64, step: u64) -> Stri
         .num("edge_weight", o.edge_weight)
         .num("laplacian_weight", o.laplacian_weight)
         .num("length_weight", o.length_weight)
-        .str("data", &format!("{data_fp:016x}"))
-        .to_json()
+        .str("data", &format!("{data_fp:016x}"));
+    // Written only when on, so checkpoints from before the option still resume.
+    let obj = if o.mirror { obj.num("mirror", 1) } else { obj };
+    obj.to_json()
 }
 
 /// Options that must be equal for a resume to reproduce an uninterrupted run.
@@ -218,6 +220,11 @@ fn check_resumable(path: &Path, saved: &Object, net: NetKind, o: &TrainOptions, 
             Some(s) if s == v => {}
             Some(s) => diffs.push(format!("{k}: {s} in checkpoint vs {v} now")),
             None => diffs.push(format!("{k}: missing in checkpoint")),
+        }
+    }
+    for (k, v) in &saved.0 {
+        if k != "step" && now.get(k).is_none() {
+            diffs.push(format!("{k}: {v} in checkpoint, not set now"));
         }
     }
     if !diffs.is_empty() {
