@@ -91,3 +91,36 @@ fn mismatched_weights_are_refused_with_a_readable_message() {
     let err = load_net(&q, None).unwrap_err().to_string();
     assert!(err.contains("not an anisocb weights file"), "{err}");
 }
+
+/// A bundle may hold several GeometryNets (an ensemble over training seeds): it round-trips
+/// with all of them, R is the mean of their residuals and U the first's, and a member of
+/// another configuration is refused.
+#[test]
+fn ensemble_bundle_round_trips_and_averages_its_geometry_nets() {
+    let cfg = NetConfig::tiny();
+    let m = AnisoCb::new(cfg, 5).with_more_geometry(vec![Trunk::init(NetKind::Geometry, cfg, 6)]).unwrap();
+    let path = tmp("ensemble.npz");
+    m.save(&path).unwrap();
+    let back = match load_any(&path).unwrap() {
+        Weights::Bundle(b) => *b,
+        Weights::Net(_) => panic!("an ensemble bundle loaded as a single net"),
+    };
+    assert_eq!(back, m, "round trip keeps both GeometryNets bit for bit");
+    let x =
+        Tensor::from_vec(&[2, 3, 5, 7], (0..210).map(|v| ((v * 37 % 101) as f32) / 101.0).collect()).unwrap();
+    let out = m.forward(&anisocb::ops::Cpu, &x).unwrap();
+    let (u1, r1) = m.geometry.forward(&anisocb::ops::Cpu, &x).unwrap();
+    let (_, r2) = m.more_geometry[0].forward(&anisocb::ops::Cpu, &x).unwrap();
+    assert_eq!(out.u, u1);
+    let mean: Vec<f32> = r1.data.iter().zip(&r2.data).map(|(a, b)| (a + b) * 0.5).collect();
+    assert_eq!(out.r.data, mean);
+    assert!(r1.max_abs_diff(&r2) > 0.0, "the two members must differ for the test to tell");
+    let other = Trunk::init(NetKind::Geometry, cfg.with_padding(Padding::Replicate), 7);
+    let err = AnisoCb::new(cfg, 5).with_more_geometry(vec![other]).unwrap_err().to_string();
+    assert!(err.contains("differs from the first"), "{err}");
+    let err = AnisoCb::new(cfg, 5)
+        .with_more_geometry(vec![Trunk::init(NetKind::Boundary, cfg, 7)])
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("boundary"), "{err}");
+}

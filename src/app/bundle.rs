@@ -11,11 +11,13 @@ use std::path::{Path, PathBuf};
 #[derive(clap::Args, Debug)]
 #[command(after_help = "Example:
   anisocb bundle --geometry run/geometry/weights.npz --boundary benefit/boundary/weights.npz \\
-                 --enhance run/enhance/weights.npz --out weights.npz")]
+                 --enhance run/enhance/weights.npz --out weights.npz
+An ensemble: --geometry seed1/geometry/weights.npz --geometry seed2/geometry/weights.npz ...")]
 pub struct Args {
-    /// GeometryNet: a single-net weights file or a bundle (its geometry net is taken).
-    #[arg(long, value_name = "WEIGHTS")]
-    pub geometry: PathBuf,
+    /// GeometryNet: a single-net weights file or a bundle (its first geometry net is taken).
+    /// Given more than once: an ensemble whose residuals are averaged (same configuration).
+    #[arg(long, value_name = "WEIGHTS", required = true)]
+    pub geometry: Vec<PathBuf>,
     /// BoundaryNet: a single-net weights file or a bundle.
     #[arg(long, value_name = "WEIGHTS")]
     pub boundary: PathBuf,
@@ -43,12 +45,16 @@ fn net_of(path: &Path, kind: NetKind) -> Result<Trunk> {
 }
 
 pub fn run(a: Args) -> Result<()> {
+    let more = a.geometry[1..].iter().map(|p| net_of(p, NetKind::Geometry)).collect::<Result<Vec<_>>>()?;
     let b = AnisoCb::from_trunks(
-        net_of(&a.geometry, NetKind::Geometry)?,
+        net_of(&a.geometry[0], NetKind::Geometry)?,
         net_of(&a.boundary, NetKind::Boundary)?,
         net_of(&a.enhance, NetKind::Enhance)?,
-    )?;
+    )?
+    .with_more_geometry(more)?;
     b.save(&a.out)?;
-    eprintln!("bundle ({}) → {}", b.geometry.trunk.config, a.out.display());
+    let nets =
+        if a.geometry.len() > 1 { format!(", {} GeometryNets", a.geometry.len()) } else { String::new() };
+    eprintln!("bundle ({}{nets}) → {}", b.geometry.trunk.config, a.out.display());
     Ok(())
 }

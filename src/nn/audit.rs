@@ -45,14 +45,15 @@ pub fn audit_trunk(ops: &dyn Ops, trunk: &Trunk, x: &Tensor, dir: &Path) -> Resu
     }
 }
 
-/// [`audit_trunk`] for a weights file of either layout: a bundle writes `dir/<net>/…`.
+/// [`audit_trunk`] for a weights file of either layout: a bundle writes `dir/<net>/…`
+/// (`geometry1/` … for an ensemble's further GeometryNets).
 pub fn audit(ops: &dyn Ops, weights: &Weights, x: &Tensor, dir: &Path) -> Result<Vec<PathBuf>> {
     match weights {
         Weights::Net(t) => audit_trunk(ops, t, x, dir),
         Weights::Bundle(b) => {
             let mut all = Vec::new();
-            for t in b.trunks() {
-                all.extend(audit_trunk(ops, t, x, &dir.join(t.kind.name()))?);
+            for (name, t) in b.named_trunks() {
+                all.extend(audit_trunk(ops, t, x, &dir.join(name))?);
             }
             Ok(all)
         }

@@ -13,6 +13,9 @@ use crate::tensor::Tensor;
 #[derive(Clone, Debug, PartialEq)]
 pub struct AnisoCb {
     pub geometry: GeometryNet,
+    /// Further GeometryNets of the same configuration (e.g. trained with other seeds): R is the
+    /// mean of all GeometryNets' residuals, U the first's. Empty in a plain bundle.
+    pub more_geometry: Vec<GeometryNet>,
     pub boundary: MapNet,
     pub enhance: MapNet,
 }
@@ -35,6 +38,7 @@ impl AnisoCb {
     pub fn new(config: NetConfig, seed: u64) -> Self {
         AnisoCb {
             geometry: GeometryNet::new(config, seed),
+            more_geometry: Vec::new(),
             boundary: MapNet { trunk: Trunk::init(NetKind::Boundary, config, seed) },
             enhance: MapNet { trunk: Trunk::init(NetKind::Enhance, config, seed) },
         }
@@ -61,9 +65,30 @@ impl AnisoCb {
         }
         Ok(AnisoCb {
             geometry: GeometryNet { trunk: geometry },
+            more_geometry: Vec::new(),
             boundary: MapNet { trunk: boundary },
             enhance: MapNet { trunk: enhance },
         })
+    }
+
+    /// Add GeometryNets whose residuals are averaged with the first's; each must have the
+    /// first's configuration (size, scale, padding, interpolation, input frame).
+    pub fn with_more_geometry(mut self, trunks: Vec<Trunk>) -> Result<Self> {
+        for (k, t) in trunks.into_iter().enumerate() {
+            if t.kind != NetKind::Geometry {
+                return Err(Error::config(format!("GeometryNet {}: got a {} net", k + 2, t.kind.name())));
+            }
+            if t.config != self.geometry.trunk.config {
+                return Err(Error::config(format!(
+                    "GeometryNet {} ({}) differs from the first ({}): an ensemble needs one configuration",
+                    k + 2,
+                    t.config,
+                    self.geometry.trunk.config
+                )));
+            }
+            self.more_geometry.push(GeometryNet { trunk: t });
+        }
+        Ok(self)
     }
 
     pub fn scale(&self) -> usize {
@@ -75,8 +100,16 @@ impl AnisoCb {
         self.geometry.trunk.config.input_frame
     }
 
-    pub fn trunks(&self) -> [&Trunk; 3] {
-        [&self.geometry.trunk, &self.boundary.trunk, &self.enhance.trunk]
+    /// Every net with its name in a weights file: `geometry`, `geometry1`, `geometry2`, …
+    /// (the ensemble's further GeometryNets), `boundary`, `enhance`.
+    pub fn named_trunks(&self) -> Vec<(String, &Trunk)> {
+        let mut v = vec![(NetKind::Geometry.name().to_string(), &self.geometry.trunk)];
+        v.extend(
+            self.more_geometry.iter().enumerate().map(|(k, g)| (format!("geometry{}", k + 1), &g.trunk)),
+        );
+        v.push((NetKind::Boundary.name().to_string(), &self.boundary.trunk));
+        v.push((NetKind::Enhance.name().to_string(), &self.enhance.trunk));
+        v
     }
 
     /// lr (N, 3, H, W) → (U, R, Γb, Γe). Inference only: no activations are kept; run it in
@@ -90,7 +123,15 @@ impl AnisoCb {
     pub fn forward_with(&self, ops: &dyn Ops, lr: &Tensor, enhance: bool) -> Result<SrOutputs> {
         check_input(lr, "AnisoCb input")?;
         crate::ops::entered(ops, || {
-            let (u, r) = self.geometry.forward(ops, lr)?;
+            let (u, mut r) = self.geometry.forward(ops, lr)?;
+            if !self.more_geometry.is_empty() {
+                for g in &self.more_geometry {
+                    let rk = g.forward(ops, lr)?.1;
+                    r.data.iter_mut().zip(&rk.data).for_each(|(a, b)| *a += b);
+                }
+                let s = 1.0 / (1 + self.more_geometry.len()) as f32;
+                r.data.iter_mut().for_each(|v| *v *= s);
+            }
             let boundary = self.boundary.probabilities(ops, lr)?;
             let enhance =
                 if enhance { self.enhance.probabilities(ops, lr)? } else { Tensor::zeros(&boundary.shape) };

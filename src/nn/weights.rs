@@ -159,8 +159,8 @@ pub fn load_any(path: &Path) -> Result<Weights> {
 
 pub fn bundle_to_npz(b: &AnisoCb) -> NpzEntries {
     let mut e = NpzEntries::default();
-    for t in b.trunks() {
-        push_trunk(&mut e, t, &format!("{}.", t.kind.name()));
+    for (name, t) in b.named_trunks() {
+        push_trunk(&mut e, t, &format!("{name}."));
     }
     e
 }
@@ -168,11 +168,19 @@ pub fn bundle_to_npz(b: &AnisoCb) -> NpzEntries {
 pub fn bundle_from_npz(e: &NpzEntries, path: &Path) -> Result<AnisoCb> {
     let mut t = NetKind::ALL.iter().map(|k| trunk_from_npz(e, &format!("{}.", k.name()), path, None));
     let (g, b, n) = (t.next().unwrap()?, t.next().unwrap()?, t.next().unwrap()?);
+    // An ensemble's further GeometryNets: `geometry1.`, `geometry2.`, … while they last.
+    let mut more = Vec::new();
+    while e.file(&format!("geometry{}.config.json", more.len() + 1)).is_some() {
+        let prefix = format!("geometry{}.", more.len() + 1);
+        more.push(trunk_from_npz(e, &prefix, path, Some((NetKind::Geometry, g.config)))?);
+    }
+    let mut prefixes: Vec<String> = NetKind::ALL.iter().map(|k| format!("{}.", k.name())).collect();
+    prefixes.extend((1..=more.len()).map(|k| format!("geometry{k}.")));
     let other: Vec<String> = e
         .arrays
         .iter()
         .map(|(n, _)| n.clone())
-        .filter(|n| !NetKind::ALL.iter().any(|k| n.starts_with(&format!("{}.", k.name()))))
+        .filter(|n| !prefixes.iter().any(|p| n.starts_with(p.as_str())))
         .collect();
     if !other.is_empty() {
         return Err(Error::format(
@@ -180,11 +188,12 @@ pub fn bundle_from_npz(e: &NpzEntries, path: &Path) -> Result<AnisoCb> {
             format!("bundle has arrays outside its three nets: {}", listed(&other)),
         ));
     }
-    AnisoCb::from_trunks(g, b, n).map_err(|e| e.in_file(path))
+    AnisoCb::from_trunks(g, b, n).and_then(|m| m.with_more_geometry(more)).map_err(|e| e.in_file(path))
 }
 
 impl AnisoCb {
-    /// Write the bundle (`geometry.*`, `boundary.*`, `enhance.*`), atomically.
+    /// Write the bundle (`geometry.*`, `geometry1.*` … for an ensemble, `boundary.*`,
+    /// `enhance.*`), atomically.
     pub fn save(&self, path: &Path) -> Result<()> {
         write_npz(path, &bundle_to_npz(self))
     }

@@ -51,6 +51,9 @@ def load_bundle(path):
     """(configs, arrays) of a bundle: configs[kind] = parsed config.json, arrays[name] = float32."""
     with zipfile.ZipFile(path) as z:
         names = z.namelist()
+        if "geometry1.config.json" in names:
+            sys.exit(f"{path}: a bundle with several GeometryNets (an ensemble) is not exported yet; "
+                     "export each with `anisocb bundle` and average their r outputs")
         configs = {}
         for k in KINDS:
             entry = f"{k}.config.json"
