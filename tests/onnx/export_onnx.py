@@ -51,19 +51,24 @@ def load_bundle(path):
     """(configs, arrays) of a bundle: configs[kind] = parsed config.json, arrays[name] = float32."""
     with zipfile.ZipFile(path) as z:
         names = z.namelist()
-        if "geometry1.config.json" in names:
-            sys.exit(f"{path}: a bundle with several GeometryNets (an ensemble) is not exported yet; "
-                     "export each with `anisocb bundle` and average their r outputs")
         configs = {}
         for k in KINDS:
             entry = f"{k}.config.json"
             if entry not in names:
                 sys.exit(f"{path}: no '{entry}': not an anisocb bundle (weights/README.md)")
             configs[k] = json.loads(z.read(entry).decode("utf-8"))
+        # An ensemble's further GeometryNets (`geometry1.`, …): the first's configuration.
+        k = 1
+        while f"geometry{k}.config.json" in names:
+            c = json.loads(z.read(f"geometry{k}.config.json").decode("utf-8"))
+            if c != configs["geometry"]:
+                sys.exit(f"{path}: geometry{k}.config.json differs from geometry.config.json")
+            configs[f"geometry{k}"] = c
+            k += 1
     with np.load(path, allow_pickle=False) as npz:
         arrays = {n: npz[n] for n in npz.files if not n.endswith("config.json")}
     for k, c in configs.items():
-        if c.get("kind") != k:
+        if c.get("kind") != k.rstrip("0123456789"):
             sys.exit(f"{path}: {k}.config.json says kind {c.get('kind')!r}")
         for key, want in (("in_channels", IN_CHANNELS), ("tail_convs", TAIL_CONVS), ("kernel", KERNEL)):
             if key in c and c[key] != want:
@@ -108,50 +113,53 @@ class Graph:
         return name
 
 
-def add_trunk(g, kind, cfg, arrays, x):
-    """Append one net (`Trunk::run`) reading tensor `x`; returns its output (R or logits)."""
+def add_trunk(g, kind, cfg, arrays, x, prefix=None):
+    """Append one net (`Trunk::run`) reading tensor `x`; returns its output (R or logits).
+    `prefix`: its arrays' prefix in the bundle (default `kind`; `geometry1`, … for an
+    ensemble's further GeometryNets)."""
+    prefix = prefix or kind
     want = dict(param_shapes(kind, cfg))
-    have = {n[len(kind) + 1:] for n in arrays if n.startswith(kind + ".")}
+    have = {n[len(prefix) + 1:] for n in arrays if n.startswith(prefix + ".")}
     missing = [n for n in want if n not in have]
     extra = sorted(have - set(want))
-    wrong = [n for n, s in want.items() if n in have and arrays[f"{kind}.{n}"].shape != s]
+    wrong = [n for n, s in want.items() if n in have and arrays[f"{prefix}.{n}"].shape != s]
     if missing or extra or wrong:
-        sys.exit(f"{kind}: weights do not match config: missing {missing}, unexpected {extra}, "
+        sys.exit(f"{prefix}: weights do not match config: missing {missing}, unexpected {extra}, "
                  f"wrong shape {wrong}")
     for n in want:
-        a = arrays[f"{kind}.{n}"]
+        a = arrays[f"{prefix}.{n}"]
         if a.dtype != np.float32 or not np.all(np.isfinite(a)):
-            sys.exit(f"{kind}.{n}: expected finite float32, got {a.dtype}")
-        g.const(f"{kind}.{n}", a)
+            sys.exit(f"{prefix}.{n}: expected finite float32, got {a.dtype}")
+        g.const(f"{prefix}.{n}", a)
     replicate = cfg["padding"] == "replicate"
     p = KERNEL // 2
     pads_const = None
     if replicate:
-        pads_const = g.const(f"{kind}.pads", np.array([0, 0, p, p, 0, 0, p, p], dtype=np.int64))
+        pads_const = g.const(f"{prefix}.pads", np.array([0, 0, p, p, 0, 0, p, p], dtype=np.int64))
 
     def conv(name, inp):
-        tag = f"{kind}/{name}"
+        tag = f"{prefix}/{name}"
         if replicate:
             inp = g.node("Pad", [inp, pads_const], f"{tag}/pad_edge", mode="edge")
             pads = [0, 0, 0, 0]
         else:
             pads = [p, p, p, p]
-        return g.node("Conv", [inp, f"{kind}.{name}.weight", f"{kind}.{name}.bias"], tag,
+        return g.node("Conv", [inp, f"{prefix}.{name}.weight", f"{prefix}.{name}.bias"], tag,
                       kernel_shape=[KERNEL, KERNEL], strides=[1, 1], dilations=[1, 1],
                       group=1, pads=pads)
 
     a = conv("conv_in", x)
     for k in range(cfg["blocks"]):
         t = conv(f"blocks.{k}.conv1", a)
-        t = g.node("Relu", [t], f"{kind}/blocks.{k}.relu")
+        t = g.node("Relu", [t], f"{prefix}/blocks.{k}.relu")
         t = conv(f"blocks.{k}.conv2", t)
-        a = g.node("Add", [t, a], f"{kind}/blocks.{k}") if kind == "geometry" else t
+        a = g.node("Add", [t, a], f"{prefix}/blocks.{k}") if kind == "geometry" else t
     z = conv("upscale", a)
-    z = g.node("DepthToSpace", [z], f"{kind}/pixel_shuffle", blocksize=cfg["scale"], mode="CRD")
+    z = g.node("DepthToSpace", [z], f"{prefix}/pixel_shuffle", blocksize=cfg["scale"], mode="CRD")
     for i in range(TAIL_CONVS):
         z = conv(f"tail.{i}", z)
         if i + 1 < TAIL_CONVS:
-            z = g.node("Relu", [z], f"{kind}/tail.{i}.relu")
+            z = g.node("Relu", [z], f"{prefix}/tail.{i}.relu")
     return z
 
 
@@ -199,9 +207,16 @@ def build(path):
                mode="cubic", cubic_coeff_a=CUBIC_A[upsample], exclude_outside=0,
                coordinate_transformation_mode="align_corners")
     outs = {"u": u}
+    more = sorted((k for k in configs if k not in KINDS), key=lambda k: int(k[len("geometry"):]))
     for kind in KINDS:
         y = add_trunk(g, kind, configs[kind], arrays, "lr")
-        if kind == "geometry":
+        if kind == "geometry" and more:
+            # An ensemble (AnisoCb::forward_with): R = (R_0 + R_1 + …) · (1/K).
+            ys = [y] + [add_trunk(g, "geometry", configs[k], arrays, "lr", prefix=k) for k in more]
+            total = g.node("Sum", ys, "geometry/ensemble_sum")
+            scale = g.const("geometry.ensemble_scale", np.array(1.0 / len(ys), np.float32))
+            outs["r"] = g.node("Mul", [total, scale], "r")
+        elif kind == "geometry":
             outs["r"] = g.node("Identity", [y], "r")
         else:
             outs[kind] = g.node("Sigmoid", [y], kind)
@@ -225,7 +240,7 @@ def build(path):
         "anisocb.outputs": "u, r, boundary, enhance (AnisoCb::forward)",
         "anisocb.eq12": "hr = u + (1 - boundary) * (1 + eta * enhance) * r, boundary = 1 on border pixels, eta = 0.5",
     }
-    for k in KINDS:
+    for k in configs:
         meta[f"anisocb.{k}.config"] = json.dumps(configs[k], separators=(",", ":"))
     helper.set_model_props(model, meta)
     return model, configs, sha
