@@ -172,33 +172,32 @@ fn methods_for_run(
         name: format!("anisocb -boundary, eta={DEFAULT_ETA}"),
         meshes: images_to_sequence(&no_b, domain),
     });
+    // A row of the pipeline run with other settings than the defaults.
+    let variant = |m: &AnisoCb, params: &UpscaleParams, what: &str| -> Result<Method> {
+        let hr = upscale_images(ops, m, lr, domain, params, &mut |_| {})?.hr;
+        Ok(Method {
+            name: format!("anisocb {what}, eta={DEFAULT_ETA}"),
+            meshes: images_to_sequence(&hr, domain),
+        })
+    };
     if model.input_frame() == InputFrame::Cloth {
         let sp = UpscaleParams { strain_iters: EVAL_STRAIN_ITERS, ..p };
-        let sl = upscale_images(ops, model, lr, domain, &sp, &mut |_| {})?;
-        out.push(Method {
-            name: format!("anisocb + strain limit ({EVAL_STRAIN_ITERS} iterations), eta={DEFAULT_ETA}"),
-            meshes: images_to_sequence(&sl.hr, domain),
-        });
+        out.push(variant(model, &sp, &format!("+ strain limit ({EVAL_STRAIN_ITERS} iterations)"))?);
         // The other side of the temporal-smoothing choice: off if it is on by default, radius
         // 2 (the earlier default) if it is off.
         let tp = UpscaleParams { temporal: if p.temporal == 0 { 2 } else { 0 }, ..p };
-        let pf = upscale_images(ops, model, lr, domain, &tp, &mut |_| {})?;
         let what = if tp.temporal == 0 {
             "per frame (no temporal smoothing)".to_string()
         } else {
             format!("+ temporal smoothing (radius {})", tp.temporal)
         };
-        out.push(Method {
-            name: format!("anisocb {what}, eta={DEFAULT_ETA}"),
-            meshes: images_to_sequence(&pf.hr, domain),
-        });
+        out.push(variant(model, &tp, &what)?);
         let mp = UpscaleParams { mirrors: !p.mirrors, ..p };
-        let mi = upscale_images(ops, model, lr, domain, &mp, &mut |_| {})?;
-        let what = if mp.mirrors { "+ mirror averaging" } else { "without mirror averaging" };
-        out.push(Method {
-            name: format!("anisocb {what}, eta={DEFAULT_ETA}"),
-            meshes: images_to_sequence(&mi.hr, domain),
-        });
+        out.push(variant(
+            model,
+            &mp,
+            if mp.mirrors { "+ mirror averaging" } else { "without mirror averaging" },
+        )?);
     }
     for &eta in etas {
         out.push(Method {
@@ -207,11 +206,7 @@ fn methods_for_run(
         });
     }
     if let Some(pm) = &others.paper {
-        let pu = upscale_images(ops, pm, lr, domain, &p, &mut |_| {})?;
-        out.push(Method {
-            name: format!("anisocb paper config, eta={DEFAULT_ETA}"),
-            meshes: images_to_sequence(&pu.hr, domain),
-        });
+        out.push(variant(pm, &p, "paper config")?);
     }
     for (name, m) in &others.also {
         let pu = upscale_images(ops, m, lr, domain, &p, &mut |_| {})?;

@@ -126,8 +126,7 @@ impl AnisoCb {
             let (u, mut r) = self.geometry.forward(ops, lr)?;
             if !self.more_geometry.is_empty() {
                 for g in &self.more_geometry {
-                    let rk = g.forward(ops, lr)?.1;
-                    r.data.iter_mut().zip(&rk.data).for_each(|(a, b)| *a += b);
+                    ops.add_assign(&mut r, &g.forward(ops, lr)?.1);
                 }
                 let s = 1.0 / (1 + self.more_geometry.len()) as f32;
                 r.data.iter_mut().for_each(|v| *v *= s);

@@ -183,10 +183,7 @@ pub fn bundle_from_npz(e: &NpzEntries, path: &Path) -> Result<AnisoCb> {
         .filter(|n| !prefixes.iter().any(|p| n.starts_with(p.as_str())))
         .collect();
     if !other.is_empty() {
-        return Err(Error::format(
-            path,
-            format!("bundle has arrays outside its three nets: {}", listed(&other)),
-        ));
+        return Err(Error::format(path, format!("bundle has arrays outside its nets: {}", listed(&other))));
     }
     AnisoCb::from_trunks(g, b, n).and_then(|m| m.with_more_geometry(more)).map_err(|e| e.in_file(path))
 }

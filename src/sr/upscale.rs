@@ -326,11 +326,11 @@ pub fn run_nets(
         out.enhance.data[m_at.clone()].copy_from_slice(&o.enhance.data);
         // The other mirrors of the grid, each in its own frame; their outputs back onto this one.
         let mirrors = if params.mirrors { &GRID_MIRRORS[1..] } else { &[] };
+        let frame = model.input_frame();
+        let add = |acc: &mut [f32], t: &Tensor| acc.iter_mut().zip(&t.data).for_each(|(a, b)| *a += b);
         for &(rows, cols) in mirrors {
-            let frame = model.input_frame();
             let o =
                 model.forward_with(ops, &mirror_net_images(&x, rows, cols, frame, true), out.enhance_ran)?;
-            let add = |acc: &mut [f32], t: &Tensor| acc.iter_mut().zip(&t.data).for_each(|(a, b)| *a += b);
             add(&mut out.residual.data[r_at.clone()], &mirror_net_images(&o.r, rows, cols, frame, false));
             add(&mut out.boundary.data[m_at.clone()], &o.boundary.flipped(rows, cols));
             add(&mut out.enhance.data[m_at.clone()], &o.enhance.flipped(rows, cols));
