@@ -2,6 +2,7 @@
 //! motions (translation, scaling, constant offsets), Hausdorff equal to a brute-force search.
 
 use anisocb::eval::metrics::*;
+use anisocb::geom::mesh::{border_loop, ring_loop};
 use anisocb::geom::GridMesh;
 use anisocb::rng::Rng;
 use anisocb::Tensor;
@@ -67,6 +68,34 @@ fn boundary_length_ratio_of_uniformly_scaled_sheet_equals_scale() {
     assert!((border_length(&m) - 6.0).abs() < 1e-5);
     assert!((surface_area(&m) - 2.0).abs() < 1e-5);
     assert_eq!(border_loop(5, 4).len(), 2 * (5 + 4) - 4);
+}
+
+#[test]
+fn ring_loops_partition_the_grid_into_closed_neighbour_to_neighbour_loops() {
+    for (w, h) in [(1, 1), (1, 4), (2, 2), (5, 4), (7, 7), (9, 6), (8, 3)] {
+        let mut seen = vec![0u8; w * h];
+        for r in 0..w.max(h) {
+            let l = ring_loop(w, h, r);
+            if r == 0 {
+                assert_eq!(l, border_loop(w, h));
+            }
+            for &v in &l {
+                seen[v] += 1;
+                let (i, j) = (v % w, v / w);
+                assert_eq!(i.min(j).min(w - 1 - i).min(h - 1 - j), r, "{w}x{h} ring {r}: vertex {v}");
+            }
+            // Consecutive vertices (and last → first, where the ring is a real loop: at least
+            // 2 × 2) are grid neighbours.
+            let step = |a: usize, b: usize| (a % w).abs_diff(b % w) + (a / w).abs_diff(b / w);
+            for k in 1..l.len() {
+                assert_eq!(step(l[k - 1], l[k]), 1, "{w}x{h} ring {r}: {l:?}");
+            }
+            if w >= 2 * r + 2 && h >= 2 * r + 2 {
+                assert_eq!(step(l[l.len() - 1], l[0]), 1, "{w}x{h} ring {r}: {l:?}");
+            }
+        }
+        assert!(seen.iter().all(|&c| c == 1), "{w}x{h}: every vertex in exactly one ring: {seen:?}");
+    }
 }
 
 #[test]

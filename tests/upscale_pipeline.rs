@@ -121,6 +121,46 @@ fn temporal_smoothing_smooths_the_gating_maps_with_the_residual() {
     }
 }
 
+/// On Blender's draped cloth (a frame of the validation scene box-drape) the nets flatten the
+/// hanging hem's folds and, left alone, shorten the outline below the LR frame's own border
+/// polyline; the outline floor (`keep_outline`, off by default) keeps it at least that long,
+/// touching only the two outermost rings.
+#[test]
+fn outline_floor_keeps_a_blender_drape_border_as_long_as_the_lr_border() {
+    use anisocb::eval::metrics::border_length;
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/blender/box-drape-lr-0040.obj");
+    let lr = anisocb::geom::obj::read_obj_grid(&path).unwrap();
+    let frames = vec![lr.clone()];
+    let d = Domain::enclosing(&frames, 0.05);
+    let model = embedded_model().expect("embedded weights decode");
+    let run = |keep_outline| {
+        let p = UpscaleParams { keep_outline, ..UpscaleParams::default() };
+        upscale_meshes(&Cpu, &model, &frames, &d, &p, &mut |_| {}).unwrap().0.remove(0)
+    };
+    let (floored, free) = (run(true), run(false));
+    let (l_lr, l_floored, l_free) = (border_length(&lr), border_length(&floored), border_length(&free));
+    assert!(l_free < 0.999 * l_lr, "premise: without the floor the outline is short ({l_free} vs LR {l_lr})");
+    // Up to the f32 rounding of the domain round trip.
+    assert!(l_floored >= l_lr * (1.0 - 1e-5), "outline {l_floored} shorter than the LR outline {l_lr}");
+    assert!(
+        l_floored < l_lr * 1.001,
+        "the floor overshoots: {l_floored} vs {l_lr} (α is the largest that holds)"
+    );
+    assert!(!UpscaleParams::default().keep_outline, "the measured default: no floor (costs on the twists)");
+    // Only the two outermost rings move; the rest is the nets' result as it was.
+    let (w, h) = (floored.w, floored.h);
+    for j in 0..h {
+        for i in 0..w {
+            let ring = i.min(j).min(w - 1 - i).min(h - 1 - j);
+            let v = floored.idx(i, j);
+            if ring >= 2 {
+                assert_eq!(floored.pos[v], free.pos[v], "vertex ({i}, {j}) in ring {ring} moved");
+            }
+        }
+    }
+    assert!(floored.pos[floored.idx(0, h / 2)] != free.pos[free.idx(0, h / 2)], "the border did not move");
+}
+
 /// `pin_border` keeps the outermost ring exactly where the interpolated input puts it; without
 /// it (the default) the nets correct the border too.
 #[test]

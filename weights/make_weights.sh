@@ -11,7 +11,7 @@
 #
 # Held out of training, chosen before training (used by `anisocb demo`, the README's
 # evaluation and `eval`): the scenarios flag-sphere and twist-zero-g, seeds ≥ 7 of every
-# scenario, and every Blender scene (tests/blender/make_scenes.py).
+# scenario, and every Blender test scene (tests/blender/make_scenes.py).
 set -euo pipefail
 BIN=${BIN:-target/release/anisocb}
 WORK=${WORK:-target/weights-work}

@@ -167,7 +167,9 @@ fn methods_for_run(
             meshes: images_to_sequence(&hr, domain),
         });
     }
-    let no_b = compose(&up.interpolated, &up.residual, None, Some(&up.enhance), DEFAULT_ETA)?;
+    // Without BoundaryNet's gate (the outline floor as in the full pipeline).
+    let mut no_b = compose(&up.interpolated, &up.residual, None, Some(&up.enhance), DEFAULT_ETA)?;
+    up.keep_outline_all(&mut no_b);
     out.push(Method {
         name: format!("anisocb -boundary, eta={DEFAULT_ETA}"),
         meshes: images_to_sequence(&no_b, domain),
@@ -198,6 +200,14 @@ fn methods_for_run(
             &mp,
             if mp.mirrors { "+ mirror averaging" } else { "without mirror averaging" },
         )?);
+        // The outline floor only recomposes the same network outputs.
+        let mut flipped = up.clone();
+        flipped.keep_outline = !up.keep_outline;
+        let what = if flipped.keep_outline { "+ outline floor" } else { "without outline floor" };
+        out.push(Method {
+            name: format!("anisocb {what}, eta={DEFAULT_ETA}"),
+            meshes: images_to_sequence(&flipped.with_eta(DEFAULT_ETA)?, domain),
+        });
     }
     for &eta in etas {
         out.push(Method {

@@ -81,6 +81,14 @@ pub struct Args {
     /// flicker). 4× the network time; `--mirrors false` for one pass.
     #[arg(long, default_value_t = crate::sr::upscale::DEFAULT_MIRRORS, action = clap::ArgAction::Set)]
     pub mirrors: bool,
+    /// Outline floor: the output's border is never shorter than the LR frame's own border
+    /// polyline; where the nets' correction would shorten it, it is scaled down on the two
+    /// outermost rings of vertices just enough. For draped cloth from other tools (Blender
+    /// tablecloths), whose hanging hems fold more than the training cloth's and whose outline
+    /// the nets then shorten by up to 0.7 %. Off by default: on cloth whose true outline is
+    /// shorter than the LR one (strongly twisted strips) it costs accuracy near the border.
+    #[arg(long, default_value_t = crate::sr::upscale::DEFAULT_KEEP_OUTLINE, action = clap::ArgAction::Set)]
+    pub keep_outline: bool,
     /// Keep the outermost ring of vertices exactly where the interpolated input puts them
     /// (the outline is then the LR outline's interpolation, whatever the nets predict there).
     /// Off by default: the nets correct the border too, which measured closer to the truth.
@@ -563,6 +571,7 @@ pub fn run(a: Args) -> Result<()> {
         strain_iters: a.strain_iters,
         pin_border: a.pin_border,
         mirrors: a.mirrors,
+        keep_outline: a.keep_outline,
     };
     let start = Instant::now();
     // A point cache plays on an HR rest mesh: the rest OBJ upscaled on its own.

@@ -4,7 +4,7 @@
 //! in f64. Notation: `p_v` predicted, `g_v` ground-truth position, `N` vertices, `T` frames.
 
 use crate::error::{Error, Result};
-use crate::geom::mesh::vertex_normals;
+use crate::geom::mesh::{border_loop, vertex_normals};
 use crate::geom::vec3::{cross, dot, norm, sub};
 use crate::geom::GridMesh;
 use crate::io::json::{Object, Value};
@@ -182,21 +182,6 @@ fn directed_hausdorff(a: &[[f32; 3]], b: &[[f32; 3]]) -> f64 {
 pub fn hausdorff(pred: &GridMesh, gt: &GridMesh) -> Result<f32> {
     same_grid(pred, gt)?;
     Ok(directed_hausdorff(&pred.pos, &gt.pos).max(directed_hausdorff(&gt.pos, &pred.pos)).sqrt() as f32)
-}
-
-/// Vertices of the grid border in order, as a closed loop: row 0 left→right, last column
-/// top→bottom, last row right→left, column 0 bottom→top.
-pub fn border_loop(w: usize, h: usize) -> Vec<usize> {
-    let mut v = Vec::with_capacity(2 * (w + h));
-    v.extend(0..w);
-    v.extend((1..h).map(|j| j * w + w - 1));
-    if h > 1 {
-        v.extend((0..w - 1).rev().map(|i| (h - 1) * w + i));
-    }
-    if w > 1 {
-        v.extend((1..h - 1).rev().map(|j| j * w));
-    }
-    v
 }
 
 /// Perimeter of the grid border: `Σ_k |b_{k+1} − b_k|` over the closed [`border_loop`].

@@ -92,6 +92,32 @@ pub fn rest_uv(i: usize, j: usize, w: usize, h: usize) -> (f32, f32) {
     (u, v)
 }
 
+/// Vertices of the grid border in order, as a closed loop: row 0 left→right, last column
+/// top→bottom, last row right→left, column 0 bottom→top.
+pub fn border_loop(w: usize, h: usize) -> Vec<usize> {
+    ring_loop(w, h, 0)
+}
+
+/// Vertices of ring `r` of a `w × h` grid (r = 0: the border, 1: the ring inside it, …) in
+/// order, as a closed loop: the border loop of the sub-grid `r` vertices in from each side,
+/// [`border_loop`]'s order. Empty when the grid has no such ring.
+pub fn ring_loop(w: usize, h: usize, r: usize) -> Vec<usize> {
+    if w <= 2 * r || h <= 2 * r {
+        return Vec::new();
+    }
+    let (x0, y0, x1, y1) = (r, r, w - 1 - r, h - 1 - r);
+    let mut v = Vec::with_capacity(2 * (w + h));
+    v.extend((x0..=x1).map(|i| y0 * w + i));
+    v.extend((y0 + 1..=y1).map(|j| j * w + x1));
+    if y1 > y0 {
+        v.extend((x0..x1).rev().map(|i| y1 * w + i));
+    }
+    if x1 > x0 {
+        v.extend((y0 + 1..y1).rev().map(|j| j * w + x0));
+    }
+    v
+}
+
 /// Area-weighted vertex normals of the grid's triangulation (unit length; (0,0,1) if isolated).
 pub fn vertex_normals(mesh: &GridMesh) -> Vec<[f32; 3]> {
     let mut n = vec![[0.0f32; 3]; mesh.pos.len()];
