@@ -121,6 +121,12 @@ fn temporal_smoothing_smooths_the_gating_maps_with_the_residual() {
     }
 }
 
+/// Frame 40 of the Blender validation scene box-drape, LR (32 × 32).
+fn box_drape_frame() -> GridMesh {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/blender/box-drape-lr-0040.obj");
+    anisocb::geom::obj::read_obj_grid(&path).unwrap()
+}
+
 /// On Blender's draped cloth (a frame of the validation scene box-drape) the nets flatten the
 /// hanging hem's folds and, left alone, shorten the outline below the LR frame's own border
 /// polyline; the outline floor (`keep_outline`, off by default) keeps it at least that long,
@@ -128,8 +134,7 @@ fn temporal_smoothing_smooths_the_gating_maps_with_the_residual() {
 #[test]
 fn outline_floor_keeps_a_blender_drape_border_as_long_as_the_lr_border() {
     use anisocb::eval::metrics::border_length;
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/blender/box-drape-lr-0040.obj");
-    let lr = anisocb::geom::obj::read_obj_grid(&path).unwrap();
+    let lr = box_drape_frame();
     let frames = vec![lr.clone()];
     let d = Domain::enclosing(&frames, 0.05);
     let model = embedded_model().expect("embedded weights decode");
@@ -306,11 +311,19 @@ fn demo_and_eval_write_their_tables_and_pictures() {
 /// largest distance (in LR edge lengths) between that output and the unmoved output moved
 /// the same way.
 fn moved_deviation(frames: &[GridMesh], t: &dyn Fn(usize, [f64; 3]) -> [f64; 3]) -> f64 {
+    moved_deviation_with(frames, t, &UpscaleParams::default())
+}
+
+/// [`moved_deviation`] with pipeline options `p`.
+fn moved_deviation_with(
+    frames: &[GridMesh],
+    t: &dyn Fn(usize, [f64; 3]) -> [f64; 3],
+    p: &UpscaleParams,
+) -> f64 {
     let model = embedded_model().unwrap();
-    let p = UpscaleParams::default();
     let up = |seq: &[GridMesh]| {
         let d = Domain::enclosing(seq, 0.05);
-        upscale_meshes(&Cpu, &model, seq, &d, &p, &mut |_| {}).unwrap().0
+        upscale_meshes(&Cpu, &model, seq, &d, p, &mut |_| {}).unwrap().0
     };
     let moved: Vec<GridMesh> = frames
         .iter()
@@ -369,6 +382,24 @@ fn shipped_model_output_scales_with_the_cloth() {
     let frames = small_run(6);
     let dev = moved_deviation(&frames, &|k, p| p.map(|v| v * (1.4 + 0.1 * k as f64)));
     assert!(dev < INVARIANCE_TOL, "scale: {dev} LR edges");
+}
+
+/// The outline floor measures and blends in the cloth frame: on a frame where it acts, moving,
+/// turning and scaling the input together moves, turns and scales the output the same way.
+#[test]
+fn outline_floor_moves_turns_and_scales_with_the_cloth() {
+    let frames = vec![box_drape_frame()];
+    let p = UpscaleParams { keep_outline: true, ..UpscaleParams::default() };
+    let t = |_: usize, q: [f64; 3]| rotate([0.3, 1.0, -0.5], 1.1, q).map(|v| 2.5 * v);
+    let dev = moved_deviation_with(
+        &frames,
+        &|k, q| {
+            let r = t(k, q);
+            [r[0] + 3.0, r[1] - 1.0, r[2] + 0.5]
+        },
+        &p,
+    );
+    assert!(dev < INVARIANCE_TOL, "similarity with the outline floor: {dev} LR edges");
 }
 
 /// A grid mirrored left-right (`cols`) and/or top-bottom (`rows`): the same surface.

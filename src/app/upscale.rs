@@ -82,11 +82,12 @@ pub struct Args {
     #[arg(long, default_value_t = crate::sr::upscale::DEFAULT_MIRRORS, action = clap::ArgAction::Set)]
     pub mirrors: bool,
     /// Outline floor: the output's border is never shorter than the LR frame's own border
-    /// polyline; where the nets' correction would shorten it, it is scaled down on the two
-    /// outermost rings of vertices just enough. For draped cloth from other tools (Blender
-    /// tablecloths), whose hanging hems fold more than the training cloth's and whose outline
-    /// the nets then shorten by up to 0.7 %. Off by default: on cloth whose true outline is
-    /// shorter than the LR one (strongly twisted strips) it costs accuracy near the border.
+    /// polyline; where the nets' correction would shorten it, its part along the surface
+    /// normal (what flattens a hem's folds) is scaled down on the two outermost rings of
+    /// vertices just enough. For draped cloth from other tools (Blender tablecloths), whose
+    /// hanging hems fold more than the training cloth's and whose outline the nets then
+    /// shorten by up to 0.7 %. Off by default: on cloth whose true outline is shorter than the
+    /// LR one (strongly twisted strips) it costs about 1 % accuracy.
     #[arg(long, default_value_t = crate::sr::upscale::DEFAULT_KEEP_OUTLINE, action = clap::ArgAction::Set)]
     pub keep_outline: bool,
     /// Keep the outermost ring of vertices exactly where the interpolated input puts them
