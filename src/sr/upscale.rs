@@ -13,6 +13,7 @@ use crate::error::{Error, Result};
 use crate::geom::cloth_frame::{mirror_net_images, Affine, InputFrame, GRID_MIRRORS};
 use crate::geom::geometry_image::{images_to_sequence, sequence_to_images};
 use crate::geom::mesh::{border_loop, ring_loop};
+use crate::geom::vec3::{cross, dot, norm, sub};
 use crate::geom::{Domain, GridMesh};
 use crate::io::npz::npz_from_bytes;
 use crate::nn::bundle::AnisoCb;
@@ -567,12 +568,7 @@ fn loop_length_blend(hr: &[f32], base: &[f32], a: f32, ring: &[usize]) -> f32 {
         std::array::from_fn(|c| (base[c * px + v] + a * (hr[c * px + v] - base[c * px + v])) as f64)
     };
     let n = ring.len();
-    (0..n)
-        .map(|k| {
-            let (p, q) = (at(ring[k]), at(ring[(k + 1) % n]));
-            ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2)).sqrt()
-        })
-        .sum::<f64>() as f32
+    (0..n).map(|k| norm(sub(at(ring[k]), at(ring[(k + 1) % n])))).sum::<f64>() as f32
 }
 
 /// What the outline floor scales toward: `hr` (planar 3 × rH × rW, composed over the
@@ -583,22 +579,20 @@ fn loop_length_blend(hr: &[f32], base: &[f32], a: f32, ring: &[usize]) -> f32 {
 /// part of the correction, which places the border, is kept.
 pub fn outline_base(hr: &[f32], u: &[f32], hh: usize, hw: usize) -> Vec<f32> {
     let px = hh * hw;
+    let at = |img: &[f32], v: usize| -> [f32; 3] { std::array::from_fn(|c| img[c * px + v]) };
     let mut base = hr.to_vec();
     for r in 0..2 {
         for v in ring_loop(hw, hh, r) {
             let (x, y) = (v % hw, v / hw);
             let (x0, x1) = (y * hw + x.saturating_sub(1), y * hw + (x + 1).min(hw - 1));
             let (y0, y1) = (y.saturating_sub(1) * hw + x, (y + 1).min(hh - 1) * hw + x);
-            let du: [f32; 3] = std::array::from_fn(|c| u[c * px + x1] - u[c * px + x0]);
-            let dv: [f32; 3] = std::array::from_fn(|c| u[c * px + y1] - u[c * px + y0]);
-            let n =
-                [du[1] * dv[2] - du[2] * dv[1], du[2] * dv[0] - du[0] * dv[2], du[0] * dv[1] - du[1] * dv[0]];
-            let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+            let n = cross(sub(at(u, x1), at(u, x0)), sub(at(u, y1), at(u, y0)));
+            let len = norm(n);
             if len.is_nan() || len <= 1e-12 {
                 continue;
             }
             let n = n.map(|c| c / len);
-            let d: f32 = (0..3).map(|c| (hr[c * px + v] - u[c * px + v]) * n[c]).sum();
+            let d = dot(sub(at(hr, v), at(u, v)), n);
             for c in 0..3 {
                 base[c * px + v] -= d * n[c];
             }
