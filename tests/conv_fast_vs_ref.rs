@@ -5,7 +5,9 @@
 use anisocb::rng::Rng;
 #[path = "common/random.rs"]
 mod random;
-use anisocb::ops::conv2d::{conv2d, conv2d_backward, conv2d_backward_ref, conv2d_ref};
+use anisocb::ops::conv2d::{
+    conv2d, conv2d_backward, conv2d_backward_ref, conv2d_packed, conv2d_ref, PackedConv,
+};
 use anisocb::ops::Padding;
 use anisocb::Tensor;
 use random::TestData;
@@ -198,5 +200,28 @@ fn conv_fast_is_deterministic() {
         assert_eq!(a, bits(&run()), "{c} → {o} {pad:?}: two runs differ");
         let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
         assert_eq!(a, bits(&one.install(run)), "{c} → {o} {pad:?}: 1 thread differs from the default pool");
+    }
+}
+
+#[test]
+fn packed_weights_give_the_bits_of_packing_on_every_call() {
+    // Weights packed once (PackedConv, what inference keeps) and used on two inputs: the same
+    // bits as conv2d, which packs per call, on each kernel: pixel-vector (19 → 3), Winograd
+    // (32 → 23, 48 → 64), direct channel-vector (19 → 23 at 3×3, 16 → 20 at 5×3).
+    let mut rng = Rng::new(11);
+    for (c, o, kh, kw) in [(19, 3, 3, 3), (32, 23, 3, 3), (48, 64, 3, 3), (19, 23, 3, 3), (16, 20, 5, 3)] {
+        let w = rng.tensor(&[o, c, kh, kw], -1.0, 1.0);
+        let b = rng.tensor(&[o], -1.0, 1.0);
+        let packed = PackedConv::new(&w);
+        assert_eq!(packed.shape(), [o, c, kh, kw]);
+        for (n, h, wd, pad) in [(2, 13, 37, Padding::Replicate), (1, 8, 5, Padding::Zero)] {
+            let x = rng.tensor(&[n, c, h, wd], -1.0, 1.0);
+            let bits = |t: &Tensor| t.data.iter().map(|v| v.to_bits()).collect::<Vec<u32>>();
+            assert_eq!(
+                bits(&conv2d_packed(&x, &packed, Some(&b), pad)),
+                bits(&conv2d(&x, &w, Some(&b), pad)),
+                "{c} → {o} {kh}×{kw}, {n}×{h}×{wd} {pad:?}"
+            );
+        }
     }
 }

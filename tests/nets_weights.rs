@@ -4,7 +4,7 @@
 use anisocb::io::{read_npz, write_npz};
 use anisocb::nn::weights::{load_any, load_net, save_net, Weights};
 use anisocb::nn::{AnisoCb, NetConfig, NetKind, Trunk};
-use anisocb::ops::Padding;
+use anisocb::ops::{Cpu, Padding};
 use anisocb::Tensor;
 use std::path::PathBuf;
 
@@ -123,4 +123,31 @@ fn ensemble_bundle_round_trips_and_averages_its_geometry_nets() {
         .unwrap_err()
         .to_string();
     assert!(err.contains("boundary"), "{err}");
+}
+
+#[test]
+fn packed_bundle_gives_the_bits_of_the_plain_bundle() {
+    // `upscale` packs every conv's weights once (AnisoCb::packed) instead of on every call:
+    // an ensemble bundle, EnhanceNet on and off, a batch of two frames and a lone frame.
+    let cfg = NetConfig::small();
+    let m = AnisoCb::new(cfg, 5).with_more_geometry(vec![Trunk::init(NetKind::Geometry, cfg, 6)]).unwrap();
+    let nets = m.packed();
+    let mut rng = anisocb::rng::Rng::new(3);
+    for n in [2, 1] {
+        let mut x = Tensor::zeros(&[n, 3, 13, 18]);
+        x.data.iter_mut().for_each(|v| *v = rng.uniform() - 0.5);
+        for enhance in [true, false] {
+            let (a, b) =
+                (m.forward_with(&Cpu, &x, enhance).unwrap(), nets.forward_with(&Cpu, &x, enhance).unwrap());
+            for (what, p, q) in [
+                ("U", &a.u, &b.u),
+                ("R", &a.r, &b.r),
+                ("Γb", &a.boundary, &b.boundary),
+                ("Γe", &a.enhance, &b.enhance),
+            ] {
+                let bits = |t: &Tensor| t.data.iter().map(|v| v.to_bits()).collect::<Vec<u32>>();
+                assert_eq!(bits(p), bits(q), "{what} differs (batch {n}, enhance {enhance})");
+            }
+        }
+    }
 }

@@ -6,7 +6,7 @@ use anisocb::cloth::scenarios::run_at;
 use anisocb::cloth::tracking::bilinear_targets;
 use anisocb::cloth::{paired_run, run_single, Material, Scenario, ScenarioSpec};
 use anisocb::geom::geometry_image::{image_to_mesh, sequence_to_images};
-use anisocb::geom::mesh::dist;
+use anisocb::geom::mesh::{border_loop, closed_loop_length, dist};
 use anisocb::geom::{Domain, GridMesh};
 
 fn spec(s: Scenario, w: usize, h: usize, frames: usize) -> ScenarioSpec {
@@ -94,7 +94,7 @@ fn stretch_stays_within_a_few_percent_for_stiff_cloth() {
 
 #[test]
 fn nothing_penetrates_the_sphere_beyond_the_margin() {
-    for s in [Scenario::FlagSphere, Scenario::Drape] {
+    for s in [Scenario::FlagSphere, Scenario::Drape, Scenario::Drop] {
         let sp = spec(s, 20, 20, 120);
         let (_, scene) = sp.setup(sp.w, sp.h);
         let Sphere { center, radius } = scene.colliders.sphere.unwrap();
@@ -109,6 +109,34 @@ fn nothing_penetrates_the_sphere_beyond_the_margin() {
         assert!(closest >= radius - 1e-4, "{s}: a vertex is {closest} from the centre (radius {radius})");
         assert!(closest < radius + 0.05, "{s}: the cloth never reached the sphere (closest {closest})");
     }
+}
+
+#[test]
+fn a_dropped_sheet_lands_on_the_sphere_and_its_hem_hangs_in_folds() {
+    // Nothing pinned: the sheet falls, its middle comes to rest on top of the sphere and the
+    // free hem hangs down around it (the folds cloth from other tools has at its border).
+    let sp = spec(Scenario::Drop, 20, 20, 90);
+    let (cloth, scene) = sp.setup(sp.w, sp.h);
+    assert!(cloth.pins.is_empty(), "the dropped sheet has no pins");
+    let Sphere { center, radius } = scene.colliders.sphere.unwrap();
+    let frames = run_single(&sp).unwrap();
+    let last = frames.last().unwrap();
+    let top = center[1] + radius;
+    let mid = last.pos[last.idx(sp.w / 2, sp.h / 2)];
+    assert!(
+        (mid[1] - top).abs() < 0.03,
+        "the middle rests at y = {} m, the sphere's top is at {top}",
+        mid[1]
+    );
+    let ring = border_loop(sp.w, sp.h);
+    let hem_y = ring.iter().map(|&v| last.pos[v][1]).sum::<f32>() / ring.len() as f32;
+    assert!(hem_y < top - radius, "the hem hangs at y = {hem_y} m on average, the top is at {top}");
+    // Hanging folds: the border loop is far shorter in the ground plane than it is long.
+    let loop_len = closed_loop_length(&ring, |v| last.pos[v].map(f64::from));
+    let flat_len = closed_loop_length(&ring, |v| [last.pos[v][0] as f64, 0.0, last.pos[v][2] as f64]);
+    assert!(flat_len < 0.9 * loop_len, "border {loop_len} m long, {flat_len} m seen from above: no folds");
+    let lowest = last.pos.iter().map(|p| p[1]).fold(f32::INFINITY, f32::min);
+    assert!(lowest > -1e-4, "a vertex went through the ground: y = {lowest}");
 }
 
 #[test]

@@ -15,6 +15,7 @@
 set -euo pipefail
 BIN=${BIN:-target/release/anisocb}
 WORK=${WORK:-target/weights-work}
+OUT=${OUT:-weights}               # where the three .npz files go
 GEO_STEPS=${GEO_STEPS:-12000}  # GeometryNet (both input frames)
 MAP_STEPS=${MAP_STEPS:-1500}   # BoundaryNet, EnhanceNet
 FRAMES=${FRAMES:-150}
@@ -39,7 +40,7 @@ PADDING=${PADDING:-replicate}
 TRAIN=(--config small --lr 5e-4 --patch 32 --batch 8 --edge-weight "$EDGE" --length-weight "$LENGTH" --upsample "$UPSAMPLE" --padding "$PADDING")
 MAPS=(--gamma 0.3 --canny-low 0.12 --canny-high 0.16)
 rm -rf "$WORK"
-mkdir -p "$WORK/runs"
+mkdir -p "$WORK/runs" "$OUT"
 # Every seed is its own randomised scene (--vary): size, material, wind, obstacle, speeds.
 for scen in flag drape twist twist-materials; do
   for seed in $SEEDS; do
@@ -63,9 +64,9 @@ done
 # down). Chosen on the seed-6 validation runs (weights/README.md, "choices made after training").
 "$BIN" train --data "$WORK/data.npz" "${TRAIN[@]}" --seed 2 --net geometry --steps "$GEO_STEPS" --out "$WORK/train2/geometry"
 "$BIN" bundle --geometry "$WORK/train/weights.npz" --geometry "$WORK/train2/geometry/weights.npz" \
-  --boundary "$WORK/train/weights.npz" --enhance "$WORK/train/weights.npz" --out weights/anisocb-x2.npz
+  --boundary "$WORK/train/weights.npz" --enhance "$WORK/train/weights.npz" --out "$OUT/anisocb-x2.npz"
 "$BIN" train --data "$WORK/data.npz" --net linear --upsample "$UPSAMPLE" --out "$WORK/linear"
-cp "$WORK/linear/weights.npz" weights/linear-x2.npz
+cp "$WORK/linear/weights.npz" "$OUT/linear-x2.npz"
 "$BIN" train --data "$WORK/data-domain.npz" "${TRAIN[@]}" --seed 1 --net geometry --steps "$GEO_STEPS" --out "$WORK/domain"
-cp "$WORK/domain/weights.npz" weights/domain-x2.npz
-sha256sum weights/anisocb-x2.npz weights/domain-x2.npz weights/linear-x2.npz
+cp "$WORK/domain/weights.npz" "$OUT/domain-x2.npz"
+sha256sum "$OUT/anisocb-x2.npz" "$OUT/domain-x2.npz" "$OUT/linear-x2.npz"

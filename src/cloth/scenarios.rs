@@ -1,4 +1,4 @@
-//! The paper's scenarios (figures 8–13) as named presets, and the functions that run them at
+//! The paper's scenarios (figures 8–13), and a free sheet dropped on a sphere, as named presets, and the functions that run them at
 //! one resolution ([`run_single`]) or as a low/high-resolution pair ([`paired_run`]).
 //!
 //! The rest rectangle of a scenario is fixed by the spec's (low) resolution: width from the
@@ -22,6 +22,7 @@ pub enum Scenario {
     Twist,
     TwistMaterials,
     TwistZeroG,
+    Drop,
 }
 
 /// `--help` text listing the scenarios.
@@ -31,16 +32,18 @@ pub const SCENARIO_HELP: &str = "Scenarios (paper figures):
   drape            square sheet held at 4 corners, lowered and pulled in over a sphere (Fig 10)
   twist            horizontal strip twisted from both ends in opposite directions (Fig 11)
   twist-materials  the same strip made of three bands: silk, rubber, denim (Fig 12)
-  twist-zero-g     the twist without gravity (Fig 13)";
+  twist-zero-g     the twist without gravity (Fig 13)
+  drop             free square sheet dropped flat on a sphere; its hem falls into folds (not in the paper)";
 
 impl Scenario {
-    pub const ALL: [Scenario; 6] = [
+    pub const ALL: [Scenario; 7] = [
         Scenario::Flag,
         Scenario::FlagSphere,
         Scenario::Drape,
         Scenario::Twist,
         Scenario::TwistMaterials,
         Scenario::TwistZeroG,
+        Scenario::Drop,
     ];
 
     pub fn name(self) -> &'static str {
@@ -51,6 +54,7 @@ impl Scenario {
             Scenario::Twist => "twist",
             Scenario::TwistMaterials => "twist-materials",
             Scenario::TwistZeroG => "twist-zero-g",
+            Scenario::Drop => "drop",
         }
     }
 
@@ -72,7 +76,7 @@ impl Scenario {
     /// Default LR resolution (vertices, columns × rows), as in the paper.
     pub fn default_resolution(self) -> (usize, usize) {
         match self {
-            Scenario::Flag | Scenario::FlagSphere | Scenario::Drape => (32, 32),
+            Scenario::Flag | Scenario::FlagSphere | Scenario::Drape | Scenario::Drop => (32, 32),
             _ => (32, 10),
         }
     }
@@ -81,7 +85,7 @@ impl Scenario {
     fn width(self) -> f32 {
         match self {
             Scenario::Flag | Scenario::FlagSphere => 1.0,
-            Scenario::Drape => 1.4,
+            Scenario::Drape | Scenario::Drop => 1.4,
             _ => 2.0,
         }
     }
@@ -289,6 +293,21 @@ impl ScenarioSpec {
                         ground: Some(0.0),
                     };
                     (pos, pins, kin, calm, col)
+                }
+                Scenario::Drop => {
+                    // Horizontal (xz), nothing pinned, 5 cm above a sphere it falls onto; the
+                    // hem hangs and folds over it, unlike the drape's sheet held at its
+                    // corners (cloth from other tools is mostly such free hems).
+                    let [ox, oz] = var.sphere_offset;
+                    let radius = 0.35 * var.sphere_radius;
+                    let center = [ox, 0.05 + radius, oz];
+                    let y0 = center[1] + radius + 0.05;
+                    let pos = uv.iter().map(|&(u, v)| [(u - 0.5) * sx, y0, (v - 0.5) * sy]).collect();
+                    let col = Colliders { sphere: Some(Sphere { center, radius }), ground: Some(0.0) };
+                    // A breeze with gusts keeps the hem swaying once the sheet has landed.
+                    let wind =
+                        Wind::gusty([0.6 * var.wind, 0.0, 0.6 * var.wind], 1.0 * var.wind, 4, self.seed);
+                    (pos, Vec::new(), Kinematics::Static, wind, col)
                 }
                 Scenario::Twist | Scenario::TwistMaterials | Scenario::TwistZeroG => {
                     // Horizontal strip along x at y = 1.0 m; both end columns pinned and turned

@@ -4,7 +4,7 @@
 //! in f64. Notation: `p_v` predicted, `g_v` ground-truth position, `N` vertices, `T` frames.
 
 use crate::error::{Error, Result};
-use crate::geom::mesh::{border_loop, vertex_normals};
+use crate::geom::mesh::{border_loop, closed_loop_length, vertex_normals};
 use crate::geom::vec3::{cross, dot, norm, sub};
 use crate::geom::GridMesh;
 use crate::io::json::{Object, Value};
@@ -186,8 +186,7 @@ pub fn hausdorff(pred: &GridMesh, gt: &GridMesh) -> Result<f32> {
 
 /// Perimeter of the grid border: `Σ_k |b_{k+1} − b_k|` over the closed [`border_loop`].
 pub fn border_length(mesh: &GridMesh) -> f32 {
-    let l = border_loop(mesh.w, mesh.h);
-    (0..l.len()).map(|k| d2(mesh.pos[l[k]], mesh.pos[l[(k + 1) % l.len()]]).sqrt()).sum::<f64>() as f32
+    closed_loop_length(&border_loop(mesh.w, mesh.h), |v| mesh.pos[v].map(f64::from)) as f32
 }
 
 /// Surface area: `Σ_t ½ |(b − a) × (c − a)|` over the grid's triangles.

@@ -1,7 +1,7 @@
 //! A cloth is a regular grid of `w × h` vertices (columns × rows). Vertex (i, j) — column i,
 //! row j — is stored at `j * w + i`; in a geometry image it is pixel (row j, col i).
 
-use super::vec3::{cross, normalize_or, sub};
+use super::vec3::{cross, norm, normalize_or, sub};
 
 /// Positions in metres.
 #[derive(Clone, Debug, PartialEq)]
@@ -116,6 +116,13 @@ pub fn ring_loop(w: usize, h: usize, r: usize) -> Vec<usize> {
         v.extend((y0 + 1..y1).rev().map(|j| j * w + x0));
     }
     v
+}
+
+/// Length of the closed polyline through `at(ring[0]), at(ring[1]), …` and back to the first
+/// (in f64; `ring` as from [`ring_loop`]).
+pub fn closed_loop_length(ring: &[usize], at: impl Fn(usize) -> [f64; 3]) -> f64 {
+    let n = ring.len();
+    (0..n).map(|k| norm(sub(at(ring[k]), at(ring[(k + 1) % n])))).sum()
 }
 
 /// Area-weighted vertex normals of the grid's triangulation (unit length; (0,0,1) if isolated).

@@ -6,6 +6,7 @@ use super::layers::Trunk;
 use super::map_net::MapNet;
 use crate::error::{Error, Result};
 use crate::geom::cloth_frame::InputFrame;
+use crate::ops::conv2d::PackedConv;
 use crate::ops::Ops;
 use crate::tensor::Tensor;
 
@@ -121,20 +122,59 @@ impl AnisoCb {
     /// [`AnisoCb::forward`], with EnhanceNet run only if `enhance` (else Γe = 0, which is all
     /// Eq 12 reads of it at η = 0): a third less work for the default η.
     pub fn forward_with(&self, ops: &dyn Ops, lr: &Tensor, enhance: bool) -> Result<SrOutputs> {
+        self.run(ops, lr, enhance, None)
+    }
+
+    /// The bundle with every conv's weights packed once, for inference on many frames.
+    pub fn packed(&self) -> PackedAnisoCb<'_> {
+        PackedAnisoCb {
+            model: self,
+            packed: self.named_trunks().into_iter().map(|(_, t)| t.pack()).collect(),
+        }
+    }
+
+    /// `packed`: [`Trunk::pack`] of every net, in [`AnisoCb::named_trunks`] order.
+    fn run(
+        &self,
+        ops: &dyn Ops,
+        lr: &Tensor,
+        enhance: bool,
+        packed: Option<&[Vec<PackedConv>]>,
+    ) -> Result<SrOutputs> {
         check_input(lr, "AnisoCb input")?;
+        let pk = |k: usize| packed.map(|p| p[k].as_slice());
+        let (ng, net) = (1 + self.more_geometry.len(), |m: &MapNet, k: usize| match pk(k) {
+            Some(p) => m.probabilities_packed(ops, lr, p),
+            None => m.probabilities(ops, lr),
+        });
         crate::ops::entered(ops, || {
-            let (u, mut r) = self.geometry.forward(ops, lr)?;
-            if !self.more_geometry.is_empty() {
-                for g in &self.more_geometry {
-                    ops.add_assign(&mut r, &g.forward(ops, lr)?.1);
+            let (u, mut r) = self.geometry.forward_packed(ops, lr, pk(0))?;
+            if ng > 1 {
+                for (k, g) in self.more_geometry.iter().enumerate() {
+                    ops.add_assign(&mut r, &g.forward_packed(ops, lr, pk(1 + k))?.1);
                 }
-                let s = 1.0 / (1 + self.more_geometry.len()) as f32;
+                let s = 1.0 / ng as f32;
                 r.data.iter_mut().for_each(|v| *v *= s);
             }
-            let boundary = self.boundary.probabilities(ops, lr)?;
-            let enhance =
-                if enhance { self.enhance.probabilities(ops, lr)? } else { Tensor::zeros(&boundary.shape) };
+            let boundary = net(&self.boundary, ng)?;
+            let enhance = if enhance { net(&self.enhance, ng + 1)? } else { Tensor::zeros(&boundary.shape) };
             Ok(SrOutputs { u, r, boundary, enhance })
         })
+    }
+}
+
+/// An [`AnisoCb`] with every conv's weights packed once ([`AnisoCb::packed`]): the same
+/// outputs, bit for bit, without repacking the weights for every batch and mirror view. It
+/// borrows the bundle, so the weights cannot change under it.
+pub struct PackedAnisoCb<'a> {
+    model: &'a AnisoCb,
+    /// [`Trunk::pack`] of every net, in [`AnisoCb::named_trunks`] order.
+    packed: Vec<Vec<PackedConv>>,
+}
+
+impl PackedAnisoCb<'_> {
+    /// [`AnisoCb::forward_with`].
+    pub fn forward_with(&self, ops: &dyn Ops, lr: &Tensor, enhance: bool) -> Result<SrOutputs> {
+        self.model.run(ops, lr, enhance, Some(&self.packed))
     }
 }

@@ -5,6 +5,7 @@
 use super::config::{NetConfig, NetKind, IN_CHANNELS};
 use super::layers::Trunk;
 use crate::error::{Error, Result};
+use crate::ops::conv2d::PackedConv;
 use crate::ops::loss::{edge_length_mse, edge_mse, laplacian_mse};
 use crate::ops::{Interp, Ops};
 use crate::tensor::Tensor;
@@ -57,9 +58,22 @@ impl GeometryNet {
 
     /// lr (N, 3, H, W) → (U, R), both (N, 3, rH, rW). Inference: keeps no activations.
     pub fn forward(&self, ops: &dyn Ops, lr: &Tensor) -> Result<(Tensor, Tensor)> {
+        self.forward_packed(ops, lr, None)
+    }
+
+    /// [`GeometryNet::forward`] with the trunk's weights packed in advance if given ([`Trunk::pack`]).
+    pub fn forward_packed(
+        &self,
+        ops: &dyn Ops,
+        lr: &Tensor,
+        packed: Option<&[PackedConv]>,
+    ) -> Result<(Tensor, Tensor)> {
         check_input(lr, "GeometryNet input")?;
         let u = interpolate(ops, lr, self.trunk.config.scale, self.trunk.config.upsample);
-        let r = self.trunk.forward(ops, lr);
+        let r = match packed {
+            Some(p) => self.trunk.forward_packed(ops, lr, p),
+            None => self.trunk.forward(ops, lr),
+        };
         Ok((u, r))
     }
 

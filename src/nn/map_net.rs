@@ -11,6 +11,7 @@ use super::config::{NetConfig, NetKind};
 use super::geometry_net::{check_input, check_target};
 use super::layers::Trunk;
 use crate::error::{Error, Result};
+use crate::ops::conv2d::PackedConv;
 use crate::ops::Ops;
 use crate::tensor::Tensor;
 
@@ -41,6 +42,12 @@ impl MapNet {
     /// lr (N, 3, H, W) → Γ = σ(logits) (N, 1, rH, rW), probabilities in [0, 1].
     pub fn probabilities(&self, ops: &dyn Ops, lr: &Tensor) -> Result<Tensor> {
         Ok(ops.sigmoid(&self.logits(ops, lr)?))
+    }
+
+    /// [`MapNet::probabilities`] with the trunk's weights packed in advance ([`Trunk::pack`]).
+    pub fn probabilities_packed(&self, ops: &dyn Ops, lr: &Tensor, packed: &[PackedConv]) -> Result<Tensor> {
+        check_input(lr, "map net input")?;
+        Ok(ops.sigmoid(&self.trunk.forward_packed(ops, lr, packed)))
     }
 
     /// Mean BCE against `target` (N, 1, rH, rW) in [0, 1]; adds gradients into `grads` if given.

@@ -11,6 +11,21 @@ impl Ops for Cpu {
     fn conv2d(&self, x: &Tensor, w: &Tensor, b: Option<&Tensor>, pad: Padding) -> Tensor {
         conv2d::conv2d(x, w, b, pad)
     }
+    fn conv2d_packed(
+        &self,
+        x: &Tensor,
+        w: &Tensor,
+        packed: &conv2d::PackedConv,
+        b: Option<&Tensor>,
+        pad: Padding,
+    ) -> Tensor {
+        assert_eq!(
+            packed.shape().as_slice(),
+            w.shape.as_slice(),
+            "conv2d: weights packed from another shape"
+        );
+        conv2d::conv2d_packed(x, packed, b, pad)
+    }
     fn conv2d_backward(
         &self,
         x: &Tensor,

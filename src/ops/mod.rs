@@ -65,6 +65,19 @@ pub trait Ops: Sync {
     fn name(&self) -> &'static str;
     /// x: (N, C, H, W), w: (O, C, KH, KW), b: (O) → y: (N, O, H, W); stride 1, "same" padding.
     fn conv2d(&self, x: &Tensor, w: &Tensor, b: Option<&Tensor>, pad: Padding) -> Tensor;
+    /// [`Ops::conv2d`] with `packed` = [`conv2d::PackedConv::new`] of `w`, made once for many
+    /// calls (inference). Default: `packed` is not used.
+    fn conv2d_packed(
+        &self,
+        x: &Tensor,
+        w: &Tensor,
+        packed: &conv2d::PackedConv,
+        b: Option<&Tensor>,
+        pad: Padding,
+    ) -> Tensor {
+        let _ = packed;
+        self.conv2d(x, w, b, pad)
+    }
     /// Adds into dx (if given), dw, db (if given).
     #[allow(clippy::too_many_arguments)]
     fn conv2d_backward(

@@ -12,7 +12,7 @@ use super::compose::compose;
 use crate::error::{Error, Result};
 use crate::geom::cloth_frame::{mirror_net_images, Affine, InputFrame, GRID_MIRRORS};
 use crate::geom::geometry_image::{images_to_sequence, sequence_to_images};
-use crate::geom::mesh::{border_loop, ring_loop};
+use crate::geom::mesh::{border_loop, closed_loop_length, ring_loop};
 use crate::geom::vec3::{cross, dot, norm, sub};
 use crate::geom::{Domain, GridMesh};
 use crate::io::npz::npz_from_bytes;
@@ -366,6 +366,8 @@ pub fn run_nets(
         keep_outline: params.keep_outline && !params.pin_border && model.input_frame() == InputFrame::Cloth,
     };
     let (px3, px1) = (3 * hh * hw, hh * hw);
+    // Every conv's weights packed once for all batches and mirror views.
+    let nets = model.packed();
     let mut done = 0;
     while done < t {
         let n = params.batch.min(t - done);
@@ -375,7 +377,7 @@ pub fn run_nets(
             m.0.apply_image(img, true);
         }
         out.lr_net.data[done * 3 * h * w..(done + n) * 3 * h * w].copy_from_slice(&x.data);
-        let o = model.forward_with(ops, &x, out.enhance_ran)?;
+        let o = nets.forward_with(ops, &x, out.enhance_ran)?;
         let (r_at, m_at) = (done * px3..(done + n) * px3, done * px1..(done + n) * px1);
         out.interpolated.data[r_at.clone()].copy_from_slice(&o.u.data);
         out.residual.data[r_at.clone()].copy_from_slice(&o.r.data);
@@ -387,7 +389,7 @@ pub fn run_nets(
         let add = |acc: &mut [f32], t: &Tensor| acc.iter_mut().zip(&t.data).for_each(|(a, b)| *a += b);
         for &(rows, cols) in mirrors {
             let o =
-                model.forward_with(ops, &mirror_net_images(&x, rows, cols, frame, true), out.enhance_ran)?;
+                nets.forward_with(ops, &mirror_net_images(&x, rows, cols, frame, true), out.enhance_ran)?;
             add(&mut out.residual.data[r_at.clone()], &mirror_net_images(&o.r, rows, cols, frame, false));
             add(&mut out.boundary.data[m_at.clone()], &o.boundary.flipped(rows, cols));
             add(&mut out.enhance.data[m_at.clone()], &o.enhance.flipped(rows, cols));
@@ -567,8 +569,7 @@ fn loop_length_blend(hr: &[f32], base: &[f32], a: f32, ring: &[usize]) -> f32 {
     let at = |v: usize| -> [f64; 3] {
         std::array::from_fn(|c| (base[c * px + v] + a * (hr[c * px + v] - base[c * px + v])) as f64)
     };
-    let n = ring.len();
-    (0..n).map(|k| norm(sub(at(ring[k]), at(ring[(k + 1) % n])))).sum::<f64>() as f32
+    closed_loop_length(ring, at) as f32
 }
 
 /// What the outline floor scales toward: `hr` (planar 3 × rH × rW, composed over the

@@ -140,7 +140,7 @@ pub fn conv2d_backward_ref(
 // ---------------------------------------------------------------------------------------------
 
 use rayon::prelude::*;
-use wide::f32x16;
+use wide::{f32x16, f32x8};
 
 const L: usize = 16; // f32 lanes per vector
 const OB: usize = 64; // output channels per weight block (4 vectors)
@@ -266,18 +266,45 @@ fn pad_nhwc_to(
             return;
         };
         dst[(w + 2 * pw) * c..].fill(0.0);
+        // Interior columns: row sy of the c planes, transposed; then the pw border columns.
+        let src = &x.data[(ni * c * h + sy) * w..];
+        assert!(src.len() >= c.saturating_sub(1) * h * w + w && dst.len() >= (pw + w) * c);
+        // SAFETY: the c source rows (plane stride h·w) and the w destination pixels are in
+        // bounds (asserted).
+        unsafe { transpose(src.as_ptr(), h * w, c, w, dst.as_mut_ptr().add(pw * c), c) };
         for ci in 0..c {
-            let src = &x.data[((ni * c + ci) * h + sy) * w..][..w];
-            // Interior columns without a per-pixel padding test, then the pw border columns.
-            for (d, v) in dst[pw * c + ci..].iter_mut().step_by(c).zip(src) {
-                *d = *v;
-            }
             for xx in (0..pw).chain(pw + w..w + 2 * pw) {
-                dst[xx * c + ci] = pad_index(xx as isize - pw as isize, w, pad).map_or(0.0, |sx| src[sx]);
+                dst[xx * c + ci] =
+                    pad_index(xx as isize - pw as isize, w, pad).map_or(0.0, |sx| src[ci * h * w + sx]);
             }
         }
     });
     (out, hp, wp)
+}
+
+/// dst[j·ds + i] = src[i·ss + j] for i < rows, j < cols: a strided transpose, in 8×8 blocks
+/// through registers (`f32x8::transpose`: AVX shuffles), element by element at the ragged
+/// edges. Moves activations between NCHW planes and the kernels' channels-last rows.
+///
+/// # Safety
+/// Source rows i < rows hold cols floats at i·ss; destination rows j < cols hold rows floats
+/// at j·ds; the two do not overlap.
+unsafe fn transpose(src: *const f32, ss: usize, rows: usize, cols: usize, dst: *mut f32, ds: usize) {
+    let (r8, c8) = (rows / 8 * 8, cols / 8 * 8);
+    for i0 in (0..r8).step_by(8) {
+        for j0 in (0..c8).step_by(8) {
+            let m: [f32x8; 8] =
+                std::array::from_fn(|k| (src.add((i0 + k) * ss + j0) as *const f32x8).read_unaligned());
+            for (k, v) in f32x8::transpose(m).into_iter().enumerate() {
+                (dst.add((j0 + k) * ds + i0) as *mut f32x8).write_unaligned(v);
+            }
+        }
+    }
+    for i in 0..rows {
+        for j in if i < r8 { c8 } else { 0 }..cols {
+            *dst.add(j * ds + i) = *src.add(i * ss + j);
+        }
+    }
 }
 
 /// Weights packed for the micro-kernel: for each block of ≤ 64 output channels (rounded up to
@@ -634,21 +661,32 @@ macro_rules! dispatch_px {
     };
 }
 
-/// Forward for o ≤ [`SMALL_OUT_MAX`] output channels (same contract as [`conv2d_ref`]).
-fn conv2d_small_out(x: &Tensor, w: &Tensor, b: Option<&Tensor>, pad: Padding) -> Tensor {
-    let (n, c, h, wd) = x.dims4();
-    let (o, _, kh, kw) = w.dims4();
-    assert!((1..=SMALL_OUT_MAX).contains(&o));
-    let (ph, pw) = (kh / 2, kw / 2);
-    let nv = wd.div_ceil(L); // vectors per output row
-    let wq = nv * L + kw - 1;
-    let (xp, hp) = pad_planar(x, ph, pw, pad, wq);
-    // [c_in][ky][kx][o]
+/// Weights (O, C, KH, KW) as [`conv2d_small_out`] reads them: [c_in][ky][kx][o].
+fn pack_small_out(w: &Tensor) -> Vec<f32> {
+    let (o, c, kh, kw) = w.dims4();
     let mut wk = vec![0.0f32; c * kh * kw * o];
     for (i, v) in wk.iter_mut().enumerate() {
         let (oi, t) = (i % o, i / o);
         *v = w.data[oi * c * kh * kw + t];
     }
+    wk
+}
+
+/// Forward for o ≤ [`SMALL_OUT_MAX`] output channels (same contract as [`conv2d_ref`]), with
+/// the weights from [`pack_small_out`] of an (o, C, kh, kw) kernel.
+fn conv2d_small_out(
+    x: &Tensor,
+    wk: &[f32],
+    [o, kh, kw]: [usize; 3],
+    b: Option<&Tensor>,
+    pad: Padding,
+) -> Tensor {
+    let (n, c, h, wd) = x.dims4();
+    assert!((1..=SMALL_OUT_MAX).contains(&o) && wk.len() == c * kh * kw * o);
+    let (ph, pw) = (kh / 2, kw / 2);
+    let nv = wd.div_ceil(L); // vectors per output row
+    let wq = nv * L + kw - 1;
+    let (xp, hp) = pad_planar(x, ph, pw, pad, wq);
     let mut y = Tensor::for_overwrite(&[n, o, h, wd]);
     let yp = SyncPtr(y.data.as_mut_ptr());
     let row_len = nv * L;
@@ -690,20 +728,64 @@ fn conv2d_small_out(x: &Tensor, w: &Tensor, b: Option<&Tensor>, pad: Padding) ->
     y
 }
 
+/// A convolution's weights packed for the fast forward, once: inference runs the same weights
+/// on every frame and mirror view, and packing them (the Winograd kernel transform) costs about
+/// a fifth of a 1×64×32×32 forward. [`conv2d`] packs on every call; [`conv2d_packed`] takes
+/// them packed.
+pub struct PackedConv {
+    /// (O, C, KH, KW) of the weights packed.
+    shape: [usize; 4],
+    kind: PackedKind,
+}
+
+enum PackedKind {
+    /// O ≤ [`SMALL_OUT_MAX`]: [`pack_small_out`].
+    SmallOut(Vec<f32>),
+    /// 3×3 with C a multiple of 16: [`winograd::pack`].
+    Winograd(Packed),
+    /// Everything else: [`pack_weights`].
+    Direct(Packed),
+}
+
+impl PackedConv {
+    /// Pack weights (O, C, KH, KW), odd kernels, for the kernel [`conv2d`] would pick.
+    pub fn new(w: &Tensor) -> PackedConv {
+        let (o, c, kh, kw) = w.dims4();
+        assert!(kh % 2 == 1 && kw % 2 == 1, "conv2d: odd kernels only, got {kh}x{kw}");
+        let get = |oi: usize, ci: usize, ky: usize, kx: usize| w.data[((oi * c + ci) * kh + ky) * kw + kx];
+        let kind = if o <= SMALL_OUT_MAX {
+            PackedKind::SmallOut(pack_small_out(w))
+        } else if winograd::eligible(c, o, kh, kw) {
+            PackedKind::Winograd(winograd::pack(o, c, get))
+        } else {
+            PackedKind::Direct(pack_weights(o, c, kh, kw, get))
+        };
+        PackedConv { shape: [o, c, kh, kw], kind }
+    }
+
+    /// (O, C, KH, KW) of the weights packed.
+    pub fn shape(&self) -> [usize; 4] {
+        self.shape
+    }
+}
+
 /// Fast forward (same contract as [`conv2d_ref`]).
 pub fn conv2d(x: &Tensor, w: &Tensor, b: Option<&Tensor>, pad: Padding) -> Tensor {
+    conv2d_packed(x, &PackedConv::new(w), b, pad)
+}
+
+/// [`conv2d`] with the weights packed in advance: the same bits.
+pub fn conv2d_packed(x: &Tensor, packed: &PackedConv, b: Option<&Tensor>, pad: Padding) -> Tensor {
     let (n, c, h, wd) = x.dims4();
-    let (o, c2, kh, kw) = w.dims4();
+    let [o, c2, kh, kw] = packed.shape;
     assert_eq!(c, c2, "conv2d: x has {c} channels, weight expects {c2}");
-    assert!(kh % 2 == 1 && kw % 2 == 1, "conv2d: odd kernels only, got {kh}x{kw}");
-    if o <= SMALL_OUT_MAX {
-        return conv2d_small_out(x, w, b, pad);
-    }
+    let (pk, wino) = match &packed.kind {
+        PackedKind::SmallOut(wk) => return conv2d_small_out(x, wk, [o, kh, kw], b, pad),
+        PackedKind::Winograd(pk) => (pk, true),
+        PackedKind::Direct(pk) => (pk, false),
+    };
     let (ph, pw) = (kh / 2, kw / 2);
-    let wino = winograd::eligible(c, o, kh, kw);
     let (xp, hp, wp) = if wino { winograd::pad_input(x, pad) } else { pad_nhwc(x, ph, pw, pad, 0) };
-    let get = |oi: usize, ci: usize, ky: usize, kx: usize| w.data[((oi * c + ci) * kh + ky) * kw + kx];
-    let pk = if wino { winograd::pack(o, c, get) } else { pack_weights(o, c, kh, kw, get) };
     let bias: Option<Vec<f32>> = b.map(|b| {
         let mut v = vec![0.0; pk.opad];
         v[..o].copy_from_slice(&b.data[..o]);
@@ -713,19 +795,15 @@ pub fn conv2d(x: &Tensor, w: &Tensor, b: Option<&Tensor>, pad: Padding) -> Tenso
     let yp = SyncPtr(y.data.as_mut_ptr());
     let opad = pk.opad;
     let sink = move |ni: usize, yy: usize, row: &[f32]| {
-        for oi in 0..o {
-            // SAFETY: row (ni, yy) of every plane is written by this task only.
-            let dst =
-                unsafe { std::slice::from_raw_parts_mut(yp.get().add(((ni * o + oi) * h + yy) * wd), wd) };
-            for (xx, d) in dst.iter_mut().enumerate() {
-                *d = row[xx * opad + oi];
-            }
-        }
+        assert!(row.len() >= wd * opad);
+        // SAFETY: row (ni, yy) of every plane is written by this task only; the row holds wd
+        // pixels of opad ≥ o floats (asserted).
+        unsafe { transpose(row.as_ptr(), opad, wd, o, yp.get().add((ni * o * h + yy) * wd), h * wd) };
     };
     if wino {
-        winograd::correlate(&xp, n, hp, wp, c, &pk, bias.as_deref(), h, wd, &sink);
+        winograd::correlate(&xp, n, hp, wp, c, pk, bias.as_deref(), h, wd, &sink);
     } else {
-        correlate_rows(&xp, n, hp, wp, c, kh, kw, &pk, bias.as_deref(), h, wd, &single_rows(h), &sink);
+        correlate_rows(&xp, n, hp, wp, c, kh, kw, pk, bias.as_deref(), h, wd, &single_rows(h), &sink);
     }
     y
 }
