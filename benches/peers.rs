@@ -12,7 +12,7 @@
 //!   train  one GeometryNet training step (forward, backward, Adam) on 32 LR 16×16 patches
 
 use anisocb::nn::{AnisoCb, GeometryNet, NetConfig};
-use anisocb::ops::conv2d::PackedConv;
+use anisocb::ops::conv2d::{Epilogue, PackedConv};
 use anisocb::ops::{AdamParams, Cpu, Ops, Padding};
 use anisocb::train::adam::Adam;
 use anisocb::Tensor;
@@ -63,7 +63,14 @@ fn conv_rows() {
         // constant weights and `upscale` packs the nets' once per run.
         let pk = PackedConv::new(&wt);
         let ms = median_ms(10, 1.0, &mut || {
-            drop(std::hint::black_box(Cpu.conv2d_packed(&x, &wt, &pk, Some(&b), Padding::Zero)))
+            drop(std::hint::black_box(Cpu.conv2d_packed(
+                &x,
+                &wt,
+                &pk,
+                Some(&b),
+                Padding::Zero,
+                Epilogue::NONE,
+            )))
         });
         emit(&format!("conv {c}->{o} {n}x{c}x{h}x{w}"), ms);
     }

@@ -6,9 +6,9 @@ use anisocb::rng::Rng;
 #[path = "common/random.rs"]
 mod random;
 use anisocb::ops::conv2d::{
-    conv2d, conv2d_backward, conv2d_backward_ref, conv2d_packed, conv2d_ref, PackedConv,
+    conv2d, conv2d_backward, conv2d_backward_ref, conv2d_packed, conv2d_ref, Epilogue, PackedConv,
 };
-use anisocb::ops::Padding;
+use anisocb::ops::{activation, Padding};
 use anisocb::Tensor;
 use random::TestData;
 
@@ -204,10 +204,12 @@ fn conv_fast_is_deterministic() {
 }
 
 #[test]
-fn packed_weights_give_the_bits_of_packing_on_every_call() {
-    // Weights packed once (PackedConv, what inference keeps) and used on two inputs: the same
-    // bits as conv2d, which packs per call, on each kernel: pixel-vector (19 → 3), Winograd
-    // (32 → 23, 48 → 64), direct channel-vector (19 → 23 at 3×3, 16 → 20 at 5×3).
+fn packed_weights_and_fused_epilogues_give_the_bits_of_the_separate_ops() {
+    // Weights packed once (PackedConv, what inference keeps) and used on two inputs, with the
+    // residual add and the ReLU fused into the store (Epilogue): the same bits as conv2d, which
+    // packs per call, followed by add_assign and relu, on each kernel: pixel-vector (19 → 3),
+    // Winograd (32 → 23, 48 → 64), direct channel-vector (19 → 23 at 3×3, 16 → 20 at 5×3).
+    let bits = |t: &Tensor| t.data.iter().map(|v| v.to_bits()).collect::<Vec<u32>>();
     let mut rng = Rng::new(11);
     for (c, o, kh, kw) in [(19, 3, 3, 3), (32, 23, 3, 3), (48, 64, 3, 3), (19, 23, 3, 3), (16, 20, 5, 3)] {
         let w = rng.tensor(&[o, c, kh, kw], -1.0, 1.0);
@@ -216,11 +218,31 @@ fn packed_weights_give_the_bits_of_packing_on_every_call() {
         assert_eq!(packed.shape(), [o, c, kh, kw]);
         for (n, h, wd, pad) in [(2, 13, 37, Padding::Replicate), (1, 8, 5, Padding::Zero)] {
             let x = rng.tensor(&[n, c, h, wd], -1.0, 1.0);
-            let bits = |t: &Tensor| t.data.iter().map(|v| v.to_bits()).collect::<Vec<u32>>();
+            let skip = rng.tensor(&[n, o, h, wd], -1.0, 1.0);
+            let what = format!("{c} → {o} {kh}×{kw}, {n}×{h}×{wd} {pad:?}");
+            let plain = conv2d(&x, &w, Some(&b), pad);
             assert_eq!(
-                bits(&conv2d_packed(&x, &packed, Some(&b), pad)),
-                bits(&conv2d(&x, &w, Some(&b), pad)),
-                "{c} → {o} {kh}×{kw}, {n}×{h}×{wd} {pad:?}"
+                bits(&conv2d_packed(&x, &packed, Some(&b), pad, Epilogue::NONE)),
+                bits(&plain),
+                "{what}"
+            );
+            let relu = activation::relu(&plain);
+            assert!(relu.data.contains(&0.0) && relu.data.iter().any(|&v| v > 0.0));
+            assert_eq!(
+                bits(&conv2d_packed(&x, &packed, Some(&b), pad, Epilogue::RELU)),
+                bits(&relu),
+                "{what} relu"
+            );
+            let mut added = plain.clone();
+            activation::add_assign(&mut added, &skip);
+            let epi = Epilogue { skip: Some(&skip), relu: false };
+            assert_eq!(bits(&conv2d_packed(&x, &packed, Some(&b), pad, epi)), bits(&added), "{what} skip");
+            let epi = Epilogue { skip: Some(&skip), relu: true };
+            let both = activation::relu(&added);
+            assert_eq!(
+                bits(&conv2d_packed(&x, &packed, Some(&b), pad, epi)),
+                bits(&both),
+                "{what} skip, relu"
             );
         }
     }

@@ -10,7 +10,7 @@
 //! stride 1, "same" size, with bias. Every op goes through `&dyn Ops`.
 
 use super::config::{NetConfig, NetKind, IN_CHANNELS, KERNEL, TAIL_CONVS};
-use crate::ops::conv2d::PackedConv;
+use crate::ops::conv2d::{Epilogue, PackedConv};
 use crate::ops::{Ops, Padding};
 use crate::rng::{mix_seed, Rng};
 use crate::tensor::Tensor;
@@ -38,12 +38,21 @@ impl Conv {
         c
     }
 
-    /// x: (N, I, H, W) → (N, O, H, W); `packed`: this conv's weights packed ([`Trunk::pack`]).
-    pub fn forward(&self, ops: &dyn Ops, x: &Tensor, pad: Padding, packed: Option<&PackedConv>) -> Tensor {
-        match packed {
-            Some(p) => ops.conv2d_packed(x, &self.weight, p, Some(&self.bias), pad),
-            None => ops.conv2d(x, &self.weight, Some(&self.bias), pad),
-        }
+    /// x: (N, I, H, W) → (N, O, H, W).
+    pub fn forward(&self, ops: &dyn Ops, x: &Tensor, pad: Padding) -> Tensor {
+        ops.conv2d(x, &self.weight, Some(&self.bias), pad)
+    }
+
+    /// [`Conv::forward`] with this conv's weights packed ([`PackedConv::new`]), then `epi`.
+    pub fn forward_packed(
+        &self,
+        ops: &dyn Ops,
+        x: &Tensor,
+        pad: Padding,
+        packed: &PackedConv,
+        epi: Epilogue,
+    ) -> Tensor {
+        ops.conv2d_packed(x, &self.weight, packed, Some(&self.bias), pad, epi)
     }
 
     /// Adds into `grad` (dW, db) and into `dx` if given. x: the forward input, dy like the output.
@@ -221,28 +230,47 @@ impl Trunk {
         x: &Tensor,
         observe: &mut dyn FnMut(&str, &Tensor),
     ) -> Tensor {
-        self.run(ops, x, None, None, observe)
+        self.run(ops, x, None, observe)
     }
 
     pub fn forward(&self, ops: &dyn Ops, x: &Tensor) -> Tensor {
-        self.run(ops, x, None, None, &mut |_, _| {})
+        self.run(ops, x, None, &mut |_, _| {})
     }
 
-    /// [`Trunk::forward`] with the weights packed in advance (`packed` = [`Trunk::pack`]): the
-    /// same bits, without packing every conv's weights on every call.
+    /// [`Trunk::forward`] with the weights packed in advance (`packed` = [`Trunk::pack`]) and
+    /// the ReLUs and residual skips fused into the convs' stores ([`Epilogue`]): the same bits,
+    /// without packing the weights on every call or a pass of their own for the ReLUs and adds.
     pub fn forward_packed(&self, ops: &dyn Ops, x: &Tensor, packed: &[PackedConv]) -> Tensor {
-        assert_eq!(
-            packed.len(),
-            2 * self.blocks.len() + 2 + self.tail.len(),
-            "packed weights of another net"
-        );
-        self.run(ops, x, None, Some(packed), &mut |_, _| {})
+        let (nb, last) = (self.blocks.len(), self.tail.len() - 1);
+        assert_eq!(packed.len(), 2 * nb + 2 + self.tail.len(), "packed weights of another net");
+        let pad = self.config.padding;
+        let (_, c, _, _) = x.dims4();
+        assert_eq!(c, IN_CHANNELS, "trunk input must have {IN_CHANNELS} channels");
+        let mut a = self.conv_in.forward_packed(ops, x, pad, &packed[0], Epilogue::NONE);
+        for (k, b) in self.blocks.iter().enumerate() {
+            let r1 = b.conv1.forward_packed(ops, &a, pad, &packed[1 + 2 * k], Epilogue::RELU);
+            let skip = self.kind.residual().then_some(&a);
+            a = b.conv2.forward_packed(ops, &r1, pad, &packed[2 + 2 * k], Epilogue { skip, relu: false });
+        }
+        let u = self.upscale.forward_packed(ops, &a, pad, &packed[1 + 2 * nb], Epilogue::NONE);
+        let mut z = ops.pixel_shuffle(&u, self.config.scale);
+        drop(u);
+        for (i, conv) in self.tail.iter().enumerate() {
+            z = conv.forward_packed(
+                ops,
+                &z,
+                pad,
+                &packed[2 + 2 * nb + i],
+                Epilogue { skip: None, relu: i < last },
+            );
+        }
+        z
     }
 
     /// Training forward: the output and the activations [`Trunk::backward`] needs.
     pub fn forward_train(&self, ops: &dyn Ops, x: &Tensor) -> (Tensor, Tape) {
         let mut tape = Tape::default();
-        let y = self.run(ops, x, Some(&mut tape), None, &mut |_, _| {});
+        let y = self.run(ops, x, Some(&mut tape), &mut |_, _| {});
         (y, tape)
     }
 
@@ -251,26 +279,22 @@ impl Trunk {
         ops: &dyn Ops,
         x: &Tensor,
         mut tape: Option<&mut Tape>,
-        packed: Option<&[PackedConv]>,
         observe: &mut dyn FnMut(&str, &Tensor),
     ) -> Tensor {
-        // Conv k of [`Trunk::convs`]' order, packed.
-        let pk = |k: usize| packed.map(|p| &p[k]);
-        let nb = self.blocks.len();
         let pad = self.config.padding;
         let (_, c, _, _) = x.dims4();
         assert_eq!(c, IN_CHANNELS, "trunk input must have {IN_CHANNELS} channels");
         if let Some(t) = tape.as_deref_mut() {
             t.input = x.clone();
         }
-        let mut a = self.conv_in.forward(ops, x, pad, pk(0));
+        let mut a = self.conv_in.forward(ops, x, pad);
         observe("conv_in", &a);
         for (k, b) in self.blocks.iter().enumerate() {
-            let t1 = b.conv1.forward(ops, &a, pad, pk(1 + 2 * k));
+            let t1 = b.conv1.forward(ops, &a, pad);
             observe(&format!("blocks.{k}.conv1"), &t1);
             let r1 = ops.relu(&t1);
             observe(&format!("blocks.{k}.relu"), &r1);
-            let mut out = b.conv2.forward(ops, &r1, pad, pk(2 + 2 * k));
+            let mut out = b.conv2.forward(ops, &r1, pad);
             observe(&format!("blocks.{k}.conv2"), &out);
             if self.kind.residual() {
                 ops.add_assign(&mut out, &a);
@@ -281,7 +305,7 @@ impl Trunk {
             }
             a = out;
         }
-        let u = self.upscale.forward(ops, &a, pad, pk(1 + 2 * nb));
+        let u = self.upscale.forward(ops, &a, pad);
         observe("upscale", &u);
         if let Some(t) = tape.as_deref_mut() {
             t.upscale_in = a;
@@ -290,7 +314,7 @@ impl Trunk {
         drop(u);
         observe("pixel_shuffle", &z);
         for (i, conv) in self.tail.iter().enumerate() {
-            let y = conv.forward(ops, &z, pad, pk(2 + 2 * nb + i));
+            let y = conv.forward(ops, &z, pad);
             observe(&format!("tail.{i}"), &y);
             if i + 1 == self.tail.len() {
                 if let Some(t) = tape.as_deref_mut() {

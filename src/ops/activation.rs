@@ -27,7 +27,7 @@ pub(crate) fn par_zip_mut(out: &mut [f32], a: &[f32], f: impl Fn(&mut [f32], &[f
 
 /// ReLU that propagates NaN (so the trainer's non-finite checks still see it).
 #[inline(always)]
-fn relu1(v: f32) -> f32 {
+pub(crate) fn relu1(v: f32) -> f32 {
     if v < 0.0 {
         0.0
     } else {

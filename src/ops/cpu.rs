@@ -18,13 +18,14 @@ impl Ops for Cpu {
         packed: &conv2d::PackedConv,
         b: Option<&Tensor>,
         pad: Padding,
+        epi: conv2d::Epilogue,
     ) -> Tensor {
         assert_eq!(
             packed.shape().as_slice(),
             w.shape.as_slice(),
             "conv2d: weights packed from another shape"
         );
-        conv2d::conv2d_packed(x, packed, b, pad)
+        conv2d::conv2d_packed(x, packed, b, pad, epi)
     }
     fn conv2d_backward(
         &self,

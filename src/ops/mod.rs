@@ -66,7 +66,8 @@ pub trait Ops: Sync {
     /// x: (N, C, H, W), w: (O, C, KH, KW), b: (O) → y: (N, O, H, W); stride 1, "same" padding.
     fn conv2d(&self, x: &Tensor, w: &Tensor, b: Option<&Tensor>, pad: Padding) -> Tensor;
     /// [`Ops::conv2d`] with `packed` = [`conv2d::PackedConv::new`] of `w`, made once for many
-    /// calls (inference). Default: `packed` is not used.
+    /// calls (inference), then the epilogue (`add_assign` of its skip, `relu`), fused where the
+    /// table can. Default: `packed` is not used and the epilogue runs as the separate ops.
     fn conv2d_packed(
         &self,
         x: &Tensor,
@@ -74,9 +75,17 @@ pub trait Ops: Sync {
         packed: &conv2d::PackedConv,
         b: Option<&Tensor>,
         pad: Padding,
+        epi: conv2d::Epilogue,
     ) -> Tensor {
         let _ = packed;
-        self.conv2d(x, w, b, pad)
+        let mut y = self.conv2d(x, w, b, pad);
+        if let Some(s) = epi.skip {
+            self.add_assign(&mut y, s);
+        }
+        if epi.relu {
+            y = self.relu(&y);
+        }
+        y
     }
     /// Adds into dx (if given), dw, db (if given).
     #[allow(clippy::too_many_arguments)]

@@ -139,6 +139,7 @@ pub fn conv2d_backward_ref(
 // deterministic.
 // ---------------------------------------------------------------------------------------------
 
+use super::activation::relu1;
 use rayon::prelude::*;
 use wide::{f32x16, f32x8};
 
@@ -290,19 +291,65 @@ fn pad_nhwc_to(
 /// Source rows i < rows hold cols floats at i·ss; destination rows j < cols hold rows floats
 /// at j·ds; the two do not overlap.
 unsafe fn transpose(src: *const f32, ss: usize, rows: usize, cols: usize, dst: *mut f32, ds: usize) {
+    transpose_map(src, ss, rows, cols, dst, ds, |v, _| v, |v, _| v)
+}
+
+/// [`transpose`] storing `f(v, at)` (8 floats) or `g(v, at)` (one, at the edges) instead of
+/// the value read, where `at` is the destination offset (j·ds + i).
+///
+/// # Safety
+/// As [`transpose`].
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+unsafe fn transpose_map(
+    src: *const f32,
+    ss: usize,
+    rows: usize,
+    cols: usize,
+    dst: *mut f32,
+    ds: usize,
+    f: impl Fn(f32x8, usize) -> f32x8,
+    g: impl Fn(f32, usize) -> f32,
+) {
     let (r8, c8) = (rows / 8 * 8, cols / 8 * 8);
     for i0 in (0..r8).step_by(8) {
         for j0 in (0..c8).step_by(8) {
             let m: [f32x8; 8] =
                 std::array::from_fn(|k| (src.add((i0 + k) * ss + j0) as *const f32x8).read_unaligned());
             for (k, v) in f32x8::transpose(m).into_iter().enumerate() {
-                (dst.add((j0 + k) * ds + i0) as *mut f32x8).write_unaligned(v);
+                let at = (j0 + k) * ds + i0;
+                (dst.add(at) as *mut f32x8).write_unaligned(f(v, at));
             }
         }
     }
     for i in 0..rows {
         for j in if i < r8 { c8 } else { 0 }..cols {
-            *dst.add(j * ds + i) = *src.add(i * ss + j);
+            *dst.add(j * ds + i) = g(*src.add(i * ss + j), j * ds + i);
+        }
+    }
+}
+
+/// What the forward does to conv(x) + b as it stores it, fused into the store instead of a
+/// pass of its own over the activations: add `skip` (a tensor of the output's shape: the
+/// residual connection), then ReLU (`relu1`: negative values to 0, −0 and NaN kept). Same bits
+/// as the separate ops.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Epilogue<'a> {
+    pub skip: Option<&'a Tensor>,
+    pub relu: bool,
+}
+
+impl Epilogue<'_> {
+    pub const NONE: Epilogue<'static> = Epilogue { skip: None, relu: false };
+    pub const RELU: Epilogue<'static> = Epilogue { skip: None, relu: true };
+
+    /// The epilogue on a stored tensor (the paths that do not fuse it).
+    fn apply(&self, y: &mut Tensor) {
+        if let Some(s) = self.skip {
+            super::activation::add_assign(y, s);
+        }
+        if self.relu {
+            y.data.iter_mut().for_each(|v| *v = relu1(*v));
         }
     }
 }
@@ -771,16 +818,30 @@ impl PackedConv {
 
 /// Fast forward (same contract as [`conv2d_ref`]).
 pub fn conv2d(x: &Tensor, w: &Tensor, b: Option<&Tensor>, pad: Padding) -> Tensor {
-    conv2d_packed(x, &PackedConv::new(w), b, pad)
+    conv2d_packed(x, &PackedConv::new(w), b, pad, Epilogue::NONE)
 }
 
-/// [`conv2d`] with the weights packed in advance: the same bits.
-pub fn conv2d_packed(x: &Tensor, packed: &PackedConv, b: Option<&Tensor>, pad: Padding) -> Tensor {
+/// [`conv2d`] with the weights packed in advance, then `epi`: the same bits as [`conv2d`]
+/// followed by `add_assign(y, skip)` and `relu`.
+pub fn conv2d_packed(
+    x: &Tensor,
+    packed: &PackedConv,
+    b: Option<&Tensor>,
+    pad: Padding,
+    epi: Epilogue,
+) -> Tensor {
     let (n, c, h, wd) = x.dims4();
     let [o, c2, kh, kw] = packed.shape;
     assert_eq!(c, c2, "conv2d: x has {c} channels, weight expects {c2}");
+    if let Some(s) = epi.skip {
+        assert_eq!(s.shape, [n, o, h, wd], "conv2d: the skip tensor is not the output's shape");
+    }
     let (pk, wino) = match &packed.kind {
-        PackedKind::SmallOut(wk) => return conv2d_small_out(x, wk, [o, kh, kw], b, pad),
+        PackedKind::SmallOut(wk) => {
+            let mut y = conv2d_small_out(x, wk, [o, kh, kw], b, pad);
+            epi.apply(&mut y);
+            return y;
+        }
         PackedKind::Winograd(pk) => (pk, true),
         PackedKind::Direct(pk) => (pk, false),
     };
@@ -794,11 +855,36 @@ pub fn conv2d_packed(x: &Tensor, packed: &PackedConv, b: Option<&Tensor>, pad: P
     let mut y = Tensor::for_overwrite(&[n, o, h, wd]);
     let yp = SyncPtr(y.data.as_mut_ptr());
     let opad = pk.opad;
+    let skip = epi.skip.map(|s| s.data.as_ptr() as usize);
+    let relu = epi.relu;
     let sink = move |ni: usize, yy: usize, row: &[f32]| {
         assert!(row.len() >= wd * opad);
+        let base = (ni * o * h + yy) * wd;
         // SAFETY: row (ni, yy) of every plane is written by this task only; the row holds wd
-        // pixels of opad ≥ o floats (asserted).
-        unsafe { transpose(row.as_ptr(), opad, wd, o, yp.get().add((ni * o * h + yy) * wd), h * wd) };
+        // pixels of opad ≥ o floats (asserted); the skip tensor has y's shape (asserted), so
+        // the offsets of y's row are in it too.
+        unsafe {
+            let sp = skip.map(|p| (p as *const f32).add(base));
+            let f = |mut v: f32x8, at: usize| {
+                if let Some(sp) = sp {
+                    v += (sp.add(at) as *const f32x8).read_unaligned();
+                }
+                if relu {
+                    v = f32x8::from(v.to_array().map(relu1));
+                }
+                v
+            };
+            let g = |mut v: f32, at: usize| {
+                if let Some(sp) = sp {
+                    v += *sp.add(at);
+                }
+                if relu {
+                    v = relu1(v);
+                }
+                v
+            };
+            transpose_map(row.as_ptr(), opad, wd, o, yp.get().add(base), h * wd, f, g)
+        };
     };
     if wino {
         winograd::correlate(&xp, n, hp, wp, c, pk, bias.as_deref(), h, wd, &sink);
