@@ -312,13 +312,27 @@ unsafe fn transpose_map(
     g: impl Fn(f32, usize) -> f32,
 ) {
     let (r8, c8) = (rows / 8 * 8, cols / 8 * 8);
-    for i0 in (0..r8).step_by(8) {
+    let block = |i0: usize, j0: usize| {
+        let m: [f32x8; 8] =
+            std::array::from_fn(|k| (src.add((i0 + k) * ss + j0) as *const f32x8).read_unaligned());
+        for (k, v) in f32x8::transpose(m).into_iter().enumerate() {
+            let at = (j0 + k) * ds + i0;
+            (dst.add(at) as *mut f32x8).write_unaligned(f(v, at));
+        }
+    };
+    // The side with the long stride (NCHW planes, often 4 KiB apart or a multiple) in the outer
+    // loop: then only 8 of its rows are in flight at a time, where walking all of them at once
+    // would put more streams on the same L1 sets than it has ways.
+    if ss >= ds {
+        for i0 in (0..r8).step_by(8) {
+            for j0 in (0..c8).step_by(8) {
+                block(i0, j0);
+            }
+        }
+    } else {
         for j0 in (0..c8).step_by(8) {
-            let m: [f32x8; 8] =
-                std::array::from_fn(|k| (src.add((i0 + k) * ss + j0) as *const f32x8).read_unaligned());
-            for (k, v) in f32x8::transpose(m).into_iter().enumerate() {
-                let at = (j0 + k) * ds + i0;
-                (dst.add(at) as *mut f32x8).write_unaligned(f(v, at));
+            for i0 in (0..r8).step_by(8) {
+                block(i0, j0);
             }
         }
     }
