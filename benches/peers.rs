@@ -6,7 +6,8 @@
 //! Rows (names shared with the peer scripts, see benches/peers/rows.py):
 //!   peak   this machine's fp32 FMA peak (`anisocb::perf::fma_peak_gflops`, all threads):
 //!          `{"row": "fma peak", "gflops": G}`; ort_bench.py's MLAS SGEMM is the cross-check
-//!   conv   3×3 conv forward, zero padding, with bias, N×C×H×W → N×O×H×W
+//!   conv   3×3 conv forward, zero padding, with bias, N×C×H×W → N×O×H×W (weights packed once,
+//!          the call entered into the op table)
 //!   nets   the three nets (GeometryNet, BoundaryNet, EnhanceNet) on one 32×32 frame → 64×64,
 //!          small and paper configs (weights random: time does not depend on their values)
 //!   train  one GeometryNet training step (forward, backward, Adam) on 32 LR 16×16 patches
@@ -60,17 +61,14 @@ fn conv_rows() {
     for (n, c, o, h, w) in CONVS {
         let (x, wt, b) = (random(&[n, c, h, w], 1), random(&[o, c, 3, 3], 2), random(&[o], 3));
         // The weights packed once, outside the timed call, as ONNX Runtime prepacks a session's
-        // constant weights and `upscale` packs the nets' once per run.
+        // constant weights and `upscale` packs the nets' once per run; the call entered into
+        // the op table (`ops::entered`: on a worker thread), as the nets and the trainer run.
         let pk = PackedConv::new(&wt);
         let ms = median_ms(10, 1.0, &mut || {
-            drop(std::hint::black_box(Cpu.conv2d_packed(
-                &x,
-                &wt,
-                &pk,
-                Some(&b),
-                Padding::Zero,
-                Epilogue::NONE,
-            )))
+            let y = anisocb::ops::entered(&Cpu, || {
+                Cpu.conv2d_packed(&x, &wt, &pk, Some(&b), Padding::Zero, Epilogue::NONE)
+            });
+            drop(std::hint::black_box(y))
         });
         emit(&format!("conv {c}->{o} {n}x{c}x{h}x{w}"), ms);
     }

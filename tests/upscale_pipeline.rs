@@ -144,7 +144,14 @@ fn outline_floor_keeps_a_blender_drape_border_as_long_as_the_lr_border() {
     };
     let (floored, free) = (run(true), run(false));
     let (l_lr, l_floored, l_free) = (border_length(&lr), border_length(&floored), border_length(&free));
-    assert!(l_free < 0.999 * l_lr, "premise: without the floor the outline is short ({l_free} vs LR {l_lr})");
+    // The premise: without the floor the outline is short, by far more than the 1e-5 rounding
+    // allowed below, so the floor has to act. (The model trained with the `drop` scenes
+    // shortens this frame's outline less: 0.99934 of the LR polyline, the previous one below
+    // 0.999, this premise's bound until then.)
+    assert!(
+        l_free < (1.0 - 2e-4) * l_lr,
+        "premise: without the floor the outline is short ({l_free} vs LR {l_lr})"
+    );
     // Up to the f32 rounding of the domain round trip.
     assert!(l_floored >= l_lr * (1.0 - 1e-5), "outline {l_floored} shorter than the LR outline {l_lr}");
     assert!(
