@@ -1,5 +1,6 @@
-//! The paper's scenarios (figures 8–13), and a free sheet dropped on a sphere, as named presets, and the functions that run them at
-//! one resolution ([`run_single`]) or as a low/high-resolution pair ([`paired_run`]).
+//! The paper's scenarios (figures 8–13) and a free sheet dropped on a sphere (`drop`) as named
+//! presets, and the functions that run them at one resolution ([`run_single`]) or as a
+//! low/high-resolution pair ([`paired_run`]).
 //!
 //! The rest rectangle of a scenario is fixed by the spec's (low) resolution: width from the
 //! scenario, height = width · (h − 1)/(w − 1) so LR cells are square. The HR run uses the same
