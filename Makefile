@@ -45,7 +45,7 @@ bench-peers:
 demo:
 	$(CARGO) run --release -- demo
 
-## Retrain the shipped model from scratch (simulate, dataset, train; ≈ 25 min on 2 cores).
+## Retrain the shipped model from scratch (simulate, dataset, train; ≈ 30 min on 2 cores).
 weights: build
 	./weights/make_weights.sh
 

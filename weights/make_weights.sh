@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Rebuild the shipped ×2 model (weights/anisocb-x2.npz) and the yardsticks `anisocb eval`
 # compares it with, from scratch: simulate randomised training scenes, build the datasets,
-# train. Run through `make weights` (≈ 35 min on 2 cores).
+# train. Run through `make weights` (≈ 30 min on 2 cores).
 #
 #   anisocb-x2.npz   two GeometryNets (seeds 1, 2; residuals averaged) + BoundaryNet + EnhanceNet,
 #                    cloth-frame input (shipped, embedded)
