@@ -26,10 +26,14 @@ fn random(shape: &[usize], seed: u64) -> Tensor {
     t
 }
 
-/// Median wall time of one call in ms: one warm-up call, then calls until both `min_calls`
-/// and `min_secs` are reached (at most 200 calls).
+/// Median wall time of one call in ms: untimed warm-up calls for [`WARMUP_SECS`] (at least
+/// one), then calls until both `min_calls` and `min_secs` are reached (at most 200 calls).
 fn median_ms(min_calls: usize, min_secs: f64, f: &mut dyn FnMut()) -> f64 {
+    let warm = Instant::now();
     f();
+    while warm.elapsed().as_secs_f64() < WARMUP_SECS {
+        f();
+    }
     let start = Instant::now();
     let mut t = Vec::new();
     while t.len() < 200 && (t.len() < min_calls || start.elapsed().as_secs_f64() < min_secs) {
@@ -40,6 +44,12 @@ fn median_ms(min_calls: usize, min_secs: f64, f: &mut dyn FnMut()) -> f64 {
     t.sort_by(f64::total_cmp);
     t[t.len() / 2]
 }
+
+/// Untimed calls before a row is timed (both sides, benches/peers/rows.py too): a process that
+/// times its first 200 small calls straight after starting measured some rows at twice their
+/// time in some processes and not in others, as the cores come up to speed and the thread
+/// pool wakes (the peers' imports and session set-up warmed them before their first call).
+const WARMUP_SECS: f64 = 0.25;
 
 fn emit(row: &str, ms: f64) {
     println!("{{\"row\": \"{row}\", \"ms\": {ms:.5}}}");

@@ -34,10 +34,17 @@ def train_row(name):
     return f"train {name} {TRAIN_BATCH}x3x{TRAIN_PATCH}x{TRAIN_PATCH}"
 
 
+# Untimed warm-up before each row, as benches/peers.rs `WARMUP_SECS`.
+WARMUP_SECS = 0.25
+
+
 def median_ms(fn, min_calls=10, min_secs=1.0):
-    """Median wall time of one call (ms): one warm-up call, then calls until both limits are
-    reached (at most 200), as benches/peers.rs `median_ms`."""
+    """Median wall time of one call (ms): untimed warm-up calls for WARMUP_SECS (at least one),
+    then calls until both limits are reached (at most 200), as benches/peers.rs `median_ms`."""
+    warm = time.perf_counter()
     fn()
+    while time.perf_counter() - warm < WARMUP_SECS:
+        fn()
     start, t = time.perf_counter(), []
     while len(t) < 200 and (len(t) < min_calls or time.perf_counter() - start < min_secs):
         s = time.perf_counter()
