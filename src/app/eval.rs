@@ -219,11 +219,7 @@ fn methods_for_run(
         out.push(variant(pm, &p, "paper config")?);
     }
     for (name, m) in &others.also {
-        let pu = upscale_images(ops, m, lr, domain, &p, &mut |_| {})?;
-        out.push(Method {
-            name: format!("anisocb [{name}], eta={DEFAULT_ETA}"),
-            meshes: images_to_sequence(&pu.hr, domain),
-        });
+        out.push(variant(m, &p, &format!("[{name}]"))?);
     }
     Ok(out)
 }

@@ -143,10 +143,7 @@ impl AnisoCb {
     ) -> Result<SrOutputs> {
         check_input(lr, "AnisoCb input")?;
         let pk = |k: usize| packed.map(|p| p[k].as_slice());
-        let (ng, net) = (1 + self.more_geometry.len(), |m: &MapNet, k: usize| match pk(k) {
-            Some(p) => m.probabilities_packed(ops, lr, p),
-            None => m.probabilities(ops, lr),
-        });
+        let ng = 1 + self.more_geometry.len();
         crate::ops::entered(ops, || {
             let (u, mut r) = self.geometry.forward_packed(ops, lr, pk(0))?;
             if ng > 1 {
@@ -156,8 +153,12 @@ impl AnisoCb {
                 let s = 1.0 / ng as f32;
                 r.data.iter_mut().for_each(|v| *v *= s);
             }
-            let boundary = net(&self.boundary, ng)?;
-            let enhance = if enhance { net(&self.enhance, ng + 1)? } else { Tensor::zeros(&boundary.shape) };
+            let boundary = self.boundary.probabilities_packed(ops, lr, pk(ng))?;
+            let enhance = if enhance {
+                self.enhance.probabilities_packed(ops, lr, pk(ng + 1))?
+            } else {
+                Tensor::zeros(&boundary.shape)
+            };
             Ok(SrOutputs { u, r, boundary, enhance })
         })
     }

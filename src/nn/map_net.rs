@@ -44,10 +44,21 @@ impl MapNet {
         Ok(ops.sigmoid(&self.logits(ops, lr)?))
     }
 
-    /// [`MapNet::probabilities`] with the trunk's weights packed in advance ([`Trunk::pack`]).
-    pub fn probabilities_packed(&self, ops: &dyn Ops, lr: &Tensor, packed: &[PackedConv]) -> Result<Tensor> {
-        check_input(lr, "map net input")?;
-        Ok(ops.sigmoid(&self.trunk.forward_packed(ops, lr, packed)))
+    /// [`MapNet::probabilities`] with the trunk's weights packed in advance if given
+    /// ([`Trunk::pack`]).
+    pub fn probabilities_packed(
+        &self,
+        ops: &dyn Ops,
+        lr: &Tensor,
+        packed: Option<&[PackedConv]>,
+    ) -> Result<Tensor> {
+        match packed {
+            Some(p) => {
+                check_input(lr, "map net input")?;
+                Ok(ops.sigmoid(&self.trunk.forward_packed(ops, lr, p)))
+            }
+            None => self.probabilities(ops, lr),
+        }
     }
 
     /// Mean BCE against `target` (N, 1, rH, rW) in [0, 1]; adds gradients into `grads` if given.

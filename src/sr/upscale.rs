@@ -246,12 +246,16 @@ impl Upscaled {
         }
         let (_, _, h, w) = self.lr_net.dims4();
         let (_, _, hh, hw) = hr.dims4();
-        let (lr_ring, px3) = (border_loop(w, h), 3 * hh * hw);
+        let (lr_ring, hr_ring, px3) = (border_loop(w, h), border_loop(hw, hh), 3 * hh * hw);
         for (k, img) in hr.data.chunks_exact_mut(px3).enumerate() {
             let floor = loop_length(&self.lr_net.data[k * 3 * h * w..(k + 1) * 3 * h * w], &lr_ring);
-            let (mut hr_net, mut u_net) =
-                (img.to_vec(), self.interpolated.data[k * px3..(k + 1) * px3].to_vec());
+            let mut hr_net = img.to_vec();
             self.maps[k].0.apply_image(&mut hr_net, true);
+            // Long enough already (α = 1): nothing to scale, no normals to compute.
+            if loop_length(&hr_net, &hr_ring) >= floor {
+                continue;
+            }
+            let mut u_net = self.interpolated.data[k * px3..(k + 1) * px3].to_vec();
             self.maps[k].0.apply_image(&mut u_net, true);
             let base_net = outline_base(&hr_net, &u_net, hh, hw);
             let a = outline_weight(&hr_net, &base_net, hh, hw, floor);
