@@ -1,0 +1,50 @@
+#!/bin/bash
+# The checks that need an NVIDIA GPU, for a machine that has one but no Rust toolchain.
+# Build on any x86-64 Linux machine, copy the two binaries over, run there:
+#   cargo build --release --features cuda
+#   cargo test --release --features cuda --no-run --test cuda_parity   # prints the test binary's path
+#   benches/gpu-check.sh target/release/anisocb target/release/deps/cuda_parity-HASH [OUT_DIR]
+# It runs tests/cuda_parity.rs on the GPU, `anisocb bench --device cuda`, the demo on cpu and cuda
+# twice each (output difference and upscaling time), and 100 training steps of both configs on
+# cpu and cuda (samples/s and the weights' difference). Needs python3 with numpy. ~2 min on an H100.
+set -u
+BIN=${1:?usage: gpu-check.sh ANISOCB_BIN CUDA_PARITY_TEST_BIN [OUT_DIR]}
+PARITY=${2:?usage: gpu-check.sh ANISOCB_BIN CUDA_PARITY_TEST_BIN [OUT_DIR]}
+OUT=${3:-gpu-check-out}
+TMP=$(mktemp -d)
+mkdir -p "$OUT"
+export LD_LIBRARY_PATH=/usr/local/cuda/lib64${LD_LIBRARY_PATH:+:$LD_LIBRARY_PATH}
+echo "cores: $(nproc); GPU: $(nvidia-smi --query-gpu=name,driver_version --format=csv,noheader)"
+"$PARITY" --test-threads 1 --nocapture > "$OUT/parity.log" 2>&1
+echo "cuda_parity: $(grep '^test result' "$OUT/parity.log") ($(grep -c skipped "$OUT/parity.log") skipped lines)"
+"$BIN" bench --device cuda 2>&1 | tee "$OUT/bench.log"
+for d in cpu cuda cpu cuda; do
+  "$BIN" demo --device "$d" --out "$TMP/demo-$d" > "$OUT/demo-$d.log" 2>&1 || { echo "demo --device $d failed: $OUT/demo-$d.log"; exit 1; }
+  grep -h "upscaling" "$TMP/demo-$d/metrics.md"
+done
+python3 - "$TMP" <<'PY'
+import glob, sys, numpy as np
+def load(p): return np.array([[float(x) for x in l.split()[1:4]] for l in open(p) if l.startswith('v ')])
+t = sys.argv[1]
+worst = max(np.abs(load(a) - load(a.replace('demo-cpu', 'demo-cuda'))).max()
+            for a in sorted(glob.glob(t + '/demo-cpu/anisocb/*.obj')))
+print(f'demo: largest |cpu - cuda| vertex coordinate difference {worst:.2e} m')
+PY
+"$BIN" simulate --scenario flag --res 32x32 --pair --frames 60 --seed 1 --vary 1 --out "$TMP/runs/flag-1" > /dev/null 2>&1
+"$BIN" dataset --runs "$TMP"/runs/* --out "$TMP/data.npz" --input-frame cloth-frame > /dev/null 2>&1
+for cfg in small paper; do
+  for d in cpu cuda; do
+    "$BIN" train --data "$TMP/data.npz" --config $cfg --net geometry --steps 100 --batch 32 --patch 16 --device $d \
+      --val-every 1000 --checkpoint-every 1000 --out "$TMP/train-$d-$cfg" > "$OUT/train-$d-$cfg.log" 2>&1
+    echo "train $cfg on $d: $(tr '\r' '\n' < "$OUT/train-$d-$cfg.log" | grep -o '[0-9.]* samples/s' | tail -1)"
+  done
+  python3 - "$TMP/train-cpu-$cfg/weights.npz" "$TMP/train-cuda-$cfg/weights.npz" $cfg <<'PY'
+import sys, numpy as np
+a, b = np.load(sys.argv[1]), np.load(sys.argv[2])
+keys = [k for k in a.files if isinstance(a[k], np.ndarray) and a[k].dtype.kind == 'f']
+d = max(float(np.abs(a[k] - b[k]).max()) for k in keys)
+m = max(float(np.abs(a[k]).max()) for k in keys)
+print(f'train {sys.argv[3]}: weights after 100 steps, largest |cpu - cuda| {d:.2e} (largest weight {m:.2e})')
+PY
+done
+rm -rf "$TMP"
