@@ -72,7 +72,7 @@ fn conv_rows() {
         let (x, wt, b) = (random(&[n, c, h, w], 1), random(&[o, c, 3, 3], 2), random(&[o], 3));
         // The weights packed once, outside the timed call, as ONNX Runtime prepacks a session's
         // constant weights and `upscale` packs the nets' once per run; the call entered into
-        // the op table (`ops::entered`: on a worker thread), as the nets and the trainer run.
+        // the op table (`ops::entered`), as the nets and the trainer run.
         let pk = PackedConv::new(&wt);
         let ms = median_ms(10, 1.0, &mut || {
             let y = anisocb::ops::entered(&Cpu, || {
@@ -125,6 +125,9 @@ fn train_rows() {
 }
 
 fn main() {
+    // The pool as the `anisocb` binary builds it: this thread is worker 0 (ONNX Runtime, too,
+    // runs its intra-op work on the calling thread).
+    anisocb::ops::cpu::join_global_pool(0).expect("the global pool is built first");
     let args: Vec<String> = std::env::args().skip(1).filter(|a| !a.starts_with('-')).collect();
     let want = |g: &str| args.is_empty() || args.iter().any(|a| a == g);
     if want("peak") {

@@ -8,5 +8,5 @@ fn main() {
         let _ = anisocb::app::cpu::write_missing_report(&mut std::io::stderr(), missing.as_slice());
         std::process::exit(3);
     }
-    std::process::exit(anisocb::app::main_with_args(std::env::args_os()));
+    std::process::exit(anisocb::app::process_main(std::env::args_os()));
 }

@@ -53,8 +53,28 @@ pub enum Command {
     Bench(bench::Args),
 }
 
-/// Parse `args` and run; returns the process exit code (0 ok, 1 error, 2 usage).
+/// Parse `args` and run; returns the process exit code (0 ok, 1 error, 2 usage). Runs on the
+/// global worker pool as it is (tests call this from their own threads).
 pub fn main_with_args<I, T>(args: I) -> i32
+where
+    I: IntoIterator<Item = T>,
+    T: Into<std::ffi::OsString> + Clone,
+{
+    run(args, false)
+}
+
+/// [`main_with_args`] for the `anisocb` process's main thread: first builds the global worker
+/// pool with this thread in it (`ops::cpu::join_global_pool`, the command's `--threads` or one
+/// per core), so ops called from here split their loops without a hand-off to another thread.
+pub fn process_main<I, T>(args: I) -> i32
+where
+    I: IntoIterator<Item = T>,
+    T: Into<std::ffi::OsString> + Clone,
+{
+    run(args, true)
+}
+
+fn run<I, T>(args: I, join_pool: bool) -> i32
 where
     I: IntoIterator<Item = T>,
     T: Into<std::ffi::OsString> + Clone,
@@ -67,6 +87,16 @@ where
             return code;
         }
     };
+    if join_pool {
+        let threads = match &cli.command {
+            Command::Upscale(a) => a.threads,
+            Command::Demo(a) => a.threads,
+            Command::Eval(a) => a.threads,
+            _ => None,
+        };
+        // Fails only if a pool already exists; the commands then run on that one.
+        let _ = crate::ops::cpu::join_global_pool(threads.unwrap_or(0));
+    }
     let r = match cli.command {
         Command::Simulate(a) => simulate::run(a),
         Command::Dataset(a) => dataset::run(a),

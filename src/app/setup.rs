@@ -33,7 +33,8 @@ pub fn set_threads(threads: Option<usize>) -> Result<()> {
         if n == 0 {
             return Err(Error::config("--threads must be ≥ 1"));
         }
-        // Fails only if a pool was already set up in this process; the first setting wins.
+        // Fails if a pool was already set up in this process (the `anisocb` binary builds it
+        // with this count in `app::process_main`); the first setting wins.
         let _ = rayon::ThreadPoolBuilder::new().num_threads(n).build_global();
     }
     Ok(())

@@ -124,6 +124,8 @@ pub trait Ops: Sync {
     /// [`Cpu`] runs it on a rayon worker thread: the serial parts of each op then run on a
     /// worker and the calling thread sleeps, instead of competing for the cores with workers
     /// that spin between parallel loops (≈ 10–20 % of a 32×32 frame's three nets on 2 cores).
+    /// On a thread that is a worker already (the `anisocb` binary's main thread, see
+    /// [`cpu::join_global_pool`]) it runs `f` in place.
     fn enter(&self, f: &mut (dyn FnMut() + Send)) {
         f()
     }
