@@ -152,7 +152,9 @@ fn conv_winograd_matches_ref_on_odd_sizes_and_channel_tails() {
     // and even sides down to 1×1 (partial 2×2 tiles), tile rows shorter and longer than one
     // register tile, output channels that are not whole vectors or whole 64-channel blocks.
     // With replicate padding the input gradient takes the same path on dy framed by zeros and
-    // folds the frame onto the border (one-row images fold three rows onto one).
+    // folds the frame onto the border (one-row images fold three rows onto one). Inputs of up
+    // to 2¹⁶ floats are padded inside the tasks, larger ones into a buffer first: the last
+    // three cases sit on either side of that line (65 520, 67 600 and, two images, 65 600).
     let mut rng = Rng::new(5);
     for (n, c, o, h, w) in [
         (1, 16, 5, 1, 1),
@@ -164,6 +166,9 @@ fn conv_winograd_matches_ref_on_odd_sizes_and_channel_tails() {
         (2, 64, 64, 9, 8),
         (1, 64, 80, 5, 29),
         (1, 32, 3 * 16, 16, 16),
+        (1, 16, 32, 63, 65),
+        (1, 16, 32, 65, 65),
+        (2, 16, 24, 41, 50),
     ] {
         for pad in [Padding::Zero, Padding::Replicate] {
             check_case(&mut rng, n, c, o, h, w, 3, 3, pad, h % 2 == 1, true);

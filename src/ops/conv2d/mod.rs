@@ -259,28 +259,37 @@ fn pad_nhwc_to(
     tail.fill(0.0);
     // Rows per rayon task: ≥ 2¹⁴ floats, so small images are copied on one thread.
     let min_rows = ((1 << 14) / row_len.max(1)).max(1);
-    body.par_chunks_mut(row_len).with_min_len(min_rows).enumerate().for_each(|(r, dst)| {
-        let (ni, yy) = (r / hp, r % hp);
-        let sy = if yy < h + 2 * ph { pad_index(yy as isize - ph as isize, h, pad) } else { None };
-        let Some(sy) = sy else {
-            dst.fill(0.0);
-            return;
-        };
-        dst[(w + 2 * pw) * c..].fill(0.0);
-        // Interior columns: row sy of the c planes, transposed; then the pw border columns.
-        let src = &x.data[(ni * c * h + sy) * w..];
-        assert!(src.len() >= c.saturating_sub(1) * h * w + w && dst.len() >= (pw + w) * c);
-        // SAFETY: the c source rows (plane stride h·w) and the w destination pixels are in
-        // bounds (asserted).
-        unsafe { transpose(src.as_ptr(), h * w, c, w, dst.as_mut_ptr().add(pw * c), c) };
-        for ci in 0..c {
-            for xx in (0..pw).chain(pw + w..w + 2 * pw) {
-                dst[xx * c + ci] =
-                    pad_index(xx as isize - pw as isize, w, pad).map_or(0.0, |sx| src[ci * h * w + sx]);
-            }
-        }
-    });
+    body.par_chunks_mut(row_len)
+        .with_min_len(min_rows)
+        .enumerate()
+        .for_each(|(r, dst)| pad_row_nhwc(x, r / hp, r % hp, ph, pw, pad, dst));
     (out, hp, wp)
+}
+
+/// Row `yy` of image `ni` of [`pad_nhwc_to`]'s layout into `dst` (wp pixels × C floats, wp ≥
+/// W + 2pw): x[ni, :, yy − ph, ·] with `pad` applied, zeros beyond W + 2pw, and a zero row
+/// where yy − ph is outside the image under zero padding or yy ≥ H + 2ph.
+fn pad_row_nhwc(x: &Tensor, ni: usize, yy: usize, ph: usize, pw: usize, pad: Padding, dst: &mut [f32]) {
+    let (_, c, h, w) = x.dims4();
+    assert!(dst.len() >= (w + 2 * pw) * c);
+    let sy = if yy < h + 2 * ph { pad_index(yy as isize - ph as isize, h, pad) } else { None };
+    let Some(sy) = sy else {
+        dst.fill(0.0);
+        return;
+    };
+    dst[(w + 2 * pw) * c..].fill(0.0);
+    // Interior columns: row sy of the c planes, transposed; then the pw border columns.
+    let src = &x.data[(ni * c * h + sy) * w..];
+    assert!(src.len() >= c.saturating_sub(1) * h * w + w);
+    // SAFETY: the c source rows (plane stride h·w) and the w destination pixels are in bounds
+    // (asserted).
+    unsafe { transpose(src.as_ptr(), h * w, c, w, dst.as_mut_ptr().add(pw * c), c) };
+    for ci in 0..c {
+        for xx in (0..pw).chain(pw + w..w + 2 * pw) {
+            dst[xx * c + ci] =
+                pad_index(xx as isize - pw as isize, w, pad).map_or(0.0, |sx| src[ci * h * w + sx]);
+        }
+    }
 }
 
 /// dst[j·ds + i] = src[i·ss + j] for i < rows, j < cols: a strided transpose, in 8×8 blocks
@@ -860,7 +869,14 @@ pub fn conv2d_packed(
         PackedKind::Direct(pk) => (pk, false),
     };
     let (ph, pw) = (kh / 2, kw / 2);
-    let (xp, hp, wp) = if wino { winograd::pad_input(x, pad) } else { pad_nhwc(x, ph, pw, pad, 0) };
+    // The padded channels-last input, except for small Winograd convs, whose tasks pad their own rows.
+    let padded = if !wino {
+        Some(pad_nhwc(x, ph, pw, pad, 0))
+    } else if x.len() > winograd::FUSE_PAD_MAX {
+        Some(winograd::pad_input(x, pad))
+    } else {
+        None
+    };
     let bias: Option<Vec<f32>> = b.map(|b| {
         let mut v = vec![0.0; pk.opad];
         v[..o].copy_from_slice(&b.data[..o]);
@@ -900,10 +916,17 @@ pub fn conv2d_packed(
             transpose_map(row.as_ptr(), opad, wd, o, yp.get().add(base), h * wd, f, g)
         };
     };
-    if wino {
-        winograd::correlate(&xp, n, hp, wp, c, pk, bias.as_deref(), h, wd, &sink);
-    } else {
-        correlate_rows(&xp, n, hp, wp, c, kh, kw, pk, bias.as_deref(), h, wd, &single_rows(h), &sink);
+    match (&padded, wino) {
+        (Some((xp, hp, wp)), false) => {
+            correlate_rows(xp, n, *hp, *wp, c, kh, kw, pk, bias.as_deref(), h, wd, &single_rows(h), &sink)
+        }
+        (Some((xp, hp, wp)), true) => {
+            let input = winograd::Input::Padded { xp, hp: *hp, wp: *wp };
+            winograd::correlate(&input, n, c, pk, bias.as_deref(), h, wd, &sink)
+        }
+        (None, _) => {
+            winograd::correlate(&winograd::Input::Nchw { x, pad }, n, c, pk, bias.as_deref(), h, wd, &sink)
+        }
     }
     y
 }
@@ -997,7 +1020,8 @@ pub fn conv2d_input_grad(w: &Tensor, dy: &Tensor, pad: Padding, dx: &mut Tensor)
                 }
             };
             if wino {
-                winograd::correlate(&dyp, n, hp, wp, o, &pk, None, h, wd, &sink);
+                let input = winograd::Input::Padded { xp: &dyp, hp, wp };
+                winograd::correlate(&input, n, o, &pk, None, h, wd, &sink);
             } else {
                 correlate_rows(&dyp, n, hp, wp, o, kh, kw, &pk, None, h, wd, &single_rows(h), &sink);
             }

@@ -22,8 +22,8 @@
 //! not depend on the thread count.
 
 use super::{
-    micro, micro_dw, pad_nhwc_to, pmax, sum_partials, tiles, Packed, Padding, Scratch, SyncPtr, L, OB,
-    SMALL_OUT_MAX,
+    micro, micro_dw, pad_nhwc_to, pad_row_nhwc, pmax, sum_partials, tiles, Packed, Padding, Scratch, SyncPtr,
+    L, OB, SMALL_OUT_MAX,
 };
 use crate::tensor::Tensor;
 use rayon::prelude::*;
@@ -106,6 +106,21 @@ pub(super) fn pad_input(x: &Tensor, pad: Padding) -> (Scratch, usize, usize) {
     pad_nhwc_to(x, 1, 1, pad, 2 * h.div_ceil(2) + 2, 2 * w.div_ceil(2) + 2, 0)
 }
 
+/// What [`correlate`] reads.
+pub(super) enum Input<'a> {
+    /// [`pad_input`]'s buffer: n images of hp × wp padded NHWC pixels.
+    Padded { xp: &'a [f32], hp: usize, wp: usize },
+    /// The NCHW tensor: each task pads the four input rows of its row of tiles itself. Rows
+    /// shared by two rows of tiles are transposed twice, but the convolution is one parallel
+    /// loop instead of two, and on small images the hand-over between the loops (workers that
+    /// went to sleep while one thread padded, or tasks too small to pay for their spawning)
+    /// cost more than the work (a 32→32 conv on one 32×32 image: see [`FUSE_PAD_MAX`]).
+    Nchw { x: &'a Tensor, pad: Padding },
+}
+
+/// Largest input (floats) whose forward pads inside the tasks ([`Input::Nchw`]).
+pub(super) const FUSE_PAD_MAX: usize = 1 << 16;
+
 /// Unaligned vector load / store.
 #[inline(always)]
 unsafe fn ld(p: *const f32) -> f32x16 {
@@ -153,10 +168,8 @@ unsafe fn input_tiles(xb: *const f32, wp: usize, c: usize, tw: usize, v: *mut f3
 /// row, `sink(n, y, row)` gets the row as NHWC scratch (out_w or more pixels × opad floats).
 #[allow(clippy::too_many_arguments, clippy::needless_range_loop)]
 pub(super) fn correlate(
-    xp: &[f32],
+    input: &Input,
     n: usize,
-    hp: usize,
-    wp: usize,
     c: usize,
     pk: &Packed,
     init: Option<&[f32]>,
@@ -165,8 +178,17 @@ pub(super) fn correlate(
     sink: &(dyn Fn(usize, usize, &[f32]) + Sync),
 ) {
     let (th, tw) = (out_h.div_ceil(2), out_w.div_ceil(2));
+    let (hp, wp) = match *input {
+        Input::Padded { xp, hp, wp } => {
+            assert!(xp.len() >= n * hp * wp * c);
+            (hp, wp)
+        }
+        Input::Nchw { x, .. } => {
+            assert_eq!(x.dims4(), (n, c, out_h, out_w));
+            (2 * th + 2, 2 * tw + 2)
+        }
+    };
     assert!(c % L == 0 && hp >= 2 * th + 2 && wp >= 2 * tw + 2);
-    assert!(xp.len() >= n * hp * wp * c);
     let opad = pk.opad;
     assert!(pk.data.len() >= POS * c * opad && init.is_none_or(|b| b.len() >= opad));
     // One output row of the task, NHWC.
@@ -182,16 +204,28 @@ pub(super) fn correlate(
                 Scratch::overwritten(POS * vs),
                 Scratch::overwritten(POS * ms),
                 Scratch::overwritten(2 * row_len),
+                Scratch::overwritten(if matches!(input, Input::Nchw { .. }) { 4 * wp * c } else { 0 }),
             )
         },
-        |(v, m, out): &mut (Scratch, Scratch, Scratch), task| {
+        |(v, m, out, strip): &mut (Scratch, Scratch, Scratch, Scratch), task| {
             let (ni, ty) = (task / th, task % th);
+            // The task's four padded input rows: in the padded buffer, or padded here.
+            let (rows, r0) = match *input {
+                Input::Padded { xp, .. } => (xp, (ni * hp + 2 * ty) * wp * c),
+                Input::Nchw { x, pad } => {
+                    for (r, dst) in strip.chunks_exact_mut(wp * c).enumerate() {
+                        pad_row_nhwc(x, ni, 2 * ty + r, 1, 1, pad, dst);
+                    }
+                    (&strip[..], 0)
+                }
+            };
             for (tx0, ntw) in tiles(tw, chunk) {
                 // V[pos][tile][c] = Bᵀ d B.
                 // SAFETY: the chunk's tiles cover rows 2ty..2ty+4 ≤ hp, columns 2tx0..2(tx0+ntw)+2
-                // ≤ wp of image ni (asserted above); V holds ntw ≤ chunk tiles per position.
+                // ≤ wp of image ni (asserted above), at r0 in `rows`; V holds ntw ≤ chunk tiles
+                // per position.
                 unsafe {
-                    let xb = xp.as_ptr().add(((ni * hp + 2 * ty) * wp + 2 * tx0) * c);
+                    let xb = rows.as_ptr().add(r0 + 2 * tx0 * c);
                     input_tiles(xb, wp, c, ntw, v.as_mut_ptr(), vs)
                 };
                 // M[pos][tile][o] = Σ_c V[pos][tile][c] · U[pos][c][o] (every element written).
