@@ -1,6 +1,6 @@
 //! Checks of the XPBD cloth simulator and its scenarios.
 
-use anisocb::cloth::collision::Sphere;
+use anisocb::cloth::collision::{Cuboid, Sphere};
 use anisocb::cloth::run_io::{read_run, write_pair, write_single};
 use anisocb::cloth::scenarios::run_at;
 use anisocb::cloth::tracking::bilinear_targets;
@@ -137,6 +137,35 @@ fn a_dropped_sheet_lands_on_the_sphere_and_its_hem_hangs_in_folds() {
     assert!(flat_len < 0.9 * loop_len, "border {loop_len} m long, {flat_len} m seen from above: no folds");
     let lowest = last.pos.iter().map(|p| p[1]).fold(f32::INFINITY, f32::min);
     assert!(lowest > -1e-4, "a vertex went through the ground: y = {lowest}");
+}
+
+#[test]
+fn a_sheet_dropped_on_a_table_hangs_down_its_sides_and_never_enters_it() {
+    // The tablecloth: the middle rests on the table top, the free hem hangs down all four
+    // sides, clear of the ground, in folds; no vertex gets inside the box beyond the margin.
+    let sp = spec(Scenario::DropTable, 20, 20, 60);
+    let (cloth, scene) = sp.setup(sp.w, sp.h);
+    assert!(cloth.pins.is_empty(), "the dropped sheet has no pins");
+    let Cuboid { center, half } = scene.colliders.cuboid.unwrap();
+    let frames = run_single(&sp).unwrap();
+    for (t, f) in frames.iter().enumerate() {
+        for p in &f.pos {
+            let depth = (0..3).map(|k| half[k] - (p[k] - center[k]).abs()).fold(f32::INFINITY, f32::min);
+            assert!(depth < 1e-4, "frame {t}: a vertex is {depth} m inside the table");
+        }
+    }
+    let last = frames.last().unwrap();
+    let top = center[1] + half[1];
+    let mid = last.pos[last.idx(sp.w / 2, sp.h / 2)];
+    assert!((mid[1] - top).abs() < 0.03, "the middle rests at y = {} m, the top is at {top}", mid[1]);
+    let ring = border_loop(sp.w, sp.h);
+    for &v in &ring {
+        let y = last.pos[v][1];
+        assert!(y < top - 0.05 && y > 0.02, "a hem vertex is at y = {y} m (top {top} m, ground 0)");
+    }
+    let loop_len = closed_loop_length(&ring, |v| last.pos[v].map(f64::from));
+    let flat_len = closed_loop_length(&ring, |v| [last.pos[v][0] as f64, 0.0, last.pos[v][2] as f64]);
+    assert!(flat_len < 0.97 * loop_len, "border {loop_len} m long, {flat_len} m seen from above: no folds");
 }
 
 #[test]

@@ -25,8 +25,9 @@ pub struct Args {
     /// Seed of the wind gusts.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
-    /// Randomise the scene with this seed (cloth size, material, wind, flapping, sphere size
-    /// and place, drape and twist speeds); 0 = the scenario as in the paper. Overrides
+    /// Randomise the scene with this seed (cloth size, material, wind, flapping, obstacle
+    /// (sphere, table) size and place, drape and twist speeds); 0 = the scenario as in the
+    /// paper. Overrides
     /// --material.
     #[arg(long, default_value_t = 0)]
     pub vary: u64,

@@ -1,4 +1,4 @@
-//! Sphere and ground contacts, projected after the constraints of every substep, with a
+//! Sphere, box and ground contacts, projected after the constraints of every substep, with a
 //! margin and position-based Coulomb friction (Macklin et al. 2014, "Unified particle physics").
 
 use crate::geom::vec3::{dot, norm, sub};
@@ -10,10 +10,18 @@ pub struct Sphere {
     pub radius: f32,
 }
 
+/// A static axis-aligned box (a table): centre (m), half extents along x, y, z (m).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Cuboid {
+    pub center: [f32; 3],
+    pub half: [f32; 3],
+}
+
 /// Colliders of a scene.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Colliders {
     pub sphere: Option<Sphere>,
+    pub cuboid: Option<Cuboid>,
     /// Height (m) of a horizontal ground plane y = ground.
     pub ground: Option<f32>,
 }
@@ -53,6 +61,22 @@ impl Colliders {
                     let l = l2.sqrt();
                     let n = if l > 1e-9 { [d[0] / l, d[1] / l, d[2] / l] } else { [0.0, 1.0, 0.0] };
                     resolve(&mut x[v], prev[v], n, r - l, mu);
+                }
+            }
+        }
+        if let Some(b) = self.cuboid {
+            // A vertex inside the box grown by the margin leaves through the nearest face.
+            for v in 0..x.len() {
+                if inv_mass[v] == 0.0 {
+                    continue;
+                }
+                let d = sub(x[v], b.center);
+                let pen: [f32; 3] = std::array::from_fn(|k| b.half[k] + margin - d[k].abs());
+                if pen.iter().all(|&p| p > 0.0) {
+                    let k = (0..3).min_by(|&i, &j| pen[i].total_cmp(&pen[j])).unwrap_or(1);
+                    let mut n = [0.0; 3];
+                    n[k] = if d[k] < 0.0 { -1.0 } else { 1.0 };
+                    resolve(&mut x[v], prev[v], n, pen[k], mu);
                 }
             }
         }

@@ -8,7 +8,8 @@
 //! - [`constraints`]: stretch/shear distance constraints and isometric bending (Bergou et al.
 //!   2006, as a linear vector constraint), graph-coloured for Gauss–Seidel sweeps.
 //! - [`kinematics`]: pinned and driven vertices (flapping edge, twisting ends, lowered corners).
-//! - [`collision`]: sphere and ground with a margin and Coulomb-style position friction.
+//! - [`collision`]: sphere, box (table) and ground with a margin and Coulomb-style position
+//!   friction.
 //! - [`wind`]: a time-varying wind field, deterministic from the seed.
 //! - [`solver`]: the XPBD substep loop ([`solver::Cloth::step`]).
 //! - [`tracking`]: soft attachment of a high-resolution run to a low-resolution one.

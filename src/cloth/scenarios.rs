@@ -6,7 +6,7 @@
 //! scenario, height = width · (h − 1)/(w − 1) so LR cells are square. The HR run uses the same
 //! rectangle with `scale·w × scale·h` vertices (corners aligned).
 
-use super::collision::{Colliders, Sphere};
+use super::collision::{Colliders, Cuboid, Sphere};
 use super::kinematics::{Kinematics, Pin};
 use super::params::{Material, SimParams};
 use super::solver::{Cloth, Scene};
@@ -24,6 +24,7 @@ pub enum Scenario {
     TwistMaterials,
     TwistZeroG,
     Drop,
+    DropTable,
 }
 
 /// `--help` text listing the scenarios.
@@ -34,10 +35,11 @@ pub const SCENARIO_HELP: &str = "Scenarios (paper figures):
   twist            horizontal strip twisted from both ends in opposite directions (Fig 11)
   twist-materials  the same strip made of three bands: silk, rubber, denim (Fig 12)
   twist-zero-g     the twist without gravity (Fig 13)
-  drop             free square sheet dropped flat on a sphere; its hem falls into folds (not in the paper)";
+  drop             free square sheet dropped flat on a sphere; its hem falls into folds (not in the paper)
+  drop-table       free square sheet dropped on a table (a box); its hem hangs down the sides and folds at the corners (not in the paper)";
 
 impl Scenario {
-    pub const ALL: [Scenario; 7] = [
+    pub const ALL: [Scenario; 8] = [
         Scenario::Flag,
         Scenario::FlagSphere,
         Scenario::Drape,
@@ -45,6 +47,7 @@ impl Scenario {
         Scenario::TwistMaterials,
         Scenario::TwistZeroG,
         Scenario::Drop,
+        Scenario::DropTable,
     ];
 
     pub fn name(self) -> &'static str {
@@ -56,6 +59,7 @@ impl Scenario {
             Scenario::TwistMaterials => "twist-materials",
             Scenario::TwistZeroG => "twist-zero-g",
             Scenario::Drop => "drop",
+            Scenario::DropTable => "drop-table",
         }
     }
 
@@ -77,7 +81,11 @@ impl Scenario {
     /// Default LR resolution (vertices, columns × rows), as in the paper.
     pub fn default_resolution(self) -> (usize, usize) {
         match self {
-            Scenario::Flag | Scenario::FlagSphere | Scenario::Drape | Scenario::Drop => (32, 32),
+            Scenario::Flag
+            | Scenario::FlagSphere
+            | Scenario::Drape
+            | Scenario::Drop
+            | Scenario::DropTable => (32, 32),
             _ => (32, 10),
         }
     }
@@ -86,7 +94,7 @@ impl Scenario {
     fn width(self) -> f32 {
         match self {
             Scenario::Flag | Scenario::FlagSphere => 1.0,
-            Scenario::Drape | Scenario::Drop => 1.4,
+            Scenario::Drape | Scenario::Drop | Scenario::DropTable => 1.4,
             _ => 2.0,
         }
     }
@@ -132,7 +140,8 @@ pub struct Variation {
     /// Flap amplitude factor (flag scenarios) and frequency factor.
     pub flap: f32,
     pub flap_freq: f32,
-    /// Sphere radius factor and centre offset (metres, x and z).
+    /// Obstacle size factor (sphere radius; table top side, `drop-table`) and centre offset
+    /// (metres, x and z; halved for the table).
     pub sphere_radius: f32,
     pub sphere_offset: [f32; 2],
     /// Drape: inward squeeze (fraction, default 0.3) and drop factor.
@@ -272,7 +281,7 @@ impl ScenarioSpec {
                                 center: [0.1 + ox, 1.5 - 0.75 * sy, 0.45 + oz],
                                 radius: 0.25 * var.sphere_radius,
                             }),
-                            ground: None,
+                            ..Default::default()
                         }
                     } else {
                         Colliders::default()
@@ -292,6 +301,7 @@ impl ScenarioSpec {
                     let col = Colliders {
                         sphere: Some(Sphere { center: [ox, 0.75 - radius, oz], radius }),
                         ground: Some(0.0),
+                        ..Default::default()
                     };
                     (pos, pins, kin, calm, col)
                 }
@@ -304,8 +314,27 @@ impl ScenarioSpec {
                     let center = [ox, 0.05 + radius, oz];
                     let y0 = center[1] + radius + 0.05;
                     let pos = uv.iter().map(|&(u, v)| [(u - 0.5) * sx, y0, (v - 0.5) * sy]).collect();
-                    let col = Colliders { sphere: Some(Sphere { center, radius }), ground: Some(0.0) };
+                    let col = Colliders {
+                        sphere: Some(Sphere { center, radius }),
+                        ground: Some(0.0),
+                        ..Default::default()
+                    };
                     // A breeze with gusts keeps the hem swaying once the sheet has landed.
+                    let wind =
+                        Wind::gusty([0.6 * var.wind, 0.0, 0.6 * var.wind], 1.0 * var.wind, 4, self.seed);
+                    (pos, Vec::new(), Kinematics::Static, wind, col)
+                }
+                Scenario::DropTable => {
+                    // The drop onto a table 0.75 m high whose top is 0.6 × the sheet's side ×
+                    // the obstacle size factor (0.7–1.4; at most 0.8 ×, to leave a hem): the
+                    // hem hangs down the sides, clear of the ground, and folds at the corners.
+                    let [ox, oz] = var.sphere_offset.map(|o| 0.5 * o);
+                    let top = 0.75;
+                    let half = |side: f32| (0.3 * var.sphere_radius).min(0.4) * side;
+                    let cuboid =
+                        Cuboid { center: [ox, 0.5 * top, oz], half: [half(sx), 0.5 * top, half(sy)] };
+                    let pos = uv.iter().map(|&(u, v)| [(u - 0.5) * sx, top + 0.05, (v - 0.5) * sy]).collect();
+                    let col = Colliders { cuboid: Some(cuboid), ground: Some(0.0), ..Default::default() };
                     let wind =
                         Wind::gusty([0.6 * var.wind, 0.0, 0.6 * var.wind], 1.0 * var.wind, 4, self.seed);
                     (pos, Vec::new(), Kinematics::Static, wind, col)
