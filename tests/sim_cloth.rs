@@ -111,6 +111,14 @@ fn nothing_penetrates_the_sphere_beyond_the_margin() {
     }
 }
 
+/// Length (m) of the border loop `ring` of `mesh`, and of its shadow on the ground plane (y = 0):
+/// a hem hanging in folds has a shadow far shorter than itself.
+fn border_and_footprint(mesh: &GridMesh, ring: &[usize]) -> (f64, f64) {
+    let len = closed_loop_length(ring, |v| mesh.pos[v].map(f64::from));
+    let shadow = closed_loop_length(ring, |v| [mesh.pos[v][0] as f64, 0.0, mesh.pos[v][2] as f64]);
+    (len, shadow)
+}
+
 #[test]
 fn a_dropped_sheet_lands_on_the_sphere_and_its_hem_hangs_in_folds() {
     // Nothing pinned: the sheet falls, its middle comes to rest on top of the sphere and the
@@ -132,8 +140,7 @@ fn a_dropped_sheet_lands_on_the_sphere_and_its_hem_hangs_in_folds() {
     let hem_y = ring.iter().map(|&v| last.pos[v][1]).sum::<f32>() / ring.len() as f32;
     assert!(hem_y < top - radius, "the hem hangs at y = {hem_y} m on average, the top is at {top}");
     // Hanging folds: the border loop is far shorter in the ground plane than it is long.
-    let loop_len = closed_loop_length(&ring, |v| last.pos[v].map(f64::from));
-    let flat_len = closed_loop_length(&ring, |v| [last.pos[v][0] as f64, 0.0, last.pos[v][2] as f64]);
+    let (loop_len, flat_len) = border_and_footprint(last, &ring);
     assert!(flat_len < 0.9 * loop_len, "border {loop_len} m long, {flat_len} m seen from above: no folds");
     let lowest = last.pos.iter().map(|p| p[1]).fold(f32::INFINITY, f32::min);
     assert!(lowest > -1e-4, "a vertex went through the ground: y = {lowest}");
@@ -163,8 +170,7 @@ fn a_sheet_dropped_on_a_table_hangs_down_its_sides_and_never_enters_it() {
         let y = last.pos[v][1];
         assert!(y < top - 0.05 && y > 0.02, "a hem vertex is at y = {y} m (top {top} m, ground 0)");
     }
-    let loop_len = closed_loop_length(&ring, |v| last.pos[v].map(f64::from));
-    let flat_len = closed_loop_length(&ring, |v| [last.pos[v][0] as f64, 0.0, last.pos[v][2] as f64]);
+    let (loop_len, flat_len) = border_and_footprint(last, &ring);
     assert!(flat_len < 0.97 * loop_len, "border {loop_len} m long, {flat_len} m seen from above: no folds");
 }
 

@@ -27,8 +27,7 @@ pub struct Args {
     pub seed: u64,
     /// Randomise the scene with this seed (cloth size, material, wind, flapping, obstacle
     /// (sphere, table) size and place, drape and twist speeds); 0 = the scenario as in the
-    /// paper. Overrides
-    /// --material.
+    /// paper. Overrides --material.
     #[arg(long, default_value_t = 0)]
     pub vary: u64,
     /// Material preset: silk, cotton, denim, rubber.

@@ -112,13 +112,14 @@ pub(super) enum Input<'a> {
     Padded { xp: &'a [f32], hp: usize, wp: usize },
     /// The NCHW tensor: each task pads the four input rows of its row of tiles itself. Rows
     /// shared by two rows of tiles are transposed twice, but the convolution is one parallel
-    /// loop instead of two, and on small images the hand-over between the loops (workers that
-    /// went to sleep while one thread padded, or tasks too small to pay for their spawning)
-    /// cost more than the work (a 32→32 conv on one 32×32 image: see [`FUSE_PAD_MAX`]).
+    /// loop instead of two, which pays on small inputs (see [`FUSE_PAD_MAX`]).
     Nchw { x: &'a Tensor, pad: Padding },
 }
 
-/// Largest input (floats) whose forward pads inside the tasks ([`Input::Nchw`]).
+/// Largest input (floats) whose forward pads inside the tasks ([`Input::Nchw`]). Interleaved
+/// A/B on the peer bench's rows (2-core machine): at 2¹⁶, 64→64 on one 32×32 image 7 % faster,
+/// the other rows within ±2 %; at 2²¹ (every row) 32→32 on 64×64 and the small nets 9–11 %
+/// slower, the transposing twice no longer paid for by the loop saved.
 pub(super) const FUSE_PAD_MAX: usize = 1 << 16;
 
 /// Unaligned vector load / store.
