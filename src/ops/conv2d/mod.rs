@@ -1009,15 +1009,16 @@ pub fn conv2d_input_grad(w: &Tensor, dy: &Tensor, pad: Padding, dx: &mut Tensor)
             };
             let dxp = SyncPtr(dx.data.as_mut_ptr());
             let sink = move |ni: usize, yy: usize, row: &[f32]| {
-                for ci in 0..c {
-                    // SAFETY: row (ni, yy) of every plane is written by this task only.
-                    let dst = unsafe {
-                        std::slice::from_raw_parts_mut(dxp.get().add(((ni * c + ci) * h + yy) * wd), wd)
-                    };
-                    for (xx, d) in dst.iter_mut().enumerate() {
-                        *d += row[xx * opad + ci];
-                    }
-                }
+                assert!(row.len() >= wd * opad);
+                // dx[ni, ·, yy, ·] += the row, moved from channels-last to the planes.
+                // SAFETY: row (ni, yy) of every plane is written by this task only; the row
+                // holds wd pixels of opad ≥ c floats (asserted), and `at` < c·h·wd − base.
+                unsafe {
+                    let d = dxp.get().add((ni * c * h + yy) * wd);
+                    let f = |v: f32x8, at: usize| v + (d.add(at) as *const f32x8).read_unaligned();
+                    let g = |v: f32, at: usize| v + *d.add(at);
+                    transpose_map(row.as_ptr(), opad, wd, c, d, h * wd, f, g)
+                };
             };
             if wino {
                 let input = winograd::Input::Padded { xp: &dyp, hp, wp };
