@@ -284,10 +284,11 @@ fn pad_row_nhwc(x: &Tensor, ni: usize, yy: usize, ph: usize, pw: usize, pad: Pad
     // SAFETY: the c source rows (plane stride h·w) and the w destination pixels are in bounds
     // (asserted).
     unsafe { transpose(src.as_ptr(), h * w, c, w, dst.as_mut_ptr().add(pw * c), c) };
-    for ci in 0..c {
-        for xx in (0..pw).chain(pw + w..w + 2 * pw) {
-            dst[xx * c + ci] =
-                pad_index(xx as isize - pw as isize, w, pad).map_or(0.0, |sx| src[ci * h * w + sx]);
+    for xx in (0..pw).chain(pw + w..w + 2 * pw) {
+        let px = &mut dst[xx * c..(xx + 1) * c];
+        match pad_index(xx as isize - pw as isize, w, pad) {
+            None => px.fill(0.0),
+            Some(sx) => px.iter_mut().enumerate().for_each(|(ci, v)| *v = src[ci * h * w + sx]),
         }
     }
 }
