@@ -311,6 +311,54 @@ def scene_box_drape(n, frames):
     return cloth
 
 
+def scene_stool_drape(n, frames):
+    """Validation scene (not a test scene): 1.4 m heavy, stiff sheet falling on a round stool
+    (r 0.3 m, top at 0.55 m), off centre and turned 35°; its corners reach the floor."""
+    size = 1.4
+    bpy.ops.mesh.primitive_cylinder_add(radius=0.3, depth=0.55, vertices=48, location=(0.1, 0.05, 0.275))
+    add_collider(bpy.context.object, thickness=0.01, friction=5.0)
+    floor(0.0)
+    cloth = make_grid(n, size, location=(0.0, 0.0, 0.9), rotation=(0, 0, math.radians(35)))
+    params = dict(density=50.0, quality=12, air=1.0, tension=15.0, compression=15.0, shear=5.0,
+                  damp=5.0, bend=1.5, bend_damp=0.5)
+    add_cloth(cloth, n, size, frames, params)
+    return cloth
+
+
+def scene_oval_table(n, frames):
+    """Validation scene (not a test scene): 2.2 m light sheet falling on an oval table (radii
+    0.75 and 0.45 m, top at 0.75 m); its long sides hang clear, its corners reach the floor."""
+    size = 2.2
+    bpy.ops.mesh.primitive_cylinder_add(radius=1.0, depth=0.75, vertices=64, location=(0, 0, 0.375))
+    table = bpy.context.object
+    table.scale = (0.75, 0.45, 1.0)
+    apply_transform(table)
+    add_collider(table, thickness=0.01, friction=5.0)
+    floor(0.0)
+    cloth = make_grid(n, size, location=(-0.03, 0.06, 1.05), rotation=(0, 0, math.radians(5)))
+    params = dict(density=25.0, quality=12, air=1.0, tension=15.0, compression=15.0, shear=5.0,
+                  damp=5.0, bend=0.3, bend_damp=0.5)
+    add_cloth(cloth, n, size, frames, params)
+    return cloth
+
+
+def scene_bench_drape(n, frames):
+    """Validation scene (not a test scene): 1.6 m sheet falling across a long low bench (a
+    1.3 x 0.45 m box, top at 0.5 m, turned 12°); its long hems fold on the floor."""
+    size = 1.6
+    bpy.ops.mesh.primitive_cube_add(size=1.0, location=(0.05, 0.0, 0.25), rotation=(0, 0, math.radians(12)))
+    bench = bpy.context.object
+    bench.scale = (1.3, 0.45, 0.5)
+    apply_transform(bench)
+    add_collider(bench, thickness=0.01, friction=5.0)
+    floor(0.0)
+    cloth = make_grid(n, size, location=(0.0, -0.04, 0.85), rotation=(0, 0, math.radians(-20)))
+    params = dict(density=35.0, quality=12, air=1.0, tension=15.0, compression=15.0, shear=5.0,
+                  damp=5.0, bend=0.6, bend_damp=0.5)
+    add_cloth(cloth, n, size, frames, params)
+    return cloth
+
+
 # The test scenes: the README's Blender table. Nothing is chosen on them.
 SCENES = {
     "drop-sphere": scene_drop_sphere,
@@ -323,6 +371,9 @@ SCENES = {
 VALIDATION_SCENES = {
     "towel-rail": scene_towel_rail,
     "box-drape": scene_box_drape,
+    "stool-drape": scene_stool_drape,
+    "oval-table": scene_oval_table,
+    "bench-drape": scene_bench_drape,
 }
 ALL_SCENES = {**SCENES, **VALIDATION_SCENES}
 
