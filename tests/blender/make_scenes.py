@@ -172,6 +172,22 @@ def grid_index(n, i, j):
     return j * n + i
 
 
+def fabric(density, bend, air=1.0, bend_damp=0.5):
+    """Cloth parameters shared by the scenes: areal density (kg/m²), angular bending stiffness,
+    air damping; stretch, shear and their damping the same in every scene."""
+    return dict(density=density, quality=12, air=air, tension=15.0, compression=15.0, shear=5.0,
+                damp=5.0, bend=bend, bend_damp=bend_damp)
+
+
+def falling_sheet(n, frames, size, location, turn_deg, params):
+    """A floor at z = 0 and a size x size sheet at `location`, turned `turn_deg` about the
+    vertical, falling on whatever colliders the scene made first."""
+    floor(0.0)
+    cloth = make_grid(n, size, location=location, rotation=(0, 0, math.radians(turn_deg)))
+    add_cloth(cloth, n, size, frames, params)
+    return cloth
+
+
 def scene_drop_sphere(n, frames):
     """2 m sheet, 1 m above a 0.5 m sphere (slightly off centre), floor under the sphere."""
     size = 2.0
@@ -182,8 +198,7 @@ def scene_drop_sphere(n, frames):
     add_collider(sphere, thickness=0.01, friction=5.0)
     floor(-0.5)
     cloth = make_grid(n, size, location=(0.03, 0.02, 1.5), rotation=(0, 0, math.radians(10)))
-    params = dict(density=40.0, quality=12, air=1.0, tension=15.0, compression=15.0, shear=5.0,
-                  damp=5.0, bend=0.5, bend_damp=0.5)
+    params = fabric(40.0, 0.5)
     add_cloth(cloth, n, size, frames, params)
     return cloth
 
@@ -197,8 +212,7 @@ def scene_flag_wind(n, frames):
     # Grid in XY, turned 90 deg about X: local y becomes world z.
     cloth = make_grid(n, size, location=(0, 0, 2.0), rotation=(math.radians(90), 0, 0))
     pins = [grid_index(n, 0, j) for j in range(n)]
-    params = dict(density=30.0, quality=12, air=FLAG_WIND["air"], tension=15.0, compression=15.0, shear=5.0,
-                  damp=5.0, bend=0.5, bend_damp=1.0)
+    params = fabric(30.0, 0.5, air=FLAG_WIND["air"], bend_damp=1.0)
     add_cloth(cloth, n, size, frames, params, pins=pins)
 
     # Gusts come from animating the fields' transforms only: keyframing a field's strength
@@ -262,8 +276,7 @@ def scene_corner_hang(n, frames):
         empty.keyframe_insert(data_path="location", frame=t0)
         empty.location = (x_end, -0.75 + 0.1 * k, 2.0 + 0.1 * k)
         empty.keyframe_insert(data_path="location", frame=t1)
-    params = dict(density=30.0, quality=12, air=1.0, tension=15.0, compression=15.0, shear=5.0,
-                  damp=5.0, bend=0.5, bend_damp=0.5)
+    params = fabric(30.0, 0.5)
     add_cloth(cloth, n, size, frames, params, pins=corners)
     return cloth
 
@@ -273,12 +286,7 @@ def scene_table_cloth(n, frames):
     size = 2.0
     bpy.ops.mesh.primitive_cylinder_add(radius=0.55, depth=0.8, vertices=64, location=(0, 0, 0.4))
     add_collider(bpy.context.object, thickness=0.01, friction=5.0)
-    floor(0.0)
-    cloth = make_grid(n, size, location=(0.05, -0.04, 1.1), rotation=(0, 0, math.radians(20)))
-    params = dict(density=40.0, quality=12, air=1.0, tension=15.0, compression=15.0, shear=5.0,
-                  damp=5.0, bend=0.5, bend_damp=0.5)
-    add_cloth(cloth, n, size, frames, params)
-    return cloth
+    return falling_sheet(n, frames, size, (0.05, -0.04, 1.1), 20, fabric(40.0, 0.5))
 
 
 def scene_towel_rail(n, frames):
@@ -289,12 +297,7 @@ def scene_towel_rail(n, frames):
     bpy.ops.mesh.primitive_cylinder_add(radius=0.06, depth=2.5, vertices=32, location=(0, 0, 0.84),
                                         rotation=(0, math.radians(90), 0))
     add_collider(bpy.context.object, thickness=0.01, friction=5.0)
-    floor(0.0)
-    cloth = make_grid(n, size, location=(0.04, 0.1, 1.1), rotation=(0, 0, math.radians(15)))
-    params = dict(density=35.0, quality=12, air=1.0, tension=15.0, compression=15.0, shear=5.0,
-                  damp=5.0, bend=1.0, bend_damp=0.5)
-    add_cloth(cloth, n, size, frames, params)
-    return cloth
+    return falling_sheet(n, frames, size, (0.04, 0.1, 1.1), 15, fabric(35.0, 1.0))
 
 
 def scene_box_drape(n, frames):
@@ -303,12 +306,7 @@ def scene_box_drape(n, frames):
     size = 1.8
     bpy.ops.mesh.primitive_cube_add(size=0.7, location=(0.06, -0.05, 0.35), rotation=(0, 0, math.radians(30)))
     add_collider(bpy.context.object, thickness=0.01, friction=5.0)
-    floor(0.0)
-    cloth = make_grid(n, size, location=(0.0, 0.0, 1.0), rotation=(0, 0, math.radians(-8)))
-    params = dict(density=35.0, quality=12, air=1.0, tension=15.0, compression=15.0, shear=5.0,
-                  damp=5.0, bend=0.8, bend_damp=0.5)
-    add_cloth(cloth, n, size, frames, params)
-    return cloth
+    return falling_sheet(n, frames, size, (0.0, 0.0, 1.0), -8, fabric(35.0, 0.8))
 
 
 def scene_stool_drape(n, frames):
@@ -317,12 +315,7 @@ def scene_stool_drape(n, frames):
     size = 1.4
     bpy.ops.mesh.primitive_cylinder_add(radius=0.3, depth=0.55, vertices=48, location=(0.1, 0.05, 0.275))
     add_collider(bpy.context.object, thickness=0.01, friction=5.0)
-    floor(0.0)
-    cloth = make_grid(n, size, location=(0.0, 0.0, 0.9), rotation=(0, 0, math.radians(35)))
-    params = dict(density=50.0, quality=12, air=1.0, tension=15.0, compression=15.0, shear=5.0,
-                  damp=5.0, bend=1.5, bend_damp=0.5)
-    add_cloth(cloth, n, size, frames, params)
-    return cloth
+    return falling_sheet(n, frames, size, (0.0, 0.0, 0.9), 35, fabric(50.0, 1.5))
 
 
 def scene_oval_table(n, frames):
@@ -334,12 +327,7 @@ def scene_oval_table(n, frames):
     table.scale = (0.75, 0.45, 1.0)
     apply_transform(table)
     add_collider(table, thickness=0.01, friction=5.0)
-    floor(0.0)
-    cloth = make_grid(n, size, location=(-0.03, 0.06, 1.05), rotation=(0, 0, math.radians(5)))
-    params = dict(density=25.0, quality=12, air=1.0, tension=15.0, compression=15.0, shear=5.0,
-                  damp=5.0, bend=0.3, bend_damp=0.5)
-    add_cloth(cloth, n, size, frames, params)
-    return cloth
+    return falling_sheet(n, frames, size, (-0.03, 0.06, 1.05), 5, fabric(25.0, 0.3))
 
 
 def scene_bench_drape(n, frames):
@@ -351,12 +339,7 @@ def scene_bench_drape(n, frames):
     bench.scale = (1.3, 0.45, 0.5)
     apply_transform(bench)
     add_collider(bench, thickness=0.01, friction=5.0)
-    floor(0.0)
-    cloth = make_grid(n, size, location=(0.0, -0.04, 0.85), rotation=(0, 0, math.radians(-20)))
-    params = dict(density=35.0, quality=12, air=1.0, tension=15.0, compression=15.0, shear=5.0,
-                  damp=5.0, bend=0.6, bend_damp=0.5)
-    add_cloth(cloth, n, size, frames, params)
-    return cloth
+    return falling_sheet(n, frames, size, (0.0, -0.04, 0.85), -20, fabric(35.0, 0.6))
 
 
 def scene_sofa_drape(n, frames):
@@ -372,12 +355,7 @@ def scene_sofa_drape(n, frames):
                           loc[0] * math.sin(math.radians(25)) + loc[1] * math.cos(math.radians(25)), loc[2])
         apply_transform(block)
         add_collider(block, thickness=0.01, friction=5.0)
-    floor(0.0)
-    cloth = make_grid(n, size, location=(0.05, 0.1, 1.2), rotation=(0, 0, math.radians(-5)))
-    params = dict(density=45.0, quality=12, air=1.0, tension=15.0, compression=15.0, shear=5.0,
-                  damp=5.0, bend=0.7, bend_damp=0.5)
-    add_cloth(cloth, n, size, frames, params)
-    return cloth
+    return falling_sheet(n, frames, size, (0.05, 0.1, 1.2), -5, fabric(45.0, 0.7))
 
 
 def scene_square_table(n, frames):
@@ -389,12 +367,7 @@ def scene_square_table(n, frames):
     table.scale = (0.9, 0.9, 0.75)
     apply_transform(table)
     add_collider(table, thickness=0.01, friction=5.0)
-    floor(0.0)
-    cloth = make_grid(n, size, location=(0.25, -0.1, 1.0), rotation=(0, 0, math.radians(12)))
-    params = dict(density=30.0, quality=12, air=1.0, tension=15.0, compression=15.0, shear=5.0,
-                  damp=5.0, bend=0.4, bend_damp=0.5)
-    add_cloth(cloth, n, size, frames, params)
-    return cloth
+    return falling_sheet(n, frames, size, (0.25, -0.1, 1.0), 12, fabric(30.0, 0.4))
 
 
 def scene_ball_pile(n, frames):
@@ -407,12 +380,7 @@ def scene_ball_pile(n, frames):
         for p in ball.data.polygons:
             p.use_smooth = True
         add_collider(ball, thickness=0.01, friction=5.0)
-    floor(0.0)
-    cloth = make_grid(n, size, location=(0.0, 0.05, 1.0), rotation=(0, 0, math.radians(30)))
-    params = dict(density=35.0, quality=12, air=1.0, tension=15.0, compression=15.0, shear=5.0,
-                  damp=5.0, bend=0.5, bend_damp=0.5)
-    add_cloth(cloth, n, size, frames, params)
-    return cloth
+    return falling_sheet(n, frames, size, (0.0, 0.05, 1.0), 30, fabric(35.0, 0.5))
 
 
 def scene_hammock(n, frames):
@@ -421,8 +389,7 @@ def scene_hammock(n, frames):
     size = 1.4
     cloth = make_grid(n, size, location=(0, 0, 1.5), rotation=(0, 0, math.radians(45)))
     corners = [grid_index(n, 0, 0), grid_index(n, n - 1, n - 1)]
-    params = dict(density=30.0, quality=12, air=3.0, tension=15.0, compression=15.0, shear=5.0,
-                  damp=5.0, bend=0.3, bend_damp=0.5)
+    params = fabric(30.0, 0.3, air=3.0)
     add_cloth(cloth, n, size, frames, params, pins=corners)
     bpy.ops.object.effector_add(type="WIND", location=(0, -2.0, 1.5))
     wind = bpy.context.object
