@@ -87,7 +87,7 @@ pub struct Args {
     /// vertices just enough. For draped cloth from other tools (Blender tablecloths), whose
     /// hanging hems fold more than the training cloth's and whose outline the nets then
     /// shorten by up to 0.7 %. On by default (chosen on validation scenes); `false` saves
-    /// about 1 % accuracy on cloth whose true outline is shorter than the LR one (strongly
+    /// 1–2 % vertex error on cloth whose true outline is shorter than the LR one (strongly
     /// twisted strips) and gives the nets' border as it is.
     #[arg(long, default_value_t = crate::sr::upscale::DEFAULT_KEEP_OUTLINE, action = clap::ArgAction::Set)]
     pub keep_outline: bool,
