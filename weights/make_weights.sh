@@ -11,9 +11,9 @@
 #
 # Held out of training, chosen before training (used by `anisocb demo`, the README's
 # evaluation and `eval`): the scenarios flag-sphere and twist-zero-g, seeds ≥ 7 of every
-# scenario, and every Blender test scene (tests/blender/make_scenes.py). Seed 6 of every
-# scenario and the Blender validation scenes (box-drape, towel-rail) are for choices made
-# after training.
+# scenario, and every Blender test scene (tests/blender/make_scenes.py, both test sets). Seed 6
+# of every scenario and the Blender validation scenes (make_scenes.py's VALIDATION_SCENES) are
+# for choices made after training.
 set -euo pipefail
 BIN=${BIN:-target/release/anisocb}
 WORK=${WORK:-target/weights-work}

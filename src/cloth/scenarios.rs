@@ -305,39 +305,32 @@ impl ScenarioSpec {
                     };
                     (pos, pins, kin, calm, col)
                 }
-                Scenario::Drop => {
-                    // Horizontal (xz), nothing pinned, 5 cm above a sphere it falls onto; the
-                    // hem hangs and folds over it, unlike the drape's sheet held at its
-                    // corners (cloth from other tools is mostly such free hems).
-                    let [ox, oz] = var.sphere_offset;
-                    let radius = 0.35 * var.sphere_radius;
-                    let center = [ox, 0.05 + radius, oz];
-                    let y0 = center[1] + radius + 0.05;
-                    let pos = uv.iter().map(|&(u, v)| [(u - 0.5) * sx, y0, (v - 0.5) * sy]).collect();
-                    let col = Colliders {
-                        sphere: Some(Sphere { center, radius }),
-                        ground: Some(0.0),
-                        ..Default::default()
+                Scenario::Drop | Scenario::DropTable => {
+                    // Horizontal (xz), nothing pinned, 5 cm above the obstacle it falls onto; the
+                    // free hem hangs and folds, unlike the drape's sheet held at its corners
+                    // (cloth from other tools is mostly such free hems). `drop`: a sphere.
+                    // `drop-table`: a table 0.75 m high whose top is 0.6 × the sheet's side × the
+                    // obstacle size factor (0.7–1.4; at most 0.8 ×, to leave a hem): the hem hangs
+                    // down the sides, clear of the ground, and folds at the corners.
+                    let (y0, col) = if self.scenario == Scenario::Drop {
+                        let [ox, oz] = var.sphere_offset;
+                        let radius = 0.35 * var.sphere_radius;
+                        let center = [ox, 0.05 + radius, oz];
+                        let sphere = Sphere { center, radius };
+                        (center[1] + radius + 0.05, Colliders { sphere: Some(sphere), ..Default::default() })
+                    } else {
+                        let [ox, oz] = var.sphere_offset.map(|o| 0.5 * o);
+                        let top = 0.75;
+                        let half = |side: f32| (0.3 * var.sphere_radius).min(0.4) * side;
+                        let cuboid =
+                            Cuboid { center: [ox, 0.5 * top, oz], half: [half(sx), 0.5 * top, half(sy)] };
+                        (top + 0.05, Colliders { cuboid: Some(cuboid), ..Default::default() })
                     };
+                    let pos = uv.iter().map(|&(u, v)| [(u - 0.5) * sx, y0, (v - 0.5) * sy]).collect();
                     // A breeze with gusts keeps the hem swaying once the sheet has landed.
                     let wind =
                         Wind::gusty([0.6 * var.wind, 0.0, 0.6 * var.wind], 1.0 * var.wind, 4, self.seed);
-                    (pos, Vec::new(), Kinematics::Static, wind, col)
-                }
-                Scenario::DropTable => {
-                    // The drop onto a table 0.75 m high whose top is 0.6 × the sheet's side ×
-                    // the obstacle size factor (0.7–1.4; at most 0.8 ×, to leave a hem): the
-                    // hem hangs down the sides, clear of the ground, and folds at the corners.
-                    let [ox, oz] = var.sphere_offset.map(|o| 0.5 * o);
-                    let top = 0.75;
-                    let half = |side: f32| (0.3 * var.sphere_radius).min(0.4) * side;
-                    let cuboid =
-                        Cuboid { center: [ox, 0.5 * top, oz], half: [half(sx), 0.5 * top, half(sy)] };
-                    let pos = uv.iter().map(|&(u, v)| [(u - 0.5) * sx, top + 0.05, (v - 0.5) * sy]).collect();
-                    let col = Colliders { cuboid: Some(cuboid), ground: Some(0.0), ..Default::default() };
-                    let wind =
-                        Wind::gusty([0.6 * var.wind, 0.0, 0.6 * var.wind], 1.0 * var.wind, 4, self.seed);
-                    (pos, Vec::new(), Kinematics::Static, wind, col)
+                    (pos, Vec::new(), Kinematics::Static, wind, Colliders { ground: Some(0.0), ..col })
                 }
                 Scenario::Twist | Scenario::TwistMaterials | Scenario::TwistZeroG => {
                     // Horizontal strip along x at y = 1.0 m; both end columns pinned and turned

@@ -260,7 +260,7 @@ impl Upscaled {
             let mut u_net = self.interpolated.data[k * px3..(k + 1) * px3].to_vec();
             self.maps[k].0.apply_image(&mut u_net, true);
             let base_net = outline_base(&hr_net, &u_net, hh, hw);
-            let a = outline_weight(&hr_net, &base_net, hh, hw, floor);
+            let a = outline_weight(&hr_net, &base_net, &hr_ring, floor);
             if a < 1.0 {
                 let mut base = base_net;
                 self.maps[k].1.apply_image(&mut base, true);
@@ -609,11 +609,10 @@ pub fn outline_base(hr: &[f32], u: &[f32], hh: usize, hw: usize) -> Vec<f32> {
 }
 
 /// The outline floor's weight for one frame: the largest α ∈ [0, 1] (to 2⁻²⁰, by bisection)
-/// whose border loop of `base + α (hr − base)` (planar 3 × rH × rW images; `base` from
-/// [`outline_base`]) is at least `floor` long; 1 if `hr`'s already is, 0 if not even `base`'s.
-pub fn outline_weight(hr: &[f32], base: &[f32], hh: usize, hw: usize, floor: f32) -> f32 {
-    let ring = border_loop(hw, hh);
-    let len = |a: f32| loop_length_blend(hr, base, a, &ring);
+/// whose border loop `ring` ([`border_loop`] of the rW × rH grid) of `base + α (hr − base)`
+/// (planar 3 × rH × rW images; `base` from [`outline_base`]) is at least `floor` long; 1 if `hr`'s already is, 0 if not even `base`'s.
+pub fn outline_weight(hr: &[f32], base: &[f32], ring: &[usize], floor: f32) -> f32 {
+    let len = |a: f32| loop_length_blend(hr, base, a, ring);
     if len(1.0) >= floor {
         return 1.0;
     }
@@ -693,10 +692,10 @@ mod tests {
         let (lu, lh) = (loop_length(&u, &ring), loop_length(&hr, &ring));
         assert!((lu - 2.0 * (8.0 + 6.0)).abs() < 1e-5 && (lh - 0.9 * lu).abs() < 1e-4, "{lu} {lh}");
         // Long enough already: 1; not even U: 0; in between: where the length crosses the floor.
-        assert_eq!(outline_weight(&hr, &u, h, w, lh), 1.0);
-        assert_eq!(outline_weight(&hr, &u, h, w, 1.01 * lu), 0.0);
+        assert_eq!(outline_weight(&hr, &u, &ring, lh), 1.0);
+        assert_eq!(outline_weight(&hr, &u, &ring, 1.01 * lu), 0.0);
         let floor = 0.95 * lu;
-        let a = outline_weight(&hr, &u, h, w, floor);
+        let a = outline_weight(&hr, &u, &ring, floor);
         let len = |a: f32| loop_length_blend(&hr, &u, a, &ring);
         assert!(len(a) >= floor && len(a + 1e-5) < floor, "α = {a}: {} vs floor {floor}", len(a));
         assert!((a - 0.5).abs() < 1e-4, "the outline shrinks linearly with α here: α = {a}");
