@@ -3,7 +3,7 @@
 use anisocb::cloth::collision::{Cuboid, Sphere};
 use anisocb::cloth::run_io::{read_run, write_pair, write_single};
 use anisocb::cloth::scenarios::run_at;
-use anisocb::cloth::tracking::bilinear_targets;
+use anisocb::cloth::tracking::{bilinear_targets, Restriction, TrackingMode};
 use anisocb::cloth::{paired_run, run_single, Material, Scenario, ScenarioSpec};
 use anisocb::geom::geometry_image::{image_to_mesh, sequence_to_images};
 use anisocb::geom::mesh::{border_loop, closed_loop_length, dist};
@@ -316,4 +316,95 @@ fn parallel_colour_sweeps_give_the_same_bits_as_serial() {
     sp.params.parallel_min_colour = 1;
     let parallel = run_single(&sp).unwrap();
     assert_eq!(bits(&serial), bits(&parallel));
+}
+
+/// RMS (m) over the interior of X − S(X), S = Catmull-Rom resampling down to the LR grid and
+/// back: how much folding finer than the LR grid a run holds (a smooth sheet scores ≈ 0).
+fn fine_detail(frames: &[GridMesh], lr_w: usize, lr_h: usize) -> f64 {
+    use anisocb::ops::resample::resize;
+    use anisocb::ops::Interp;
+    let (w, h) = (frames[0].w, frames[0].h);
+    let (mut s, mut n) = (0.0f64, 0usize);
+    for f in frames {
+        let x = anisocb::tensor::Tensor::from_vec(
+            &[1, 3, h, w],
+            (0..3).flat_map(|c| f.pos.iter().map(move |p| p[c])).collect(),
+        )
+        .unwrap();
+        let sm = resize(&resize(&x, lr_h, lr_w, Interp::CatmullRom), h, w, Interp::CatmullRom);
+        for c in 0..3 {
+            for j in 2..h - 2 {
+                for i in 2..w - 2 {
+                    let k = c * h * w + j * w + i;
+                    s += ((x.data[k] - sm.data[k]) as f64).powi(2);
+                    n += 1;
+                }
+            }
+        }
+    }
+    (3.0 * s / n.max(1) as f64).sqrt()
+}
+
+/// Mean distance (m) between the coarse view of the HR run and the same view of the LR run.
+fn coarse_gap(lr: &[GridMesh], hr: &[GridMesh]) -> f32 {
+    let r = Restriction::new(lr[0].w, lr[0].h, hr[0].w, hr[0].h);
+    let (mut s, mut n) = (0.0, 0);
+    for (l, h) in lr.iter().zip(hr) {
+        for (a, b) in r.targets(l).iter().zip(&r.apply(&h.pos)) {
+            s += dist(*a, *b);
+            n += 1;
+        }
+    }
+    s / n as f32
+}
+
+#[test]
+fn coarse_tracking_holds_the_lr_shape_and_leaves_the_fine_folds_free() {
+    // A dropped sheet: its hem falls into folds finer than the LR grid. Per-vertex tracking
+    // pulls every HR vertex onto the LR surface and flattens them; coarse tracking holds only
+    // the LR-scale averages, so the HR run keeps more of its own folds while its coarse shape
+    // stays on the LR run (a free HR run drifts far from it).
+    let mut sp = spec(Scenario::Drop, 32, 32, 50);
+    sp.vary = 3;
+    let run = |tracking: f32, mode: TrackingMode| {
+        let mut s = sp.clone();
+        (s.tracking, s.tracking_mode) = (tracking, mode);
+        paired_run(&s).unwrap()
+    };
+    let (lr, free) = run(0.0, TrackingMode::Coarse);
+    let (_, vertex) = run(1000.0, TrackingMode::Vertex);
+    let (_, coarse) = run(1000.0, TrackingMode::Coarse);
+    let rough = [&free, &vertex, &coarse].map(|f| fine_detail(&f[25..], 32, 32));
+    let gap = [&free, &vertex, &coarse].map(|f| coarse_gap(&lr, f));
+    println!("fine detail (mm) free/vertex/coarse: {:?}", rough.map(|r| r * 1e3));
+    println!("coarse gap (mm) free/vertex/coarse: {:?}", gap.map(|g| g * 1e3));
+    assert!(
+        rough[2] > 1.1 * rough[1],
+        "coarse tracking should keep more fine folds than per-vertex: {rough:?}"
+    );
+    assert!(gap[2] < 0.5 * gap[0], "coarse tracking should hold the LR shape: {gap:?}");
+}
+
+#[test]
+fn restriction_of_a_flat_hr_sheet_meets_the_lr_targets_exactly() {
+    // The coarse targets restrict the LR surface sampled at the HR vertices, so an HR sheet
+    // lying on a flat (or bilinear) LR sheet satisfies every coarse constraint, border nodes
+    // included (their clipped tents are biased, but the same way on both sides).
+    let (lw, lh, hw, hh) = (5, 4, 10, 8);
+    let lr = GridMesh::new(
+        lw,
+        lh,
+        (0..lh)
+            .flat_map(|j| (0..lw).map(move |i| [0.3 * i as f32, 0.1 * (i * j) as f32, -0.2 * j as f32]))
+            .collect(),
+    );
+    let r = Restriction::new(lw, lh, hw, hh);
+    for n in 0..r.nodes() {
+        let s: f32 = r.node(n).map(|(_, w)| w).sum();
+        assert!((s - 1.0).abs() < 1e-6, "node {n}: weights sum to {s}");
+    }
+    let hr = bilinear_targets(&lr, hw, hh);
+    for (a, b) in r.targets(&lr).iter().zip(&r.apply(&hr)) {
+        assert!(dist(*a, *b) < 1e-6, "{a:?} vs {b:?}");
+    }
 }

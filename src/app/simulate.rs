@@ -39,9 +39,14 @@ pub struct Args {
     /// HR upscale factor for --pair (vertices per side).
     #[arg(long, default_value_t = 2)]
     pub scale: usize,
-    /// HR→LR tracking strength in 1/s² for --pair (0 = off).
+    /// HR→LR tracking strength in 1/s² for --pair (0 = off: the HR run drifts from its twin).
     #[arg(long, default_value_t = crate::cloth::scenarios::DEFAULT_TRACKING)]
     pub tracking: f32,
+    /// What tracking holds: `coarse` = one averaged constraint per LR node, so the HR run's
+    /// own folds finer than the LR grid form freely (the training truth); `vertex` = every HR
+    /// vertex pulled to the LR surface (flattens those folds; the truth of older models).
+    #[arg(long, default_value = "coarse")]
+    pub track: String,
     /// XPBD substeps per frame.
     #[arg(long)]
     pub substeps: Option<usize>,
@@ -80,6 +85,7 @@ pub fn spec_from_args(a: &Args) -> Result<ScenarioSpec> {
     spec.material = Material::from_name(&a.material)?;
     spec.scale = a.scale;
     spec.tracking = a.tracking;
+    spec.tracking_mode = crate::cloth::tracking::TrackingMode::from_name(&a.track)?;
     if let Some(s) = a.substeps {
         spec.params.substeps = s;
     }

@@ -243,6 +243,7 @@ pub fn meta_json(spec: &ScenarioSpec, role: &str, w: usize, h: usize, domain: &D
         .val("material", material)
         .str("bending", "isometric (Bergou et al. 2006)")
         .val("tracking_per_s2", Value::real(tracking))
+        .str("tracking_mode", if tracking > 0.0 { spec.tracking_mode.name() } else { "none" })
         .val(
             "domain",
             Object::new().val("bmin", Value::reals(&domain.bmin)).val("bmax", Value::reals(&domain.bmax)),

@@ -10,7 +10,7 @@ use super::collision::{Colliders, Cuboid, Sphere};
 use super::kinematics::{Kinematics, Pin};
 use super::params::{Material, SimParams};
 use super::solver::{Cloth, Scene};
-use super::tracking::{bilinear_targets, TrackTargets};
+use super::tracking::{bilinear_targets, CoarseTrack, Restriction, TrackTargets, TrackingMode};
 use super::wind::Wind;
 use crate::error::{Error, Result};
 use crate::geom::mesh::{rest_uv, GridMesh};
@@ -121,6 +121,8 @@ pub struct ScenarioSpec {
     pub material: Material,
     /// HR → LR attachment strength (1/s²) in paired runs; 0 = off.
     pub tracking: f32,
+    /// What the attachment holds: the LR-scale averages (default) or every HR vertex.
+    pub tracking_mode: TrackingMode,
     /// Upscale factor of the HR run (vertices per side).
     pub scale: usize,
     /// Seed of a randomised variant of the scene ([`Variation`]); 0 = the scenario as given.
@@ -210,6 +212,7 @@ impl ScenarioSpec {
             seed: 0,
             material: Material::COTTON,
             tracking: DEFAULT_TRACKING,
+            tracking_mode: TrackingMode::Coarse,
             scale: 2,
             vary: 0,
             params,
@@ -381,32 +384,45 @@ fn check_finite(frame: &GridMesh, k: usize) -> Result<()> {
     Ok(())
 }
 
-/// Simulate `spec` at a `w × h` resolution; with `track = Some((lr_frames, strength))` the run
-/// is attached to the LR run (see [`super::tracking`]). `progress(k)` is called after frame k.
+/// Simulate `spec` at a `w × h` resolution; with `track = Some(lr_frames)` (and
+/// `spec.tracking > 0`) the run is attached to the LR run as `spec.tracking_mode` says (see
+/// [`super::tracking`]). `progress(k)` is called after frame k.
 pub fn run_at(
     spec: &ScenarioSpec,
     w: usize,
     h: usize,
-    track: Option<(&[GridMesh], f32)>,
+    track: Option<&[GridMesh]>,
     progress: &mut dyn FnMut(usize),
 ) -> Result<Vec<GridMesh>> {
     spec.validate()?;
-    if let Some((lr, _)) = track {
+    let track = track.filter(|_| spec.tracking > 0.0);
+    if let Some(lr) = track {
         if lr.len() < spec.frames {
             return Err(Error::shape(format!("tracking needs {} LR frames, got {}", spec.frames, lr.len())));
         }
     }
     let (mut cloth, scene) = spec.setup(w, h);
+    let coarse = match (track, spec.tracking_mode) {
+        (Some(lr), TrackingMode::Coarse) => {
+            Some(CoarseTrack::new(Restriction::new(lr[0].w, lr[0].h, w, h), &cloth.inv_mass))
+        }
+        _ => None,
+    };
+    let targets_of = |lr: &GridMesh| match &coarse {
+        Some(ct) => ct.restriction.targets(lr),
+        None => bilinear_targets(lr, w, h),
+    };
     let mut out = Vec::with_capacity(spec.frames);
     out.push(cloth.mesh());
     progress(0);
-    let mut targets = track.map(|(lr, _)| bilinear_targets(&lr[0], w, h));
+    let mut from = track.map(|lr| targets_of(&lr[0]));
     for k in 1..spec.frames {
-        match (track, &targets) {
-            (Some((lr, strength)), Some(from)) => {
-                let to = bilinear_targets(&lr[k], w, h);
-                cloth.step(&spec.params, &scene, Some(&TrackTargets { from, to: &to, strength }));
-                targets = Some(to);
+        match (track, &from) {
+            (Some(lr), Some(f)) => {
+                let to = targets_of(&lr[k]);
+                let tt = TrackTargets { from: f, to: &to, strength: spec.tracking, coarse: coarse.as_ref() };
+                cloth.step(&spec.params, &scene, Some(&tt));
+                from = Some(to);
             }
             _ => cloth.step(&spec.params, &scene, None),
         }
@@ -424,7 +440,7 @@ pub fn run_single(spec: &ScenarioSpec) -> Result<Vec<GridMesh>> {
 }
 
 /// The same scenario at `w × h` (LR) and `scale·w × scale·h` (HR), the HR run tracking the LR
-/// one with `spec.tracking` (0 = independent runs).
+/// one with `spec.tracking` and `spec.tracking_mode` (strength 0 = independent runs).
 pub fn paired_run(spec: &ScenarioSpec) -> Result<(Vec<GridMesh>, Vec<GridMesh>)> {
     paired_run_with_progress(spec, &mut |_| {})
 }
@@ -435,9 +451,8 @@ pub fn paired_run_with_progress(
     progress: &mut dyn FnMut(usize),
 ) -> Result<(Vec<GridMesh>, Vec<GridMesh>)> {
     let lr = run_at(spec, spec.w, spec.h, None, &mut |k| progress(k))?;
-    let track = if spec.tracking > 0.0 { Some((lr.as_slice(), spec.tracking)) } else { None };
     let (hw, hh) = (spec.scale * spec.w, spec.scale * spec.h);
     let hr_spec = spec.for_scale(spec.scale);
-    let hr = run_at(&hr_spec, hw, hh, track, &mut |k| progress(spec.frames + k))?;
+    let hr = run_at(&hr_spec, hw, hh, Some(&lr), &mut |k| progress(spec.frames + k))?;
     Ok((lr, hr))
 }

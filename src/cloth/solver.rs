@@ -10,7 +10,7 @@ use super::collision::Colliders;
 use super::constraints::{bend_constraints, distance_constraints, Bend, Coloured, Distance};
 use super::kinematics::{Kinematics, Pin};
 use super::params::{Material, SimParams};
-use super::tracking::TrackTargets;
+use super::tracking::{CoarseTrack, TrackTargets};
 use super::wind::Wind;
 use crate::geom::mesh::GridMesh;
 use crate::geom::vec3::{cross, norm, sub};
@@ -43,6 +43,8 @@ pub struct Cloth {
     pub time: f32,
     lambda_d: Vec<f32>,
     lambda_b: Vec<[f32; 3]>,
+    /// Multipliers of the coarse tracking constraints (one 3-vector per LR node).
+    lambda_t: Vec<[f32; 3]>,
     /// Long-range attachments: (free vertex, pin index, rest distance m).
     tethers: Vec<(u32, u32, f32)>,
     /// Bending constraints with `w_j·k_j` and `Σ w_j k_j²` (masses are fixed, so precomputed).
@@ -118,6 +120,7 @@ impl Cloth {
             area,
             lambda_d: vec![0.0; dist.items.len()],
             lambda_b: vec![[0.0; 3]; bend.items.len()],
+            lambda_t: Vec::new(),
             dist,
             bend,
             pins,
@@ -194,21 +197,39 @@ impl Cloth {
             }
             self.lambda_d.iter_mut().for_each(|l| *l = 0.0);
             self.lambda_b.iter_mut().for_each(|l| *l = [0.0; 3]);
+            if let Some(TrackTargets { coarse: Some(ct), .. }) = track {
+                self.lambda_t.clear();
+                self.lambda_t.resize(ct.restriction.nodes(), [0.0; 3]);
+            }
             let inv_h2 = 1.0 / (h * h);
             for _ in 0..p.iterations {
                 let par = p.parallel_min_colour;
                 solve_distance(&mut self.x, &self.inv_mass, &self.dist, &mut self.lambda_d, inv_h2, par);
                 solve_bend(&mut self.x, &self.bend_w, &mut self.lambda_b, inv_h2, par);
-                if let (Some(frac), Some(tt)) = (track_frac, track) {
-                    let blend = (s + 1) as f32 / p.substeps as f32;
-                    for v in 0..n {
-                        if self.inv_mass[v] > 0.0 {
-                            for k in 0..3 {
-                                let target = tt.from[v][k] + blend * (tt.to[v][k] - tt.from[v][k]);
-                                self.x[v][k] += frac * (target - self.x[v][k]);
+                let blend = (s + 1) as f32 / p.substeps as f32;
+                match (track_frac, track) {
+                    (Some(_), Some(tt @ TrackTargets { coarse: Some(ct), .. })) => {
+                        solve_coarse_track(
+                            &mut self.x,
+                            &self.inv_mass,
+                            ct,
+                            tt,
+                            blend,
+                            &mut self.lambda_t,
+                            inv_h2,
+                        );
+                    }
+                    (Some(frac), Some(tt)) => {
+                        for v in 0..n {
+                            if self.inv_mass[v] > 0.0 {
+                                for k in 0..3 {
+                                    let target = tt.from[v][k] + blend * (tt.to[v][k] - tt.from[v][k]);
+                                    self.x[v][k] += frac * (target - self.x[v][k]);
+                                }
                             }
                         }
                     }
+                    _ => {}
                 }
             }
             if p.tethers {
@@ -350,4 +371,44 @@ fn solve_bend(x: &mut [[f32; 3]], cs: &Coloured<BendW>, lambda: &mut [[f32; 3]],
             x.set(vi[j], std::array::from_fn(|k| p[j][k] + wk[j] * dl[k]));
         }
     });
+}
+
+/// Gauss–Seidel XPBD projection of the coarse tracking constraints
+/// `C_I = Σ_k w_Ik x_k − t_I` (3 components, `t_I` blended between the frame's targets), each a
+/// zero-length spring of stiffness `m_I · strength` (compliance `1/(m_I · strength)`):
+/// `Δλ = (−C − α̃ λ) / (Σ_k w_k²/m_k + α̃)`, `x_k += w_k/m_k · Δλ`. Serial, in node order.
+fn solve_coarse_track(
+    x: &mut [[f32; 3]],
+    inv_mass: &[f32],
+    ct: &CoarseTrack,
+    tt: &TrackTargets,
+    blend: f32,
+    lambda: &mut [[f32; 3]],
+    inv_h2: f32,
+) {
+    for (n, l) in lambda.iter_mut().enumerate() {
+        let (ws, m) = (ct.w2_inv_mass[n], ct.node_mass[n]);
+        if ws == 0.0 || m == 0.0 {
+            continue;
+        }
+        let at = inv_h2 / (m * tt.strength);
+        let mut c: [f32; 3] =
+            std::array::from_fn(|k| -(tt.from[n][k] + blend * (tt.to[n][k] - tt.from[n][k])));
+        for (v, wv) in ct.restriction.node(n) {
+            for k in 0..3 {
+                c[k] += wv * x[v][k];
+            }
+        }
+        let denom = 1.0 / (ws + at);
+        let dl: [f32; 3] = std::array::from_fn(|k| (-c[k] - at * l[k]) * denom);
+        for k in 0..3 {
+            l[k] += dl[k];
+        }
+        for (v, wv) in ct.restriction.node(n) {
+            let f = wv * inv_mass[v];
+            for k in 0..3 {
+                x[v][k] += f * dl[k];
+            }
+        }
+    }
 }
