@@ -67,6 +67,8 @@ fn tiny_opts(out: PathBuf, steps: u64) -> TrainOptions {
         edge_weight: 0.5,
         laplacian_weight: 0.25,
         length_weight: 0.5,
+        detail_weight: 0.0,
+        detail_radius: 3,
         // Mirrored samples: resuming must reproduce the sampler's mirrors too.
         mirror: true,
         resume: false,

@@ -76,6 +76,15 @@ pub struct Args {
     /// the shortening); 0 = off.
     #[arg(long, default_value_t = 0.0)]
     pub length_weight: f32,
+    /// GeometryNet: weight of the wrinkle-energy term (error of the local fold amplitude, the
+    /// RMS of the detail beyond the LR frame in a window, but not of where the folds lie: the
+    /// MSE averages out folds whose phase the LR frame leaves open, and this term asks for them
+    /// back); 0 = off.
+    #[arg(long, default_value_t = 0.0)]
+    pub detail_weight: f32,
+    /// GeometryNet: radius of the wrinkle-energy term's window in HR pixels (window 2R+1 square).
+    #[arg(long, default_value_t = 3)]
+    pub detail_radius: usize,
     /// Mirror each training sample at random (left-right, top-bottom, both or neither, with
     /// the cloth frame the mirrored grid gets), so the nets treat a grid whichever way it runs.
     /// Not used for the shipped model: the orientation of a training clip is information
@@ -118,6 +127,8 @@ pub fn run(a: Args) -> Result<()> {
         edge_weight: a.edge_weight,
         laplacian_weight: a.laplacian_weight,
         length_weight: a.length_weight,
+        detail_weight: a.detail_weight,
+        detail_radius: a.detail_radius,
         mirror: a.mirror_augment,
         resume: a.resume,
         out: a.out.clone(),

@@ -6,7 +6,7 @@ use super::config::{NetConfig, NetKind, IN_CHANNELS};
 use super::layers::Trunk;
 use crate::error::{Error, Result};
 use crate::ops::conv2d::PackedConv;
-use crate::ops::loss::{edge_length_mse, edge_mse, laplacian_mse};
+use crate::ops::loss::{detail_energy_mse, edge_length_mse, edge_mse, laplacian_mse, DetailEnergy};
 use crate::ops::{Interp, Ops};
 use crate::tensor::Tensor;
 
@@ -92,7 +92,7 @@ impl GeometryNet {
 }
 
 /// Weights (dimensionless) of the terms GeometryNet's loss adds to the position MSE (Eq 3);
-/// all 0 = Eq 3 alone. Both terms are computed on the host whatever the op table.
+/// all 0 = Eq 3 alone. The terms are computed on the host whatever the op table.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct GeometryLoss {
     /// Edge-vector term [`edge_mse`]: swimming edge lengths, noisy normals.
@@ -101,17 +101,31 @@ pub struct GeometryLoss {
     pub laplacian: f32,
     /// Edge-length term [`edge_length_mse`]: the in-plane shrinking of an averaged surface.
     pub length: f32,
+    /// Wrinkle-energy term [`detail_energy_mse`]: the fold amplitude an averaged surface
+    /// lacks, priced without asking for the folds' phase.
+    pub detail: f32,
+    /// Window and amplitude floor of the wrinkle-energy term.
+    pub detail_params: DetailEnergy,
 }
 
 /// The loss of an HR estimate `est = U + R` against `hr`, and its gradient w.r.t. `est` (= the
 /// gradient w.r.t. R): `mse + w.edge · edge_mse + w.laplacian · laplacian_mse
-/// + w.length · edge_length_mse`.
-pub fn estimate_loss(ops: &dyn Ops, est: &Tensor, hr: &Tensor, w: GeometryLoss) -> (f32, Tensor) {
+/// + w.length · edge_length_mse + w.detail · detail_energy_mse`. `lr_hw`: the (H, W) of the
+/// LR input `est` was upsampled from (the wrinkle-energy term's high-pass).
+pub fn estimate_loss(
+    ops: &dyn Ops,
+    est: &Tensor,
+    hr: &Tensor,
+    lr_hw: (usize, usize),
+    w: GeometryLoss,
+) -> (f32, Tensor) {
     let (mut loss, mut grad) = ops.mse(est, hr);
+    let detail = |p: &Tensor, t: &Tensor| detail_energy_mse(p, t, lr_hw.0, lr_hw.1, w.detail_params);
     for (weight, term) in [
-        (w.edge, edge_mse as fn(&Tensor, &Tensor) -> (f32, Tensor)),
-        (w.laplacian, laplacian_mse),
-        (w.length, edge_length_mse),
+        (w.edge, &edge_mse as &dyn Fn(&Tensor, &Tensor) -> (f32, Tensor)),
+        (w.laplacian, &laplacian_mse),
+        (w.length, &edge_length_mse),
+        (w.detail, &detail),
     ] {
         if weight != 0.0 {
             let (l, g) = term(est, hr);
@@ -139,16 +153,17 @@ pub fn geometry_loss(
     let r = trunk.config.scale;
     check_target(lr, u, 3, r, "U")?;
     check_target(lr, hr, 3, r, "HR target")?;
+    let (_, _, lr_h, lr_w) = lr.dims4();
     Ok(match grads {
         None => {
             let mut est = trunk.forward(ops, lr);
             ops.add_assign(&mut est, u);
-            estimate_loss(ops, &est, hr, weights).0
+            estimate_loss(ops, &est, hr, (lr_h, lr_w), weights).0
         }
         Some(g) => {
             let (mut est, tape) = trunk.forward_train(ops, lr);
             ops.add_assign(&mut est, u);
-            let (loss, d_est) = estimate_loss(ops, &est, hr, weights);
+            let (loss, d_est) = estimate_loss(ops, &est, hr, (lr_h, lr_w), weights);
             drop(est);
             // d(U + R)/dR = identity; U is not trained.
             trunk.backward(ops, &tape, &d_est, g);

@@ -5,6 +5,8 @@
 //! gradients are the reference's expressions (bitwise equal), their loss agrees to rounding.
 
 use super::activation::{CHUNK, PAR_MIN};
+use super::resample::{resize, resize_backward};
+use super::Interp;
 use crate::tensor::Tensor;
 use rayon::prelude::*;
 
@@ -178,6 +180,148 @@ pub fn laplacian_mse(pred: &Tensor, target: &Tensor) -> (f32, Tensor) {
         }
     }
     ((sum / count as f64) as f32, g)
+}
+
+/// Parameters of [`detail_energy_mse`]. The weight lives with the other loss weights
+/// (`nn::geometry_net::GeometryLoss::detail`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DetailEnergy {
+    /// Half-side of the square window the wrinkle energy is averaged over, in HR pixels (the
+    /// window is (2r+1)², clipped to the image): r = 3 spans a fold or two of a 64×64 cloth.
+    pub radius: usize,
+    /// Amplitude floor, in the geometry image's units (cloth frame: the cloth spans ≈ 1, an HR
+    /// edge ≈ 1/63; the detail RMS of simulated 64×64 frames is 3–4e-4): a = √(E + ε²) keeps
+    /// da/dE = 1/(2a) finite on flat cloth. The gradient w.r.t. pred stays bounded as ε → 0
+    /// (it carries a factor Hf/a ≤ √cnt), so ε only needs to be small against real detail.
+    pub eps: f32,
+}
+
+impl Default for DetailEnergy {
+    fn default() -> Self {
+        DetailEnergy { radius: 3, eps: 1e-5 }
+    }
+}
+
+/// The detail a (H, W) frame has beyond what its (lr_h, lr_w) version carries:
+/// `Hf(X) = X − up(down(X))`, down and up Catmull-Rom resizes (align corners, clamped taps).
+/// x: (N, C, H, W) → (N, C, H, W).
+pub fn detail_high_pass(x: &Tensor, lr_h: usize, lr_w: usize) -> Tensor {
+    let (_, _, h, w) = x.dims4();
+    let mut hf = resize(&resize(x, lr_h, lr_w, Interp::CatmullRom), h, w, Interp::CatmullRom);
+    for (o, &v) in hf.data.iter_mut().zip(&x.data) {
+        *o = v - *o;
+    }
+    hf
+}
+
+/// Sum of each (2r+1)² window clipped to the plane, separable: v (planes·h·w) → out, same
+/// shape. The window relation is symmetric (|p − q|∞ ≤ r), so this is also its own transpose.
+fn box_sum(v: &[f32], h: usize, w: usize, r: usize, tmp: &mut [f32], out: &mut [f32]) {
+    for ((vp, tp), op) in
+        v.chunks_exact(h * w).zip(tmp.chunks_exact_mut(h * w)).zip(out.chunks_exact_mut(h * w))
+    {
+        for y in 0..h {
+            let row = &vp[y * w..(y + 1) * w];
+            for x in 0..w {
+                tp[y * w + x] = row[x.saturating_sub(r)..(x + r + 1).min(w)].iter().sum();
+            }
+        }
+        for y in 0..h {
+            let (y0, y1) = (y.saturating_sub(r), (y + r + 1).min(h));
+            let orow = &mut op[y * w..(y + 1) * w];
+            orow.fill(0.0);
+            for yy in y0..y1 {
+                for (o, &t) in orow.iter_mut().zip(&tp[yy * w..(yy + 1) * w]) {
+                    *o += t;
+                }
+            }
+        }
+    }
+}
+
+/// In-image pixels of the clipped window around index i of an axis of n: (lo..hi).len().
+#[inline]
+fn window_len(i: usize, n: usize, r: usize) -> usize {
+    (i + r + 1).min(n) - i.saturating_sub(r)
+}
+
+/// Wrinkle-energy error: with `Hf` the [`detail_high_pass`] of each frame against its
+/// (lr_h, lr_w) version, `e = Σ_c Hf²` per pixel (N, H, W), `E` its mean over the
+/// (2r+1)² window clipped to the image and the local amplitude `a = √(E + ε²)`, returns
+/// `mean over (n, y, x) of (a(pred) − a(target))²` and its gradient w.r.t. pred.
+/// pred, target: (N, C, H, W).
+///
+/// Why: a fold whose phase the LR frame does not fix is, to a per-vertex L2 loss, a coin
+/// toss; its minimiser is the average over the phases, i.e. flat cloth, and the net learns to
+/// leave the wrinkles out. This term compares only how much wrinkle energy there is around
+/// each pixel, not where the crests lie, so it prices the missing amplitude without asking
+/// for a phase the net cannot know; the MSE beside it still places the folds the LR frame does
+/// fix. Plain loops over a few buffers allocated once per call (8×3×64×64 a step).
+///
+/// Gradient (count = N·H·W, cnt(p) = in-image pixels of p's window):
+/// dE[p] = 2(aP − aT)/count · 1/(2aP); de[q] = Σ_{p: q ∈ win(p)} dE[p]/cnt(p) (the transpose
+/// of the clipped mean weighs by the *output* window's count); dHf = 2·Hf·de;
+/// d pred = dHf − downᵀ(upᵀ(dHf)).
+pub fn detail_energy_mse(
+    pred: &Tensor,
+    target: &Tensor,
+    lr_h: usize,
+    lr_w: usize,
+    p: DetailEnergy,
+) -> (f32, Tensor) {
+    check(pred, target, "detail_energy_mse");
+    assert!(lr_h > 0 && lr_w > 0, "detail_energy_mse: empty LR size {lr_h}×{lr_w}");
+    let (n, c, h, w) = pred.dims4();
+    let px = h * w;
+    let count = (n * px).max(1);
+    let (r, eps2) = (p.radius, p.eps * p.eps);
+    let (hp, ht) = (detail_high_pass(pred, lr_h, lr_w), detail_high_pass(target, lr_h, lr_w));
+    // Per-pixel energy → windowed mean → amplitude, for pred then target. All (N, H, W).
+    let (mut e, mut tmp, mut sum) = (vec![0.0f32; n * px], vec![0.0f32; n * px], vec![0.0f32; n * px]);
+    let mut amp = |hf: &Tensor| -> Vec<f32> {
+        for (img, ei) in e.chunks_exact_mut(px).enumerate() {
+            ei.fill(0.0);
+            for ch in hf.data[img * c * px..(img + 1) * c * px].chunks_exact(px) {
+                for (a, &v) in ei.iter_mut().zip(ch) {
+                    *a += v * v;
+                }
+            }
+        }
+        box_sum(&e, h, w, r, &mut tmp, &mut sum);
+        let mut a = vec![0.0f32; n * px];
+        for (i, (a, &s)) in a.iter_mut().zip(&sum).enumerate() {
+            let (y, x) = ((i % px) / w, i % w);
+            *a = (s / (window_len(y, h, r) * window_len(x, w, r)) as f32 + eps2).sqrt();
+        }
+        a
+    };
+    let (ap, at) = (amp(&hp), amp(&ht));
+    // dE / cnt(p), in e's buffer, then its windowed sum = de.
+    let mut total = 0.0f64;
+    for (i, ((g, &a), &b)) in e.iter_mut().zip(&ap).zip(&at).enumerate() {
+        let d = a - b;
+        total += (d as f64) * (d as f64);
+        let (y, x) = ((i % px) / w, i % w);
+        *g = d / (count as f32 * a) / (window_len(y, h, r) * window_len(x, w, r)) as f32;
+    }
+    box_sum(&e, h, w, r, &mut tmp, &mut sum);
+    // dHf = 2·Hf·de, then d pred = dHf − downᵀ(upᵀ(dHf)).
+    let mut g = hp;
+    for (img, de) in sum.chunks_exact(px).enumerate() {
+        for ch in g.data[img * c * px..(img + 1) * c * px].chunks_exact_mut(px) {
+            for (v, &d) in ch.iter_mut().zip(de) {
+                *v *= 2.0 * d;
+            }
+        }
+    }
+    let mut d_lr = Tensor::zeros(&[n, c, lr_h, lr_w]);
+    resize_backward(&g, Interp::CatmullRom, &mut d_lr);
+    let mut back = Tensor::zeros(&pred.shape);
+    resize_backward(&d_lr, Interp::CatmullRom, &mut back);
+    for (v, &b) in g.data.iter_mut().zip(&back.data) {
+        *v -= b;
+    }
+    ((total / count as f64) as f32, g)
 }
 
 /// Mean binary cross-entropy on logits with positive-class weight `pos_weight` (1 = none),

@@ -20,6 +20,7 @@ use crate::nn::geometry_net::{geometry_loss, GeometryLoss};
 use crate::nn::map_net::map_loss;
 use crate::nn::weights::{push_trunk, save_net, trunk_from_npz};
 use crate::nn::{AnisoCb, NetConfig, NetKind, Trunk};
+use crate::ops::loss::DetailEnergy;
 use crate::ops::{AdamParams, Ops};
 use crate::tensor::Tensor;
 use crate::viz::plot::LinePlot;
@@ -51,6 +52,11 @@ pub struct TrainOptions {
     pub laplacian_weight: f32,
     /// GeometryNet: weight of the edge-length term (`ops::loss::edge_length_mse`; 0 = off).
     pub length_weight: f32,
+    /// GeometryNet: weight of the wrinkle-energy term (`ops::loss::detail_energy_mse`: local
+    /// fold amplitude, not phase; 0 = off).
+    pub detail_weight: f32,
+    /// GeometryNet: window radius of the wrinkle-energy term, in HR pixels.
+    pub detail_radius: usize,
     /// Mirror every training sample at random into one of the grid's four mirror images
     /// ([`PatchSampler::mirror`]): the nets learn cloth whichever way its grid runs.
     pub mirror: bool,
@@ -60,9 +66,16 @@ pub struct TrainOptions {
 }
 
 impl TrainOptions {
-    /// GeometryNet's loss terms from `edge_weight`, `laplacian_weight` and `length_weight`.
+    /// GeometryNet's loss terms from `edge_weight`, `laplacian_weight`, `length_weight` and
+    /// `detail_weight` / `detail_radius` (ε the default of [`DetailEnergy`]).
     pub fn geometry_loss(&self) -> GeometryLoss {
-        GeometryLoss { edge: self.edge_weight, laplacian: self.laplacian_weight, length: self.length_weight }
+        GeometryLoss {
+            edge: self.edge_weight,
+            laplacian: self.laplacian_weight,
+            length: self.length_weight,
+            detail: self.detail_weight,
+            detail_params: DetailEnergy { radius: self.detail_radius, ..DetailEnergy::default() },
+        }
     }
 }
 
@@ -82,6 +95,8 @@ impl Default for TrainOptions {
             edge_weight: 0.0,
             laplacian_weight: 0.0,
             length_weight: 0.0,
+            detail_weight: 0.0,
+            detail_radius: DetailEnergy::default().radius,
             mirror: false,
             resume: false,
             out: PathBuf::from("out"),
@@ -205,6 +220,11 @@ fn options_json(net: NetKind, o: &TrainOptions, data_fp: u64, step: u64) -> Stri
         .str("data", &format!("{data_fp:016x}"));
     // Written only when on, so checkpoints from before the option still resume.
     let obj = if o.mirror { obj.num("mirror", 1) } else { obj };
+    let obj = if o.detail_weight != 0.0 {
+        obj.num("detail_weight", o.detail_weight).num("detail_radius", o.detail_radius)
+    } else {
+        obj
+    };
     obj.to_json()
 }
 
@@ -376,7 +396,8 @@ pub fn train(
     let baseline_val = match &u_all {
         Some(u) if !val_idx.is_empty() => {
             let (uv, hv) = (gather(u, &val_idx), gather(&data.hr, &val_idx));
-            Some(crate::nn::geometry_net::estimate_loss(ops, &uv, &hv, opts.geometry_loss()).0)
+            let (_, _, lr_h, lr_w) = data.lr.dims4();
+            Some(crate::nn::geometry_net::estimate_loss(ops, &uv, &hv, (lr_h, lr_w), opts.geometry_loss()).0)
         }
         _ => None,
     };
