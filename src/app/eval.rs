@@ -8,7 +8,7 @@ use crate::cloth::run_io::read_pair;
 use crate::cloth::scenarios::{run_single, Scenario, ScenarioSpec};
 use crate::error::Result;
 use crate::eval::linear::LinearUpsampler;
-use crate::eval::metrics::{border_band, sequence_metrics, vertex_errors, SequenceMetrics};
+use crate::eval::metrics::{border_band, sequence_metrics, vertex_errors, wrinkle_stats, SequenceMetrics};
 use crate::eval::report::{metrics_table, Column};
 use crate::geom::cloth_frame::{Affine, InputFrame};
 use crate::geom::geometry_image::images_to_sequence;
@@ -224,14 +224,20 @@ fn methods_for_run(
     Ok(out)
 }
 
-/// Markdown: one table per scenario, methods as rows (lengths in mm).
+/// Markdown: one table per scenario, methods as rows (lengths in mm), under the truth's own
+/// wrinkle RMS where it was computed.
 pub fn results_markdown(cells: &[Cell]) -> String {
     let mut s = String::new();
     let mut scenarios: Vec<&str> = cells.iter().map(|c| c.scenario.as_str()).collect();
     scenarios.dedup();
     for sc in scenarios {
         let rows = cells.iter().filter(|c| c.scenario == sc).map(|c| (c.method.as_str(), &c.metrics));
-        s.push_str(&format!("\n### {sc}\n\n{}", metrics_table(rows, &Column::ALL)));
+        s.push_str(&format!("\n### {sc}\n\n"));
+        let truth = cells.iter().find_map(|c| c.metrics.wrinkle.filter(|_| c.scenario == sc));
+        if let Some(w) = truth {
+            s.push_str(&format!("HR truth wrinkle RMS: {:.3} mm\n\n", w.truth_rms_mm));
+        }
+        s.push_str(&metrics_table(rows, &Column::ALL));
     }
     s
 }
@@ -308,9 +314,12 @@ pub fn run(a: Args) -> Result<()> {
             invariance.extend(invariance_rows(ops.as_ref(), &model, &scenario, &lr_m, ours, &hr)?);
         }
         let mask = border_band(hr[0].w, hr[0].h, BAND_ROWS);
+        // Wrinkle detail is what the grid every method upscaled (lr: (T, 3, h, w)) cannot hold.
+        let (lr_w, lr_h) = (lr.shape[3], lr.shape[2]);
         let mut rows = Vec::new();
         for m in &methods {
-            let metrics = sequence_metrics(&m.meshes, &hr, Some(&mask))?;
+            let mut metrics = sequence_metrics(&m.meshes, &hr, Some(&mask))?;
+            metrics.wrinkle = Some(wrinkle_stats(&m.meshes, &hr, lr_w, lr_h)?);
             rows.push(Cell { method: m.name.clone(), scenario: scenario.clone(), metrics });
         }
         write_plots(&a.out, &scenario, &rows)?;
@@ -322,7 +331,7 @@ pub fn run(a: Args) -> Result<()> {
     }
     pb.finish_and_clear();
     let md = format!(
-        "# anisocb evaluation\n\nHeld-out runs: {}. Means over frames; boundary = the border band (vertices within {BAND_ROWS} rows of the grid's border).\n{}",
+        "# anisocb evaluation\n\nHeld-out runs: {}. Means over frames; boundary = the border band (vertices within {BAND_ROWS} rows of the grid's border).\n\n{WRINKLE_NOTE}{}",
         a.runs.iter().map(|p| p.display().to_string()).collect::<Vec<_>>().join(", "),
         results_markdown(&cells) + &ratios_markdown(&cells)
     );
@@ -461,6 +470,11 @@ pub fn speed_study(ops: &dyn Ops, small: &AnisoCb) -> Result<String> {
 
 /// Rows of vertices counted as the border band of the tables (the border and the next row).
 pub const BAND_ROWS: usize = 2;
+
+/// How the wrinkle columns of `results.md` are measured (see `eval::metrics::wrinkle_detail`).
+const WRINKLE_NOTE: &str = "Wrinkle detail D = (X − S(X))·n: X minus its Catmull-Rom round trip S(X) through the LR grid, \
+along the normal of S(X), over the interior (two outer rings left out). `wrinkle RMS` = RMS(D); `/ truth` = that over the \
+HR truth's RMS(D); `corr` = ΣD·D_truth / √(ΣD² ΣD_truth²); `change / truth` = RMS(D(t+1) − D(t)) over the truth's.\n";
 
 fn stem(p: &Path) -> String {
     p.file_stem().unwrap_or_default().to_string_lossy().into_owned()
