@@ -22,6 +22,11 @@ GEO_STEPS=${GEO_STEPS:-12000}  # GeometryNet (both input frames)
 MAP_STEPS=${MAP_STEPS:-1500}   # BoundaryNet, EnhanceNet
 FRAMES=${FRAMES:-150}
 TRACKING=${TRACKING:-1000}     # as the held-out runs: detail the LR frame can predict
+# The shipped model was trained on per-vertex tracking (`simulate --track vertex`), which
+# flattens the HR runs' own folds; `simulate` now defaults to coarse tracking (docs/wrinkles.md).
+# TRACK=coarse DETAIL=... rebuilds the candidate models of that study.
+TRACK=${TRACK:-vertex}
+DETAIL=${DETAIL:-0}            # weight of the wrinkle-energy term (train --detail-weight)
 SEEDS=${SEEDS:-"1 2 3 4 5"}
 EDGE=${EDGE:-1.0}              # weight of the edge-vector loss term
 # Weight of the edge-length term: a net that averages wrinkles it cannot place shortens the
@@ -39,7 +44,7 @@ PADDING=${PADDING:-replicate}
 # nets see the cloth's real border with the zero padding around it, as `upscale` does, and no
 # cut patch edges that look like a border but are not. Chosen over 16² patches on the seed-6
 # validation runs (numbers in weights/README.md, "choices made after training").
-TRAIN=(--config small --lr 5e-4 --patch 32 --batch 8 --edge-weight "$EDGE" --length-weight "$LENGTH" --upsample "$UPSAMPLE" --padding "$PADDING")
+TRAIN=(--config small --lr 5e-4 --patch 32 --batch 8 --edge-weight "$EDGE" --length-weight "$LENGTH" --detail-weight "$DETAIL" --upsample "$UPSAMPLE" --padding "$PADDING")
 MAPS=(--gamma 0.3 --canny-low 0.12 --canny-high 0.16)
 rm -rf "$WORK"
 mkdir -p "$WORK/runs" "$OUT"
@@ -54,7 +59,7 @@ for scen in flag drape twist twist-materials drop; do
   [ "$scen" = drop ] && frames=$DROP_FRAMES
   for seed in $SEEDS; do
     "$BIN" simulate --scenario "$scen" --res 32x32 --pair --frames "$frames" --seed "$seed" --vary "$seed" \
-      --tracking "$TRACKING" --out "$WORK/runs/$scen-$seed"
+      --tracking "$TRACKING" --track "$TRACK" --out "$WORK/runs/$scen-$seed"
   done
 done
 "$BIN" dataset --runs "$WORK"/runs/* --out "$WORK/data.npz" "${MAPS[@]}" --input-frame cloth-frame
