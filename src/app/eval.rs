@@ -43,8 +43,8 @@ use std::time::Instant;
   anisocb paper      the paper-size config (--paper FILE), eta = default
 
 Example (the README's headline table):
-  anisocb simulate --scenario flag-sphere --pair --seed 1000 --frames 120 --tracking 1000 --out runs/flag-sphere
-  anisocb simulate --scenario twist-zero-g --res 32x32 --pair --seed 1000 --frames 120 --tracking 1000 --out runs/twist-zero-g
+  anisocb simulate --scenario flag-sphere --pair --seed 1000 --frames 120 --tracking 1000 --track vertex --out runs/flag-sphere
+  anisocb simulate --scenario twist-zero-g --res 32x32 --pair --seed 1000 --frames 120 --tracking 1000 --track vertex --out runs/twist-zero-g
   anisocb eval --runs runs/* --prior weights/domain-x2.npz --linear weights/linear-x2.npz --moved --out eval-out")]
 pub struct Args {
     /// Held-out run pairs (`anisocb simulate --pair --out DIR`).
