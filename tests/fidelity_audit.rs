@@ -130,10 +130,10 @@ fn geometry_loss_with_edge_and_length_terms_matches_jax() {
 
 #[test]
 fn detail_energy_loss_and_gradient_match_jax() {
-    for tag in ["a", "r0", "odd"] {
+    for tag in ["a", "r0", "odd", "normal"] {
         let (p, t) = (fx(&format!("detail_{tag}_pred")), fx(&format!("detail_{tag}_target")));
         let k = fx(&format!("detail_{tag}_params")).into_data(); // lr_h, lr_w, r, ε
-        let params = DetailEnergy { radius: k[2] as usize, eps: k[3] };
+        let params = DetailEnergy { radius: k[2] as usize, eps: k[3], normal_only: k.get(4) == Some(&1.0) };
         let (l, g) = loss::detail_energy_mse(&p, &t, k[0] as usize, k[1] as usize, params);
         close(&format!("detail {tag} loss"), &[l], &fx(&format!("detail_{tag}_loss")).data, 0.0, 1e-5);
         // f32 resizes and sums against f64: rtol 1e-4 (the gradient passes through 1/a and two
@@ -154,7 +154,7 @@ fn geometry_loss_with_detail_term_matches_jax() {
     }
     let w = GeometryLoss {
         detail: k[0],
-        detail_params: DetailEnergy { radius: k[3] as usize, eps: k[4] },
+        detail_params: DetailEnergy { radius: k[3] as usize, eps: k[4], normal_only: false },
         ..GeometryLoss::default()
     };
     let (l, g) = estimate_loss(&Cpu, &est, &hr, (k[1] as usize, k[2] as usize), w);

@@ -69,6 +69,7 @@ fn tiny_opts(out: PathBuf, steps: u64) -> TrainOptions {
         length_weight: 0.5,
         detail_weight: 0.0,
         detail_radius: 3,
+        detail_normal_only: true,
         // Mirrored samples: resuming must reproduce the sampler's mirrors too.
         mirror: true,
         resume: false,

@@ -85,6 +85,11 @@ pub struct Args {
     /// GeometryNet: radius of the wrinkle-energy term's window in HR pixels (window 2R+1 square).
     #[arg(long, default_value_t = 3)]
     pub detail_radius: usize,
+    /// GeometryNet: let the wrinkle-energy term count the detail's in-plane components too
+    /// (by default only its part along the surface normal counts, as in `eval`'s wrinkle
+    /// metric: with all three a net met the energy with in-plane ripples instead of folds).
+    #[arg(long)]
+    pub detail_all_components: bool,
     /// Mirror each training sample at random (left-right, top-bottom, both or neither, with
     /// the cloth frame the mirrored grid gets), so the nets treat a grid whichever way it runs.
     /// Not used for the shipped model: the orientation of a training clip is information
@@ -129,6 +134,7 @@ pub fn run(a: Args) -> Result<()> {
         length_weight: a.length_weight,
         detail_weight: a.detail_weight,
         detail_radius: a.detail_radius,
+        detail_normal_only: !a.detail_all_components,
         mirror: a.mirror_augment,
         resume: a.resume,
         out: a.out.clone(),

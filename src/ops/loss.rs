@@ -194,11 +194,66 @@ pub struct DetailEnergy {
     /// da/dE = 1/(2a) finite on flat cloth. The gradient w.r.t. pred stays bounded as ε → 0
     /// (it carries a factor Hf/a ≤ √cnt), so ε only needs to be small against real detail.
     pub eps: f32,
+    /// Count only the detail along the surface normal (`Hf·n`, n the grid normal of the
+    /// target's LR-scale shape S(target) = target − Hf(target), fixed: no gradient), as the
+    /// wrinkle metric does. With all three components a net met the energy with in-plane
+    /// ripples: on a validation drape its detail was 1.07 mm tangential, 0.85 mm normal
+    /// (the truth: 0.98 and 2.44 mm).
+    pub normal_only: bool,
 }
 
 impl Default for DetailEnergy {
     fn default() -> Self {
-        DetailEnergy { radius: 3, eps: 1e-5 }
+        DetailEnergy { radius: 3, eps: 1e-5, normal_only: true }
+    }
+}
+
+/// Unit grid normals of each (3, H, W) frame: `∂x × ∂y` with central differences inside and
+/// one-sided ones on the border (x along W, y along H); 0 where the cross product vanishes.
+/// x: (N, 3, H, W) → (N, 3, H, W).
+pub fn image_normals(x: &Tensor) -> Tensor {
+    let (n, c, h, w) = x.dims4();
+    assert_eq!(c, 3, "image_normals needs 3 channels (xyz), got {c}");
+    let px = h * w;
+    let mut out = Tensor::zeros(&x.shape);
+    let diff = |lo: usize, hi: usize| if hi > lo { 1.0 / (hi - lo) as f32 } else { 0.0 };
+    for img in 0..n {
+        let p = |ch: usize, y: usize, xx: usize| x.data[(img * 3 + ch) * px + y * w + xx];
+        for y in 0..h {
+            let (y0, y1) = (y.saturating_sub(1), (y + 1).min(h - 1));
+            for xx in 0..w {
+                let (x0, x1) = (xx.saturating_sub(1), (xx + 1).min(w - 1));
+                let dx: [f32; 3] = std::array::from_fn(|k| (p(k, y, x1) - p(k, y, x0)) * diff(x0, x1));
+                let dy: [f32; 3] = std::array::from_fn(|k| (p(k, y1, xx) - p(k, y0, xx)) * diff(y0, y1));
+                let cr = [
+                    dx[1] * dy[2] - dx[2] * dy[1],
+                    dx[2] * dy[0] - dx[0] * dy[2],
+                    dx[0] * dy[1] - dx[1] * dy[0],
+                ];
+                let len = (cr[0] * cr[0] + cr[1] * cr[1] + cr[2] * cr[2]).sqrt();
+                if len > 0.0 {
+                    for k in 0..3 {
+                        out.data[(img * 3 + k) * px + y * w + xx] = cr[k] / len;
+                    }
+                }
+            }
+        }
+    }
+    out
+}
+
+/// Replace each pixel's vector `v` of `hf` by `(v·n) n` (its part along the unit normal n).
+fn project_on_normals(hf: &mut Tensor, nrm: &Tensor) {
+    let (n, _, h, w) = hf.dims4();
+    let px = h * w;
+    for img in 0..n {
+        for i in 0..px {
+            let at = |k: usize| (img * 3 + k) * px + i;
+            let d: f32 = (0..3).map(|k| hf.data[at(k)] * nrm.data[at(k)]).sum();
+            for k in 0..3 {
+                hf.data[at(k)] = d * nrm.data[at(k)];
+            }
+        }
     }
 }
 
@@ -275,7 +330,18 @@ pub fn detail_energy_mse(
     let px = h * w;
     let count = (n * px).max(1);
     let (r, eps2) = (p.radius, p.eps * p.eps);
-    let (hp, ht) = (detail_high_pass(pred, lr_h, lr_w), detail_high_pass(target, lr_h, lr_w));
+    let (mut hp, mut ht) = (detail_high_pass(pred, lr_h, lr_w), detail_high_pass(target, lr_h, lr_w));
+    if p.normal_only {
+        // e = |P·Hf|² with P = n nᵀ (symmetric, idempotent): de/dHf = 2·P·Hf, so the projected
+        // Hf serves the gradient below unchanged.
+        let mut smooth = target.clone();
+        for (s, &d) in smooth.data.iter_mut().zip(&ht.data) {
+            *s -= d;
+        }
+        let nrm = image_normals(&smooth);
+        project_on_normals(&mut hp, &nrm);
+        project_on_normals(&mut ht, &nrm);
+    }
     // Per-pixel energy → windowed mean → amplitude, for pred then target. All (N, H, W).
     let (mut e, mut tmp, mut sum) = (vec![0.0f32; n * px], vec![0.0f32; n * px], vec![0.0f32; n * px]);
     let mut amp = |hf: &Tensor| -> Vec<f32> {

@@ -57,6 +57,9 @@ pub struct TrainOptions {
     pub detail_weight: f32,
     /// GeometryNet: window radius of the wrinkle-energy term, in HR pixels.
     pub detail_radius: usize,
+    /// GeometryNet: the wrinkle-energy term counts only the detail along the surface normal
+    /// ([`DetailEnergy::normal_only`]); false = all three components.
+    pub detail_normal_only: bool,
     /// Mirror every training sample at random into one of the grid's four mirror images
     /// ([`PatchSampler::mirror`]): the nets learn cloth whichever way its grid runs.
     pub mirror: bool,
@@ -74,7 +77,11 @@ impl TrainOptions {
             laplacian: self.laplacian_weight,
             length: self.length_weight,
             detail: self.detail_weight,
-            detail_params: DetailEnergy { radius: self.detail_radius, ..DetailEnergy::default() },
+            detail_params: DetailEnergy {
+                radius: self.detail_radius,
+                normal_only: self.detail_normal_only,
+                ..DetailEnergy::default()
+            },
         }
     }
 }
@@ -97,6 +104,7 @@ impl Default for TrainOptions {
             length_weight: 0.0,
             detail_weight: 0.0,
             detail_radius: DetailEnergy::default().radius,
+            detail_normal_only: DetailEnergy::default().normal_only,
             mirror: false,
             resume: false,
             out: PathBuf::from("out"),
@@ -221,7 +229,9 @@ fn options_json(net: NetKind, o: &TrainOptions, data_fp: u64, step: u64) -> Stri
     // Written only when on, so checkpoints from before the option still resume.
     let obj = if o.mirror { obj.num("mirror", 1) } else { obj };
     let obj = if o.detail_weight != 0.0 {
-        obj.num("detail_weight", o.detail_weight).num("detail_radius", o.detail_radius)
+        obj.num("detail_weight", o.detail_weight)
+            .num("detail_radius", o.detail_radius)
+            .num("detail_normal_only", o.detail_normal_only as usize)
     } else {
         obj
     };
