@@ -654,3 +654,48 @@ fn point_cache_with_rest_obj_upscales_to_an_hr_rest_obj_and_cache() {
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// The opt-in wrinkle model (weights/anisocb-x2-wrinkles.npz, docs/wrinkles.md) exists to add
+/// the folds finer than the LR grid that the shipped model averages away: on a dropped sheet
+/// whose coarse-tracked HR truth folds, it must add clearly more wrinkle detail than the
+/// shipped model, stay within 1.1× Catmull-Rom's vertex error, and keep its border.
+#[test]
+fn wrinkle_model_adds_fold_detail_the_shipped_model_averages_away() {
+    use anisocb::cloth::paired_run;
+    use anisocb::eval::metrics::{border_length, vertex_rmse, wrinkle_stats};
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("weights/anisocb-x2-wrinkles.npz");
+    let wrinkles = AnisoCb::load(&path).expect("wrinkle weights decode");
+    let shipped = embedded_model().unwrap();
+    let mut sp = ScenarioSpec::new(Scenario::Drop);
+    (sp.frames, sp.seed, sp.vary) = (24, 3, 3); // a training scene: a guard, not an evaluation
+    let (lr, hr) = paired_run(&sp).unwrap();
+    let (lr, hr) = (&lr[12..], &hr[12..]); // landed and folding
+    let d = Domain::enclosing(lr, 0.05);
+    let p = UpscaleParams { mirrors: false, ..UpscaleParams::default() };
+    let (wr, up) = upscale_meshes(&Cpu, &wrinkles, lr, &d, &p, &mut |_| {}).unwrap();
+    let (sh, _) = upscale_meshes(&Cpu, &shipped, lr, &d, &UpscaleParams::default(), &mut |_| {}).unwrap();
+    let cr: Vec<GridMesh> = (0..lr.len())
+        .map(|k| {
+            let img = Cpu.resize(
+                &sequence_to_images(&lr[k..k + 1], &d),
+                2 * lr[0].h,
+                2 * lr[0].w,
+                Interp::CatmullRom,
+            );
+            anisocb::geom::geometry_image::image_to_mesh(&img, 0, &d)
+        })
+        .collect();
+    let (sw, ss) = (wrinkle_stats(&wr, hr, 32, 32).unwrap(), wrinkle_stats(&sh, hr, 32, 32).unwrap());
+    println!("wrinkle ratio: wrinkle model {:.3}, shipped {:.3}", sw.ratio, ss.ratio);
+    assert!(sw.ratio > 2.0 * ss.ratio, "wrinkle model ratio {} vs shipped {}", sw.ratio, ss.ratio);
+    let mean = |m: &[GridMesh]| {
+        m.iter().zip(hr).map(|(a, b)| vertex_rmse(a, b).unwrap()).sum::<f32>() / m.len() as f32
+    };
+    let (ew, ec) = (mean(&wr), mean(&cr));
+    assert!(ew < 1.1 * ec, "wrinkle model RMSE {ew} vs Catmull-Rom {ec}");
+    for (m, k) in wr.iter().zip(0..) {
+        let u = anisocb::geom::geometry_image::image_to_mesh(&up.interpolated, k, &d);
+        let ratio = border_length(m) / border_length(&u);
+        assert!((ratio - 1.0).abs() < 0.01, "frame {k}: border length ratio {ratio}");
+    }
+}
