@@ -893,3 +893,88 @@ fn point_cache_header_claiming_2_31_points_allocates_nothing_big() {
         }
     }
 }
+
+// ---------------------------------------------------------------------------------------------
+// `anisocb upscale`: options and output folders that could hang a run, lose a frame or
+// overwrite the input. Each refusal exits 1 (2 for what clap refuses), names what is wrong and
+// writes nothing.
+
+/// A folder `name` under `d` holding `n` frames `frame_K.obj` of a 4×4 grid.
+fn obj_shot(d: &Path, name: &str, n: usize) -> PathBuf {
+    let dir = d.join(name);
+    std::fs::create_dir_all(&dir).unwrap();
+    for k in 0..n {
+        write(&dir, &format!("frame_{k}.obj"), grid_obj(4, 4).as_bytes());
+    }
+    dir
+}
+
+/// Run `anisocb upscale ARGS`; assert it exited `code` with every piece of `want` in stderr.
+#[track_caller]
+fn upscale_refused(args: &[&str], code: i32, want: &[&str]) -> String {
+    let mut all = vec!["upscale"];
+    all.extend_from_slice(args);
+    let o = anisocb(&all);
+    let err = String::from_utf8_lossy(&o.stderr).into_owned();
+    assert_eq!(o.status.code(), Some(code), "{args:?} was not refused with {code}: {err}");
+    for w in want {
+        assert!(err.contains(w), "{args:?}: message lacks {w:?}: {err}");
+    }
+    err
+}
+
+#[test]
+fn upscale_refuses_absurd_eta_margin_and_temporal_before_reading_or_writing() {
+    let d = scratch("upscale_values");
+    let shot = obj_shot(&d, "shot", 2);
+    let (inp, out) = (shot.to_str().unwrap(), d.join("out"));
+    let o = out.to_str().unwrap();
+    let cases: &[(&[&str], &[&str])] = &[
+        (&["--eta", "1e30"], &["--eta", "from 0 to 10", "1000000000000000000000000000000"]),
+        (&["--eta=-1"], &["--eta", "from 0 to 10"]),
+        (&["--eta", "NaN"], &["--eta", "NaN"]),
+        (&["--eta", "inf"], &["--eta", "inf"]),
+        (&["--margin", "1e30"], &["--margin", "from 0 to 1"]),
+        (&["--margin=-0.1"], &["--margin", "from 0 to 1"]),
+        (&["--margin", "NaN"], &["--margin"]),
+        (&["--temporal", "65"], &["--temporal", "at most 64", "65"]),
+        (&["--temporal", "1000000"], &["--temporal", "at most 64"]),
+        (&["--batch", "0"], &["batch must be ≥ 1"]),
+    ];
+    for (extra, want) in cases {
+        let mut args = vec![inp, "--out", o];
+        args.extend_from_slice(extra);
+        upscale_refused(&args, 1, want);
+        assert!(!out.exists(), "{extra:?}: --out was created by a refused run");
+    }
+    // The checks come before the input is even opened: a missing input gets the option's error.
+    upscale_refused(&["no/such/dir", "--out", o, "--eta", "1e30"], 1, &["--eta"]);
+}
+
+#[test]
+fn upscale_refuses_thread_counts_that_would_hang() {
+    let d = scratch("upscale_threads");
+    let shot = obj_shot(&d, "shot", 1);
+    let (inp, out) = (shot.to_str().unwrap(), d.join("out"));
+    let o = out.to_str().unwrap();
+    // Parsed before the worker pool is built, so clap refuses them (usage error, exit 2).
+    upscale_refused(&[inp, "--out", o, "--threads", "100000"], 2, &["--threads", "more than 1024"]);
+    upscale_refused(&[inp, "--out", o, "--threads", "0"], 2, &["--threads must be ≥ 1"]);
+    upscale_refused(&[inp, "--out", o, "--threads=-3"], 2, &["--threads", "whole number"]);
+    assert!(!out.exists());
+}
+
+/// Binomial weights of the largest accepted radius, and of radii far beyond it (a library
+/// caller is not bound by the CLI's check), stay finite: a constant sequence stays constant.
+#[test]
+fn temporal_smoothing_weights_do_not_overflow_at_any_radius() {
+    use anisocb::sr::upscale::{smooth_in_time, UpscaleParams, MAX_TEMPORAL};
+    let x = Tensor::from_vec(&[5, 1, 1, 2], vec![0.25; 10]).unwrap();
+    for k in [1, MAX_TEMPORAL, 600, 2000] {
+        let y = smooth_in_time(&x, k);
+        assert!(y.data.iter().all(|v| (v - 0.25).abs() < 1e-6), "radius {k}: {:?}", y.data);
+    }
+    let p = UpscaleParams { temporal: MAX_TEMPORAL + 1, ..UpscaleParams::default() };
+    assert!(p.validate().unwrap_err().to_string().contains("at most 64"));
+    assert!(UpscaleParams { temporal: MAX_TEMPORAL, ..UpscaleParams::default() }.validate().is_ok());
+}

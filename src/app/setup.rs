@@ -27,11 +27,33 @@ pub fn load_geometry_net(path: &Path) -> Result<GeometryNet> {
     }
 }
 
+/// Largest `--threads N` accepted: far more workers than any machine has cores only costs
+/// memory and start-up time (100 000 threads take minutes to spawn).
+pub const MAX_THREADS: usize = 1024;
+
+/// What is wrong with `--threads N`, if anything.
+fn threads_problem(n: usize) -> Option<String> {
+    match n {
+        0 => Some("--threads must be ≥ 1".into()),
+        n if n > MAX_THREADS => {
+            Some(format!("--threads {n} is more than {MAX_THREADS}; leave it out to use one thread per core"))
+        }
+        _ => None,
+    }
+}
+
+/// Clap value parser of `--threads N` (1 to [`MAX_THREADS`]): the process builds its worker
+/// pool from it before a command runs, so it is checked while parsing.
+pub fn parse_threads(s: &str) -> std::result::Result<usize, String> {
+    let n: usize = s.trim().parse().map_err(|_| format!("expected a whole number of threads, got {s:?}"))?;
+    threads_problem(n).map_or(Ok(n), Err)
+}
+
 /// `--threads N`: the size of the global worker pool (default: all cores).
 pub fn set_threads(threads: Option<usize>) -> Result<()> {
     if let Some(n) = threads {
-        if n == 0 {
-            return Err(Error::config("--threads must be ≥ 1"));
+        if let Some(why) = threads_problem(n) {
+            return Err(Error::config(why));
         }
         // Fails if a pool was already set up in this process (the `anisocb` binary builds it
         // with this count in `app::process_main`); the first setting wins.

@@ -2,7 +2,7 @@
 //! chunk of frames at a time (memory bounded by `--chunk`, not the shot), any `--frames`
 //! slice giving the same bytes as the whole shot.
 
-use super::setup::{load_model, set_threads};
+use super::setup::{load_model, parse_threads, set_threads};
 use super::ui::progress;
 use crate::cloth::run_io::DOMAIN_MARGIN;
 use crate::error::{Error, Result};
@@ -56,9 +56,10 @@ pub struct Args {
     /// Output directory (created if missing; existing frames with the same names are replaced).
     #[arg(long)]
     pub out: PathBuf,
-    /// Wrinkle enhancement η ≥ 0 (Eq 12): 0 = plain predicted detail (the default, chosen on
-    /// validation runs; EnhanceNet is then not run), larger = deeper wrinkles where EnhanceNet
-    /// sees edges. Smooth cloth and the border are unaffected.
+    /// Wrinkle enhancement η from 0 to 10 (Eq 12): 0 = plain predicted detail (the default,
+    /// chosen on validation runs; EnhanceNet is then not run), larger = deeper wrinkles where
+    /// EnhanceNet sees edges (up to 1 + η times the predicted detail). Smooth cloth and the
+    /// border are unaffected.
     #[arg(long, default_value_t = DEFAULT_ETA)]
     pub eta: f32,
     /// Temporal smoothing radius in frames of the predicted detail and of the boundary and
@@ -66,7 +67,7 @@ pub struct Args {
     /// previous, this and the next frame; 0 = every frame on its own, the default). Off by
     /// default because mirror averaging already removes the detail's frame-to-frame noise and
     /// smoothing then measured worse (most on cloth that keeps turning); it can still calm a
-    /// one-pass (`--mirrors false`) result.
+    /// one-pass (`--mirrors false`) result. At most 64.
     #[arg(long, default_value_t = crate::sr::upscale::DEFAULT_TEMPORAL)]
     pub temporal: usize,
     /// Strain limit: iterations pulling the output's edge lengths toward those of the input
@@ -102,8 +103,8 @@ pub struct Args {
     /// Frames per network pass (more = faster, more memory).
     #[arg(long, default_value_t = 8)]
     pub batch: usize,
-    /// Worker threads (default: all cores).
-    #[arg(long)]
+    /// Worker threads, 1 to 1024 (default: all cores).
+    #[arg(long, value_parser = parse_threads)]
     pub threads: Option<usize>,
     /// Compute device: cpu or cuda.
     #[arg(long, default_value = "cpu")]
@@ -111,7 +112,8 @@ pub struct Args {
     /// Output format: auto (same as input), obj or npy.
     #[arg(long, default_value = "auto", value_parser = ["auto", "obj", "npy"])]
     pub format: String,
-    /// Domain margin for OBJ input, as a fraction of the sequence's largest extent.
+    /// Domain margin for OBJ and point-cache input, as a fraction of the sequence's largest
+    /// extent, from 0 to 1.
     #[arg(long, default_value_t = DOMAIN_MARGIN)]
     pub margin: f32,
     /// Also write the predicted boundary and wrinkle-edge maps (boundary.npy, enhance.npy).
@@ -131,6 +133,21 @@ pub struct Args {
     /// shot's length.
     #[arg(long, default_value_t = DEFAULT_CHUNK)]
     pub chunk: usize,
+}
+
+/// Largest `--margin` (a fraction of the shot's extent): beyond it the shot fills a sliver of
+/// the geometry image and f32 loses its detail (at 1e30 every pixel reads 0.5).
+pub const MAX_MARGIN: f32 = 1.0;
+
+/// Refuse `--margin` outside 0 ..= [`MAX_MARGIN`] (NaN included).
+fn check_margin(margin: f32) -> Result<()> {
+    if !(margin.is_finite() && (0.0..=MAX_MARGIN).contains(&margin)) {
+        return Err(Error::config(format!(
+            "--margin must be a fraction of the shot's extent from 0 to {MAX_MARGIN}, got {margin} \
+             (the default {DOMAIN_MARGIN} suits any shot)"
+        )));
+    }
+    Ok(())
 }
 
 /// Parse `--frames A:B` against a shot of `t` frames.
@@ -374,9 +391,7 @@ impl Outputs {
 /// The bounding box of a whole shot read in [`Domain::UNIT`] (images = metres), grown by
 /// `margin`: one reading pass, a chunk at a time.
 fn shot_bounds(shot: &mut Shot, margin: f32, chunk: usize) -> Result<Domain> {
-    if !(margin.is_finite() && margin >= 0.0) {
-        return Err(Error::config(format!("--margin must be ≥ 0, got {margin}")));
-    }
+    check_margin(margin)?;
     let t = shot.frames();
     let pb = progress(t as u64, "bounds");
     let mut b = Bounds::default();
@@ -494,6 +509,19 @@ fn open_input(a: &Args, r: usize) -> Result<Input> {
 }
 
 pub fn run(a: Args) -> Result<()> {
+    // Every option checked before a file is read or a net runs.
+    let params = UpscaleParams {
+        eta: a.eta,
+        enhance_map: a.maps,
+        batch: a.batch,
+        temporal: a.temporal,
+        strain_iters: a.strain_iters,
+        pin_border: a.pin_border,
+        mirrors: a.mirrors,
+        keep_outline: a.keep_outline,
+    };
+    params.validate()?;
+    check_margin(a.margin)?;
     set_threads(a.threads)?;
     let ops = crate::cuda::ops_for_device(&a.device)?;
     let model = load_model(a.weights.as_deref())?;
@@ -565,16 +593,6 @@ pub fn run(a: Args) -> Result<()> {
     for p in &outputs {
         remove_stale_temps(p)?;
     }
-    let params = UpscaleParams {
-        eta: a.eta,
-        enhance_map: a.maps,
-        batch: a.batch,
-        temporal: a.temporal,
-        strain_iters: a.strain_iters,
-        pin_border: a.pin_border,
-        mirrors: a.mirrors,
-        keep_outline: a.keep_outline,
-    };
     let start = Instant::now();
     // A point cache plays on an HR rest mesh: the rest OBJ upscaled on its own.
     if let Some(c) = &cache_in {

@@ -60,6 +60,7 @@ pub fn upscale_stream(
     sink: &mut dyn HrSink,
     on_frames: &mut dyn FnMut(usize),
 ) -> Result<()> {
+    params.validate()?;
     let t = src.frames();
     if range.start >= range.end || range.end > t {
         return Err(Error::config(format!(

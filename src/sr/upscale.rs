@@ -52,6 +52,16 @@ pub const EVAL_STRAIN_ITERS: usize = 10;
 /// normal angle equal or lower. Radius 1 and 3 sat between.
 pub const DEFAULT_TEMPORAL: usize = 0;
 
+/// Largest temporal smoothing radius (frames) [`UpscaleParams::validate`] accepts: a window of
+/// 129 frames (±2 s at 30 fps) is already far wider than any detail worth keeping, and the
+/// cost grows with the radius.
+pub const MAX_TEMPORAL: usize = 64;
+
+/// Largest enhancement factor η [`UpscaleParams::validate`] accepts: η multiplies the detail
+/// on wrinkle edges by up to 1 + η (Eq 12); at 10 the folds are already 11× deeper than the
+/// nets predict, and larger values only blow the mesh up.
+pub const MAX_ETA: f32 = 10.0;
+
 /// Default [`UpscaleParams::mirrors`]: on. Measured on the validation runs (seed 6: neither
 /// training nor held out) with the shipped model, against one pass: the smooth flag's
 /// normal-angle error 1.06 → 0.98× bicubic's and its STED temporal 1.015 → 0.981× (the only
@@ -132,6 +142,31 @@ pub struct UpscaleParams {
     /// invariances hold; off for models in the paper's domain frame and with `pin_border`
     /// ([`DEFAULT_KEEP_OUTLINE`]).
     pub keep_outline: bool,
+}
+
+impl UpscaleParams {
+    /// Refuse values that make no sense or could not finish: η not in [0, [`MAX_ETA`]],
+    /// `temporal` above [`MAX_TEMPORAL`], `batch` 0. Checked before any network runs.
+    pub fn validate(&self) -> Result<()> {
+        if !(self.eta.is_finite() && (0.0..=MAX_ETA).contains(&self.eta)) {
+            return Err(Error::config(format!(
+                "enhancement factor η (--eta) must be a number from 0 to {MAX_ETA}, got {}; \
+                 0 = the nets' detail as predicted, 1 = up to twice as deep on wrinkle edges",
+                self.eta
+            )));
+        }
+        if self.temporal > MAX_TEMPORAL {
+            return Err(Error::config(format!(
+                "temporal smoothing radius (--temporal) must be at most {MAX_TEMPORAL} frames, got {}; \
+                 1 or 2 calm flicker, 0 = off",
+                self.temporal
+            )));
+        }
+        if self.batch == 0 {
+            return Err(Error::config("batch must be ≥ 1"));
+        }
+        Ok(())
+    }
 }
 
 impl Default for UpscaleParams {
@@ -353,9 +388,7 @@ pub fn run_nets(
         let frame = i / (c * h * w);
         return Err(Error::numeric(format!("input frame {frame} holds a non-finite value {v}")));
     }
-    if params.batch == 0 {
-        return Err(Error::config("batch must be ≥ 1"));
-    }
+    params.validate()?;
     domain.validate()?;
     let r = model.scale();
     let (hh, hw) = (r * h, r * w);
@@ -535,15 +568,18 @@ pub fn limit_strain(img: &mut [f32], h: usize, w: usize, lx: &[f32], ly: &[f32],
 }
 
 /// `x` (T, C, H, W) averaged over time per pixel with binomial weights of radius `k` (row 2k of
-/// Pascal's triangle), the weights renormalised where the window leaves the sequence.
+/// Pascal's triangle), the weights renormalised where the window leaves the sequence. Each
+/// row is halved as it is built (row n sums to 1), so no radius overflows; callers bound `k`
+/// ([`MAX_TEMPORAL`]) because the cost is O(k²) + O(k) per frame.
 pub fn smooth_in_time(x: &Tensor, k: usize) -> Tensor {
     let t = x.shape[0];
     let per = x.len() / t.max(1);
     let mut w = vec![1.0f64];
     for _ in 0..2 * k {
-        let mut next = vec![1.0f64; w.len() + 1];
-        for i in 1..w.len() {
-            next[i] = w[i - 1] + w[i];
+        let mut next = vec![0.0f64; w.len() + 1];
+        for (i, wi) in w.iter().enumerate() {
+            next[i] += 0.5 * wi;
+            next[i + 1] += 0.5 * wi;
         }
         w = next;
     }
