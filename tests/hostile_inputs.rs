@@ -909,6 +909,21 @@ fn obj_shot(d: &Path, name: &str, n: usize) -> PathBuf {
     dir
 }
 
+/// Every file under `dir` with its bytes, to prove a refused run touched nothing.
+fn snapshot(dir: &Path) -> Vec<(PathBuf, Vec<u8>)> {
+    let mut v = Vec::new();
+    for e in std::fs::read_dir(dir).unwrap() {
+        let p = e.unwrap().path();
+        if p.is_dir() {
+            v.extend(snapshot(&p));
+        } else {
+            v.push((p.clone(), std::fs::read(&p).unwrap()));
+        }
+    }
+    v.sort();
+    v
+}
+
 /// Run `anisocb upscale ARGS`; assert it exited `code` with every piece of `want` in stderr.
 #[track_caller]
 fn upscale_refused(args: &[&str], code: i32, want: &[&str]) -> String {
@@ -977,4 +992,81 @@ fn temporal_smoothing_weights_do_not_overflow_at_any_radius() {
     let p = UpscaleParams { temporal: MAX_TEMPORAL + 1, ..UpscaleParams::default() };
     assert!(p.validate().unwrap_err().to_string().contains("at most 64"));
     assert!(UpscaleParams { temporal: MAX_TEMPORAL, ..UpscaleParams::default() }.validate().is_ok());
+}
+
+/// The vertices of [`grid_obj`]`(w, h)`, `frames` times, as a point cache's xyz.
+fn grid_xyz(w: usize, h: usize, frames: usize) -> Vec<f32> {
+    let mut v = Vec::new();
+    for _ in 0..frames {
+        for j in 0..h {
+            for i in 0..w {
+                v.extend([i as f32 * 0.1, j as f32 * 0.1, ((i + j) as f32 * 0.3).sin() * 0.05]);
+            }
+        }
+    }
+    v
+}
+
+#[test]
+fn upscale_refuses_an_out_that_would_overwrite_the_input() {
+    let d = scratch("upscale_out_is_input");
+    let shot = obj_shot(&d, "shot", 2);
+    let run = d.join("run");
+    std::fs::create_dir_all(&run).unwrap();
+    write_npy(&run.join("geometry.npy"), &ramp(&[2, 3, 4, 4])).unwrap();
+    write_npy(&run.join("domain.npy"), &anisocb::geom::Domain::UNIT.to_tensor()).unwrap();
+    let cache = d.join("cache");
+    std::fs::create_dir_all(&cache).unwrap();
+    write(&cache, "cloth.pc2", &pc2_raw(b"POINTCACHE2\0", 1, 16, 0.0, 1.0, 2, &grid_xyz(4, 4, 2)));
+    write(&cache, "rest.obj", grid_obj(4, 4).as_bytes());
+    let link = d.join("link_to_shot");
+    std::os::unix::fs::symlink(&shot, &link).unwrap();
+    let before = snapshot(&d);
+    let s = |p: &Path| p.to_str().unwrap().to_string();
+    let (frame0, pc2, rest) = (shot.join("frame_0.obj"), cache.join("cloth.pc2"), cache.join("rest.obj"));
+    let cases: Vec<(Vec<String>, String, PathBuf)> = vec![
+        // OBJ folder into itself, however --out is spelled.
+        (vec![s(&shot)], s(&shot), frame0.clone()),
+        (vec![s(&shot)], format!("{}/.", s(&shot)), frame0.clone()),
+        (vec![s(&shot)], format!("{}/../shot/", s(&shot)), frame0.clone()),
+        (vec![s(&shot)], s(&link), frame0.clone()),
+        (vec![s(&link)], s(&shot), link.join("frame_0.obj")),
+        (vec![s(&frame0), s(&shot.join("frame_1.obj"))], s(&shot), frame0.clone()),
+        // A run folder (geometry.npy + domain.npy), also as --format obj.
+        (vec![s(&run)], s(&run), run.join("geometry.npy")),
+        (vec![s(&run.join("geometry.npy"))], format!("{}/../run", s(&run)), run.join("geometry.npy")),
+        (vec![s(&run), "--format".into(), "obj".into()], s(&run), run.join("geometry.npy")),
+        // A point cache and its rest mesh.
+        (vec![s(&pc2), "--rest".into(), s(&rest)], s(&cache), pc2.clone()),
+    ];
+    for (input, out, named) in &cases {
+        let mut args: Vec<&str> = input.iter().map(String::as_str).collect();
+        args.extend(["--out", out]);
+        let err = upscale_refused(&args, 1, &["--out", out, &named.display().to_string(), "new folder"]);
+        assert!(err.contains("is the folder of the input"), "{err}");
+        assert!(snapshot(&d) == before, "{args:?}: a refused run changed a file");
+    }
+    // A rest mesh kept with the HR output: the cache is elsewhere, the rest mesh is in --out.
+    let other = d.join("other");
+    std::fs::create_dir_all(&other).unwrap();
+    std::fs::rename(&pc2, other.join("cloth.pc2")).unwrap();
+    let pc2 = other.join("cloth.pc2");
+    let before = snapshot(&d);
+    upscale_refused(&[&s(&pc2), "--rest", &s(&rest), "--out", &s(&cache)], 1, &[&s(&rest)]);
+    assert!(snapshot(&d) == before);
+    // An --out holding a hard link to an input frame under the output's name.
+    let linked = d.join("linked");
+    std::fs::create_dir_all(&linked).unwrap();
+    std::fs::hard_link(&frame0, linked.join("frame_0.obj")).unwrap();
+    let before = snapshot(&d);
+    let err = upscale_refused(&[&s(&shot), "--out", &s(&linked)], 1, &[&s(&frame0), "a link"]);
+    assert!(err.contains(&s(&linked.join("frame_0.obj"))), "{err}");
+    assert!(snapshot(&d) == before);
+    // A new folder works; the same command on its output then refuses to upscale it in place.
+    let hr = d.join("hr");
+    let o = anisocb(&["upscale", &s(&shot), "--out", &s(&hr)]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let before = snapshot(&d);
+    upscale_refused(&[&s(&hr), "--out", &s(&hr)], 1, &["is the folder of the input"]);
+    assert!(snapshot(&d) == before);
 }

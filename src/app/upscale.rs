@@ -54,6 +54,7 @@ pub struct Args {
     #[arg(required = true)]
     pub input: Vec<PathBuf>,
     /// Output directory (created if missing; existing frames with the same names are replaced).
+    /// Never the input's own folder: the input is never overwritten.
     #[arg(long)]
     pub out: PathBuf,
     /// Wrinkle enhancement η from 0 to 10 (Eq 12): 0 = plain predicted detail (the default,
@@ -451,6 +452,60 @@ struct Input {
     /// What OBJ-based input gives the output.
     mesh_out: Option<MeshOut>,
     cache_in: Option<CacheIn>,
+    /// Every file the input is read from (kept safe from the output, [`refuse_out_over_input`]).
+    files: Vec<PathBuf>,
+}
+
+/// The folder holding `file` as named (`.` for a bare name).
+fn folder_of(file: &Path) -> &Path {
+    file.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."))
+}
+
+/// Whether `a` and `b` are one file (the same inode: also through hard and symbolic links).
+fn same_file(a: &Path, b: &Path) -> bool {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::MetadataExt;
+        match (std::fs::metadata(a), std::fs::metadata(b)) {
+            (Ok(x), Ok(y)) => x.dev() == y.dev() && x.ino() == y.ino(),
+            _ => false,
+        }
+    }
+    #[cfg(not(unix))]
+    {
+        matches!((a.canonicalize(), b.canonicalize()), (Ok(x), Ok(y)) if x == y)
+    }
+}
+
+/// Refuse, before anything is written, an `--out` that would overwrite the input: the folder
+/// of an input file, however it is spelled (`..`, a link to it, or the folder a linked input
+/// file really lives in: the HR files would replace the LR ones, and the same command run
+/// again would upscale its own output), or a folder where an output file already is one of
+/// the input files under another name (a hard link).
+fn refuse_out_over_input(out: &Path, inputs: &[PathBuf], outputs: &[PathBuf]) -> Result<()> {
+    // A folder that does not exist yet holds no input.
+    let Ok(out_c) = out.canonicalize() else { return Ok(()) };
+    for f in inputs {
+        let real_folder = f.canonicalize().ok().and_then(|c| c.parent().map(Path::to_path_buf));
+        if [folder_of(f).canonicalize().ok(), real_folder].iter().flatten().any(|d| *d == out_c) {
+            return Err(Error::config(format!(
+                "--out {} is the folder of the input {}: the HR files would replace the input's; \
+                 give a new folder as --out (the input is left as it is)",
+                out.display(),
+                f.display()
+            )));
+        }
+        if let Some(o) = outputs.iter().find(|o| same_file(o, f)) {
+            return Err(Error::config(format!(
+                "--out {}: {} is the input {} under another name (a link), and would be \
+                 overwritten; give a new folder as --out",
+                out.display(),
+                o.display(),
+                f.display()
+            )));
+        }
+    }
+    Ok(())
 }
 
 fn open_input(a: &Args, r: usize) -> Result<Input> {
@@ -466,8 +521,9 @@ fn open_input(a: &Args, r: usize) -> Result<Input> {
                 format!("geometry images must have shape (T, 3, H, W) with T ≥ 1, H, W ≥ 2; got {s:?}"),
             ));
         }
+        let files = vec![gp.clone(), dp];
         let shot = Shot::Npy { frames, path: gp };
-        return Ok(Input { shot, npy_domain: Some(domain), mesh_out: None, cache_in: None });
+        return Ok(Input { shot, npy_domain: Some(domain), mesh_out: None, cache_in: None, files });
     }
     if a.input.len() == 1 && CacheFormat::from_path(first).is_some() {
         let Some(rest) = &a.rest else {
@@ -496,7 +552,8 @@ fn open_input(a: &Args, r: usize) -> Result<Input> {
         let (w, h, order) = (g.mesh.w, g.mesh.h, g.order.clone());
         let shot = Shot::Cache { cache, order, w, h, domain: Domain::UNIT };
         let cin = CacheIn { path: first.clone(), header, rest: rest.clone(), rest_grid: g };
-        return Ok(Input { shot, npy_domain: None, mesh_out: Some(out), cache_in: Some(cin) });
+        let files = vec![first.clone(), rest.clone()];
+        return Ok(Input { shot, npy_domain: None, mesh_out: Some(out), cache_in: Some(cin), files });
     }
     if a.rest.is_some() {
         return Err(Error::config("--rest is for point-cache input (.pc2 / .mdd) only"));
@@ -504,8 +561,9 @@ fn open_input(a: &Args, r: usize) -> Result<Input> {
     let seq = ObjSequence::open(&obj_files(&a.input)?)?;
     let names = seq.files.iter().map(|p| p.file_name().unwrap().to_string_lossy().into_owned()).collect();
     let out = MeshOut::of(&seq.first, &seq.files[0], names, r);
+    let files = seq.files.clone();
     let shot = Shot::Obj { seq: Box::new(seq), domain: Domain::UNIT, attrs: FrameAttrs::default() };
-    Ok(Input { shot, npy_domain: None, mesh_out: Some(out), cache_in: None })
+    Ok(Input { shot, npy_domain: None, mesh_out: Some(out), cache_in: None, files })
 }
 
 pub fn run(a: Args) -> Result<()> {
@@ -526,13 +584,39 @@ pub fn run(a: Args) -> Result<()> {
     let ops = crate::cuda::ops_for_device(&a.device)?;
     let model = load_model(a.weights.as_deref())?;
     let r = model.scale();
-    let Input { mut shot, npy_domain, mesh_out, cache_in } = open_input(&a, r)?;
+    let Input { mut shot, npy_domain, mesh_out, cache_in, files } = open_input(&a, r)?;
     let fmt = match (a.format.as_str(), &mesh_out, &cache_in) {
         ("auto", _, Some(c)) => c.header.format.name().to_lowercase(),
         ("auto", Some(_), None) | ("obj", ..) => "obj".to_string(),
         _ => "npy".to_string(),
     };
     let fmt = fmt.as_str();
+    let (t, w, h) = shot.size();
+    let range = parse_frames(a.frames.as_deref(), t)?;
+    let sliced = range.len() != t;
+    // Outputs of a slice carry its range in their names (OBJ frames keep their own names).
+    let suffix = if sliced { format!(".{}-{}", range.start, range.end) } else { String::new() };
+    let npy_name = |stem: &str| format!("{stem}{suffix}.npy");
+    let mesh_out = mesh_out.unwrap_or_else(|| MeshOut {
+        names: (0..t).map(|k| format!("frame_{k:04}.obj")).collect(),
+        style: FaceStyle::Quads,
+        uv: None,
+        attrs: ObjAttrs::default(),
+    });
+    let cache_name = cache_in.as_ref().map(|c| {
+        let stem = c.path.file_stem().unwrap_or_default().to_string_lossy().into_owned();
+        format!("{stem}{suffix}.{}", c.header.format.name().to_lowercase())
+    });
+    // Every file this run may write.
+    let mut outputs: Vec<PathBuf> = ["geometry", "domain", "boundary", "enhance"]
+        .iter()
+        .map(|n| a.out.join(npy_name(n)))
+        .chain([a.out.join(format!("upscale{suffix}.json"))])
+        .collect();
+    outputs.extend(mesh_out.names[range.clone()].iter().map(|n| a.out.join(n)));
+    outputs.extend(cache_name.iter().map(|n| a.out.join(n)));
+    outputs.extend(cache_in.iter().filter_map(|c| c.rest.file_name()).map(|n| a.out.join(n)));
+    refuse_out_over_input(&a.out, &files, &outputs)?;
     // The domain: the file's for .npy input; none needed for a model in the cloth frame writing
     // meshes (each frame then depends on itself alone); otherwise the whole shot's bounding
     // box (not a --frames slice's, so slices agree).
@@ -553,9 +637,6 @@ pub fn run(a: Args) -> Result<()> {
             (d, note)
         }
     };
-    let (t, w, h) = shot.size();
-    let range = parse_frames(a.frames.as_deref(), t)?;
-    let sliced = range.len() != t;
     ensure_dir(&a.out)?;
     eprintln!(
         "upscaling frames {}..{} of {t}, {w}x{h} -> {}x{} ({}), η = {}",
@@ -567,29 +648,8 @@ pub fn run(a: Args) -> Result<()> {
         a.eta
     );
     eprintln!("{domain_note}");
-    // Outputs of a slice carry its range in their names (OBJ frames keep their own names).
-    let suffix = if sliced { format!(".{}-{}", range.start, range.end) } else { String::new() };
-    let npy_name = |stem: &str| format!("{stem}{suffix}.npy");
-    let mesh_out = mesh_out.unwrap_or_else(|| MeshOut {
-        names: (0..t).map(|k| format!("frame_{k:04}.obj")).collect(),
-        style: FaceStyle::Quads,
-        uv: None,
-        attrs: ObjAttrs::default(),
-    });
-    let cache_name = cache_in.as_ref().map(|c| {
-        let stem = c.path.file_stem().unwrap_or_default().to_string_lossy().into_owned();
-        format!("{stem}{suffix}.{}", c.header.format.name().to_lowercase())
-    });
-    // A rerun after a kill: clear the temp files the killed run left (every file below is
-    // written atomically, so the outputs themselves are either complete or absent).
-    let mut outputs: Vec<PathBuf> = ["geometry", "domain", "boundary", "enhance"]
-        .iter()
-        .map(|n| a.out.join(npy_name(n)))
-        .chain([a.out.join(format!("upscale{suffix}.json"))])
-        .collect();
-    outputs.extend(mesh_out.names[range.clone()].iter().map(|n| a.out.join(n)));
-    outputs.extend(cache_name.iter().map(|n| a.out.join(n)));
-    outputs.extend(cache_in.iter().filter_map(|c| c.rest.file_name()).map(|n| a.out.join(n)));
+    // A rerun after a kill: clear the temp files the killed run left (every file is written
+    // atomically, so the outputs themselves are either complete or absent).
     for p in &outputs {
         remove_stale_temps(p)?;
     }
