@@ -1070,3 +1070,51 @@ fn upscale_refuses_an_out_that_would_overwrite_the_input() {
     upscale_refused(&[&s(&hr), "--out", &s(&hr)], 1, &["is the folder of the input"]);
     assert!(snapshot(&d) == before);
 }
+
+#[test]
+fn upscale_refuses_inputs_whose_output_names_collide_and_writes_nothing() {
+    use std::os::unix::ffi::OsStrExt;
+    let d = scratch("upscale_collide");
+    let (a, b) = (obj_shot(&d, "shotA", 2), obj_shot(&d, "shotB", 2));
+    let s = |p: &Path| p.to_str().unwrap().to_string();
+    let out = d.join("out");
+    // Two folders with the same frame names: both named, nothing written.
+    upscale_refused(
+        &[&s(&a), &s(&b), "--out", &s(&out)],
+        1,
+        &[&s(&a.join("frame_0.obj")), &s(&b.join("frame_0.obj")), "own --out"],
+    );
+    assert!(!out.exists(), "a refused run created --out");
+    // The same folder or file given twice.
+    upscale_refused(&[&s(&a), &s(&a), "--out", &s(&out)], 1, &["given twice"]);
+    upscale_refused(
+        &[&s(&a), &s(&a.join("frame_1.obj")), "--out", &s(&out)],
+        1,
+        &["frame_1.obj is given twice"],
+    );
+    // Names that differ only in bytes that are not UTF-8 (both would read "caf\u{FFFD}.obj").
+    let latin = d.join("latin1");
+    std::fs::create_dir_all(&latin).unwrap();
+    for name in [&b"caf\xe9.obj"[..], b"caf\xe8.obj"] {
+        std::fs::write(latin.join(std::ffi::OsStr::from_bytes(name)), grid_obj(4, 4)).unwrap();
+    }
+    upscale_refused(&[&s(&latin), "--out", &s(&out)], 1, &["caf\\xE9.obj", "caf\\xE8.obj", "not UTF-8"]);
+    assert!(!out.exists(), "a refused run created --out");
+    // One such name alone is kept byte for byte, not renamed to the lossy "caf\u{FFFD}.obj".
+    std::fs::remove_file(latin.join(std::ffi::OsStr::from_bytes(b"caf\xe8.obj"))).unwrap();
+    let o = anisocb(&["upscale", &s(&latin), "--out", &s(&out)]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(out.join(std::ffi::OsStr::from_bytes(b"caf\xe9.obj")).is_file(), "{:?}", file_names(&out));
+    // A point cache's rest mesh named like an output frame of the cache (--format obj).
+    let cache = d.join("cache");
+    std::fs::create_dir_all(&cache).unwrap();
+    let pc2 = write(&cache, "cloth.pc2", &pc2_raw(b"POINTCACHE2\0", 1, 16, 0.0, 1.0, 2, &grid_xyz(4, 4, 2)));
+    let rest = write(&cache, "frame_0000.obj", grid_obj(4, 4).as_bytes());
+    let out2 = d.join("out2");
+    upscale_refused(
+        &[&s(&pc2), "--rest", &s(&rest), "--format", "obj", "--out", &s(&out2)],
+        1,
+        &[&s(&out2.join("frame_0000.obj")), "written twice"],
+    );
+    assert!(!out2.exists(), "a refused run created --out");
+}

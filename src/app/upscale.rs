@@ -23,7 +23,8 @@ use crate::sr::stream::{upscale_stream, HrSink, LrSource, DEFAULT_CHUNK};
 use crate::sr::upscale::{upscale_meshes, upscale_uv, UpscaleParams, Upscaled};
 use crate::tensor::Tensor;
 use std::cell::RefCell;
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, HashMap};
+use std::ffi::OsString;
 use std::ops::Range;
 use std::path::{Path, PathBuf};
 use std::rc::Rc;
@@ -284,6 +285,49 @@ fn obj_files(inputs: &[PathBuf]) -> Result<Vec<PathBuf>> {
     Ok(files)
 }
 
+/// Refuse OBJ frames that would be written to one output file, before anything is read or
+/// written: a file given twice, the same name in two folders (two shots would merge into
+/// one, one overwriting the other), or names that differ only in bytes that are not UTF-8
+/// (`caf\xE9.obj`, `caf\xE8.obj`: they read alike and have no reliable frame order).
+fn refuse_colliding_names(files: &[PathBuf]) -> Result<()> {
+    let mut seen: HashMap<String, &PathBuf> = HashMap::new();
+    for f in files {
+        let name = f.file_name().unwrap_or_default().to_string_lossy().into_owned();
+        let Some(prev) = seen.insert(name.clone(), f) else { continue };
+        let msg = if same_file(prev, f) {
+            format!("{} is given twice; give each frame once", f.display())
+        } else if prev.file_name() == f.file_name() {
+            format!(
+                "{} and {} would both be written as {name} in --out, one shot overwriting the other; \
+                 upscale each folder into its own --out",
+                prev.display(),
+                f.display()
+            )
+        } else {
+            format!(
+                "{prev:?} and {f:?} have names that differ only in bytes that are not UTF-8 text (both \
+                 read {name:?}), so their frame order is ambiguous; rename them (e.g. frame_0001.obj)"
+            )
+        };
+        return Err(Error::config(msg));
+    }
+    Ok(())
+}
+
+/// Refuse two outputs of one run with the same path (a point cache's rest mesh named like an
+/// output frame, …): the later would silently replace the earlier.
+fn refuse_duplicate_outputs(outputs: &[PathBuf]) -> Result<()> {
+    let mut seen = std::collections::HashSet::new();
+    match outputs.iter().find(|p| !seen.insert(*p)) {
+        Some(p) => Err(Error::config(format!(
+            "{} would be written twice by this run (an input's name clashes with an output's); \
+             rename the input",
+            p.display()
+        ))),
+        None => Ok(()),
+    }
+}
+
 /// Per-frame OBJ attributes (`mtllib` …) of input frames read but not yet written, by frame.
 type FrameAttrs = Rc<RefCell<BTreeMap<usize, ObjAttrs>>>;
 
@@ -412,8 +456,9 @@ fn shot_bounds(shot: &mut Shot, margin: f32, chunk: usize) -> Result<Domain> {
 
 /// What an OBJ-based input (an OBJ sequence, or a point cache's rest mesh) gives the output.
 struct MeshOut {
-    /// Output names per frame of the shot (OBJ output).
-    names: Vec<String>,
+    /// Output names per frame of the shot (OBJ output): an OBJ input's own file names, byte
+    /// for byte.
+    names: Vec<OsString>,
     style: FaceStyle,
     /// HR texture coordinates, if the input had usable ones.
     uv: Option<Vec<[f32; 2]>>,
@@ -421,7 +466,7 @@ struct MeshOut {
 }
 
 impl MeshOut {
-    fn of(g: &ObjGrid, file: &Path, names: Vec<String>, r: usize) -> MeshOut {
+    fn of(g: &ObjGrid, file: &Path, names: Vec<OsString>, r: usize) -> MeshOut {
         if let Some(why) = &g.uv_note {
             eprintln!("note: {}: {why}", file.display());
         }
@@ -547,7 +592,7 @@ fn open_input(a: &Args, r: usize) -> Result<Input> {
             ));
         }
         let t = cache.header().frames;
-        let out = MeshOut::of(&g, rest, (0..t).map(|k| format!("frame_{k:04}.obj")).collect(), r);
+        let out = MeshOut::of(&g, rest, (0..t).map(|k| format!("frame_{k:04}.obj").into()).collect(), r);
         let header = cache.header().clone();
         let (w, h, order) = (g.mesh.w, g.mesh.h, g.order.clone());
         let shot = Shot::Cache { cache, order, w, h, domain: Domain::UNIT };
@@ -558,8 +603,10 @@ fn open_input(a: &Args, r: usize) -> Result<Input> {
     if a.rest.is_some() {
         return Err(Error::config("--rest is for point-cache input (.pc2 / .mdd) only"));
     }
-    let seq = ObjSequence::open(&obj_files(&a.input)?)?;
-    let names = seq.files.iter().map(|p| p.file_name().unwrap().to_string_lossy().into_owned()).collect();
+    let files = obj_files(&a.input)?;
+    refuse_colliding_names(&files)?;
+    let seq = ObjSequence::open(&files)?;
+    let names = seq.files.iter().map(|p| p.file_name().unwrap_or_default().to_os_string()).collect();
     let out = MeshOut::of(&seq.first, &seq.files[0], names, r);
     let files = seq.files.clone();
     let shot = Shot::Obj { seq: Box::new(seq), domain: Domain::UNIT, attrs: FrameAttrs::default() };
@@ -598,7 +645,7 @@ pub fn run(a: Args) -> Result<()> {
     let suffix = if sliced { format!(".{}-{}", range.start, range.end) } else { String::new() };
     let npy_name = |stem: &str| format!("{stem}{suffix}.npy");
     let mesh_out = mesh_out.unwrap_or_else(|| MeshOut {
-        names: (0..t).map(|k| format!("frame_{k:04}.obj")).collect(),
+        names: (0..t).map(|k| format!("frame_{k:04}.obj").into()).collect(),
         style: FaceStyle::Quads,
         uv: None,
         attrs: ObjAttrs::default(),
@@ -617,6 +664,18 @@ pub fn run(a: Args) -> Result<()> {
     outputs.extend(cache_name.iter().map(|n| a.out.join(n)));
     outputs.extend(cache_in.iter().filter_map(|c| c.rest.file_name()).map(|n| a.out.join(n)));
     refuse_out_over_input(&a.out, &files, &outputs)?;
+    // What this run writes, each once.
+    let mut writes = vec![a.out.join(format!("upscale{suffix}.json"))];
+    match (fmt, &cache_name) {
+        ("obj", _) => writes.extend(mesh_out.names[range.clone()].iter().map(|n| a.out.join(n))),
+        ("npy", _) => writes.extend(["geometry", "domain"].map(|n| a.out.join(npy_name(n)))),
+        (_, name) => writes.extend(name.iter().map(|n| a.out.join(n))),
+    }
+    if a.maps {
+        writes.extend(["boundary", "enhance"].map(|n| a.out.join(npy_name(n))));
+    }
+    writes.extend(cache_in.iter().filter_map(|c| c.rest.file_name()).map(|n| a.out.join(n)));
+    refuse_duplicate_outputs(&writes)?;
     // The domain: the file's for .npy input; none needed for a model in the cloth frame writing
     // meshes (each frame then depends on itself alone); otherwise the whole shot's bounding
     // box (not a --frames slice's, so slices agree).
