@@ -289,9 +289,18 @@ fn killed_upscale_reruns_to_a_complete_identical_sequence() {
                     assert!(b == *w, "{n} differs from the clean run's after a kill (partial write?)");
                 }
             }
+            // Only a run that wrote every frame may call the folder complete.
+            if let Ok(j) = std::fs::read_to_string(out.join("upscale.json")) {
+                if !j.contains("\"complete\": false") {
+                    assert!(j.contains("\"complete\": true"), "{j}");
+                    assert!(meshes(&out) == want, "upscale.json says complete after a kill: {j}");
+                }
+            }
         }
     }
     run_ok(&["upscale", &inp, "--out", &outs]);
+    let j = std::fs::read_to_string(out.join("upscale.json")).unwrap();
+    assert!(j.contains("\"complete\": true"), "{j}");
     assert!(temps(&out).is_empty(), "stray temporary files after the rerun: {:?}", temps(&out));
     assert!(meshes(&out) == want, "rerun after {kills} kills did not complete the sequence identically");
     let _ = std::fs::remove_dir_all(&d);

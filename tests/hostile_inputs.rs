@@ -1118,3 +1118,33 @@ fn upscale_refuses_inputs_whose_output_names_collide_and_writes_nothing() {
     );
     assert!(!out2.exists(), "a refused run created --out");
 }
+
+#[test]
+fn upscale_stopped_part_way_leaves_upscale_json_marked_incomplete() {
+    let d = scratch("upscale_incomplete");
+    let good = obj_shot(&d, "good", 4);
+    let bad = obj_shot(&d, "bad", 4);
+    let nan = grid_obj(4, 4).replacen("v 0.1 0 0", "v nan 0 0", 1);
+    write(&bad, "frame_2.obj", nan.as_bytes());
+    let s = |p: &Path| p.to_str().unwrap().to_string();
+    let out = d.join("out");
+    let summary = || std::fs::read_to_string(out.join("upscale.json")).unwrap();
+    let o = anisocb(&["upscale", &s(&good), "--out", &s(&out)]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(summary().contains("\"complete\": true"), "{}", summary());
+    // A rerun with another η that fails on frame 2 after writing frames 0 and 1: the folder now
+    // mixes both runs' frames, and its summary must say so, not keep the first run's.
+    let o = anisocb(&["upscale", &s(&bad), "--out", &s(&out), "--eta", "1", "--chunk", "1"]);
+    assert_eq!(o.status.code(), Some(1), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("frame_2.obj"));
+    let text = summary();
+    assert!(text.contains("\"complete\": false") && !text.contains("\"complete\": true"), "{text}");
+    assert!(text.contains("rerun"), "{text}");
+    // Completing the run marks the folder finished again.
+    let o = anisocb(&["upscale", &s(&good), "--out", &s(&out), "--eta", "1"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(summary().contains("\"complete\": true"), "{}", summary());
+    // And --help says how to tell the two apart.
+    let help = String::from_utf8_lossy(&anisocb(&["upscale", "--help"]).stdout).into_owned();
+    assert!(help.contains("\"complete\": false") && help.contains("\"complete\": true"), "{help}");
+}

@@ -48,7 +48,13 @@ From Blender and back (OBJ sequence):
 Input meshes must be regular grids (quads or triangulated quads, any vertex order); the output has
 2W x 2H vertices per frame over the same surface, written the way the input was (OBJ quads or
 triangles with the same file names, UVs interpolated (bilinear: seams stay put), normals recomputed,
-mtllib/usemtl/o/g/s kept; or geometry.npy + domain.npy).")]
+mtllib/usemtl/o/g/s kept; or geometry.npy + domain.npy).
+
+Finished or not: OUT/upscale.json (upscale.A-B.json for a --frames slice) is written first, before
+any frame, with \"complete\": false, and replaced by the run's summary with \"complete\": true only
+after every frame is written. A folder whose upscale.json is missing or says \"complete\": false was
+stopped part-way (killed, or an input frame failed): its frames may mix this run's with an earlier
+one's. Run the same command again to complete it; the input is never overwritten.")]
 pub struct Args {
     /// OBJ files, a directory of OBJ files, a run directory with geometry.npy, a geometry.npy,
     /// or a point cache (.pc2 / .mdd, with --rest).
@@ -712,6 +718,16 @@ pub fn run(a: Args) -> Result<()> {
     for p in &outputs {
         remove_stale_temps(p)?;
     }
+    // Until the final summary replaces it, the folder says it is unfinished: whatever stops the
+    // run (a kill, a bad frame) leaves this marker, never an earlier run's summary.
+    let summary_path = a.out.join(format!("upscale{suffix}.json"));
+    let started = Object::new()
+        .val("complete", Value::Bool(false))
+        .num("frames", range.len())
+        .val("range", vec![Value::num(range.start), Value::num(range.end)])
+        .num("eta", a.eta)
+        .str("note", "unfinished: this run was stopped part-way or failed; rerun the same command");
+    write_json(&summary_path, &started.into(), Layout::Compact)?;
     let start = Instant::now();
     // A point cache plays on an HR rest mesh: the rest OBJ upscaled on its own.
     if let Some(c) = &cache_in {
@@ -787,6 +803,7 @@ pub fn run(a: Args) -> Result<()> {
     let n = range.len();
     let size = |w: usize, h: usize| vec![Value::num(w), Value::num(h)];
     let summary = Object::new()
+        .val("complete", Value::Bool(true))
         .num("frames", n)
         .val("range", vec![Value::num(range.start), Value::num(range.end)])
         .val("lr", size(w, h))
@@ -799,7 +816,7 @@ pub fn run(a: Args) -> Result<()> {
             "domain",
             Object::new().val("bmin", Value::reals(&domain.bmin)).val("bmax", Value::reals(&domain.bmax)),
         );
-    write_json(&a.out.join(format!("upscale{suffix}.json")), &summary.into(), Layout::Compact)?;
+    write_json(&summary_path, &summary.into(), Layout::Compact)?;
     println!(
         "upscaled {n} frames {w}x{h} -> {}x{} in {secs:.2} s ({:.1} ms/frame) -> {} ({fmt})",
         r * w,
