@@ -232,8 +232,8 @@ pub fn image_normals(x: &Tensor) -> Tensor {
                 ];
                 let len = (cr[0] * cr[0] + cr[1] * cr[1] + cr[2] * cr[2]).sqrt();
                 if len > 0.0 {
-                    for k in 0..3 {
-                        out.data[(img * 3 + k) * px + y * w + xx] = cr[k] / len;
+                    for (k, c) in cr.iter().enumerate() {
+                        out.data[(img * 3 + k) * px + y * w + xx] = c / len;
                     }
                 }
             }
