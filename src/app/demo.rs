@@ -20,6 +20,7 @@ use crate::ops::Interp;
 use crate::sr::compose::DEFAULT_ETA;
 use crate::sr::upscale::{upscale_images, UpscaleParams};
 use crate::tensor::Tensor;
+use crate::viz::closeup;
 use crate::viz::heat::{render_heat_row, scale_max, ScalarColors};
 use crate::viz::image::{hstack, image_rgb8, upscale_nearest, vstack, Rgb8};
 use crate::viz::render::{render_row, Shading, Tile, View};
@@ -182,12 +183,19 @@ pub fn run(a: Args) -> Result<()> {
     // 5. Pictures.
     let frames = pick_frames(spec.frames, 3);
     write_pictures(&a.out, &frames, &lr, &bicubic, &ours, &hr, &up.boundary, &up.enhance, &ours_img)?;
+    let shown: Vec<(usize, closeup::Frame)> = frames
+        .iter()
+        .map(|&k| (k, closeup::Frame { lr: &lr[k], catmull_rom: &cr[k], ours: &ours[k], truth: &hr[k] }))
+        .collect();
+    let wrinkles = closeup::closeup_rows(&shown, closeup::CLOSEUP_LR_SIZE, 256)?;
+    save_png(&a.out.join("wrinkles.png"), &wrinkles)?;
 
     println!("{header}{table}");
     let out = a.out.display();
     println!("wrote {out}/:");
     println!("  compare.png         shaded renders LR | bicubic | anisocb | HR for frames {frames:?}");
     println!("  error.png           per-vertex error (mm) of bicubic and anisocb vs HR");
+    println!("  wrinkles.png        close-ups where the truth's folds are, LR | Catmull-Rom | anisocb | HR, normal shading");
     println!("  maps.png            anisocb geometry image, predicted boundary map Γb, wrinkle map Γe");
     println!("  metrics.md, .json   the table above (per frame in the JSON)");
     println!("  lr/ hr/ bicubic/ anisocb/   OBJ sequences (frame_0000.obj ...); sim/ the simulated runs");

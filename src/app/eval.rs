@@ -1,9 +1,11 @@
 //! `anisocb eval`: anisocb against the methods a user would otherwise use, on held-out runs,
-//! as numbers (markdown + JSON tables), per-frame plots and error renders; `--speed` adds the
-//! study of (LR simulation + upscaling) vs HR simulation.
+//! as numbers (markdown + JSON tables), per-frame plots, error renders and close-ups where the
+//! truth's folds are (`--flipbook`: animated); `--speed` adds the study of (LR simulation +
+//! upscaling) vs HR simulation.
 
+use super::demo::pick_frames;
 use super::setup::{load_geometry_net, load_model, set_threads};
-use super::ui::{progress, save_png};
+use super::ui::{progress, save_apng, save_png};
 use crate::cloth::run_io::read_pair;
 use crate::cloth::scenarios::{run_single, Scenario, ScenarioSpec};
 use crate::error::Result;
@@ -23,6 +25,7 @@ use crate::ops::{Interp, Ops};
 use crate::sr::compose::{compose, DEFAULT_ETA};
 use crate::sr::upscale::{upscale_images, UpscaleParams, EVAL_STRAIN_ITERS};
 use crate::tensor::Tensor;
+use crate::viz::closeup;
 use crate::viz::heat::{render_heat_row, scale_max, ScalarColors};
 use crate::viz::image::vstack;
 use crate::viz::plot::LinePlot;
@@ -81,6 +84,11 @@ pub struct Args {
     /// Worst frames rendered per scenario.
     #[arg(long, default_value_t = 2)]
     pub worst: usize,
+    /// Also write `<scenario>-flipbook.png`: an animated PNG (15 fps) of the close-up window
+    /// where the truth's middle frame has the most wrinkle detail, LR | Catmull-Rom | anisocb |
+    /// HR, every frame (every 2nd above 60).
+    #[arg(long)]
+    pub flipbook: bool,
     /// Also run the speed study (LR sim + upscale vs HR sim at 32, 64, 128 LR grids).
     #[arg(long)]
     pub speed: bool,
@@ -326,6 +334,7 @@ pub fn run(a: Args) -> Result<()> {
         if a.worst > 0 {
             write_worst_renders(&a.out, &scenario, &lr_m, &methods, &hr, &rows, a.worst)?;
         }
+        write_closeups(&a.out, &scenario, &lr_m, &methods, &hr, a.flipbook)?;
         cells.extend(rows);
         pb.inc(1);
     }
@@ -359,8 +368,10 @@ pub fn run(a: Args) -> Result<()> {
         println!("{s}");
     }
     println!(
-        "wrote {}/: results.md, results.json, <scenario>-rmse.png, <scenario>-worst.png",
-        a.out.display()
+        "wrote {}/: results.md, results.json, <scenario>-rmse.png, <scenario>-worst.png, \
+         <scenario>-wrinkles.png (close-ups where the truth's folds are, normal shading){}",
+        a.out.display(),
+        if a.flipbook { ", <scenario>-flipbook.png (animated close-up)" } else { "" }
     );
     Ok(())
 }
@@ -419,6 +430,39 @@ fn write_worst_renders(
     let img = vstack(&pics, 6, [255; 3]);
     save_png(&out.join(format!("{scenario}-worst.png")), &img)
 }
+
+/// `{scenario}-wrinkles.png`: close-ups of 3 frames where the truth has the most wrinkle
+/// detail, LR | Catmull-Rom | anisocb at the default η | HR; with `flipbook` also
+/// `{scenario}-flipbook.png`, the animated close-up of the whole run.
+fn write_closeups(
+    out: &Path,
+    scenario: &str,
+    lr: &[GridMesh],
+    methods: &[Method],
+    hr: &[GridMesh],
+    flipbook: bool,
+) -> Result<()> {
+    let find = |name: &str| methods.iter().find(|m| m.name == name).map(|m| &m.meshes[..]);
+    let (Some(cr), Some(ours)) = (find("catmull-rom"), find(&format!("anisocb, eta={DEFAULT_ETA}"))) else {
+        return Ok(());
+    };
+    let seq: Vec<closeup::Frame> = (0..hr.len())
+        .map(|k| closeup::Frame { lr: &lr[k], catmull_rom: &cr[k], ours: &ours[k], truth: &hr[k] })
+        .collect();
+    let shown: Vec<(usize, closeup::Frame)> =
+        pick_frames(hr.len(), 3).into_iter().map(|k| (k, seq[k])).collect();
+    let img = closeup::closeup_rows(&shown, closeup::CLOSEUP_LR_SIZE, 256)?;
+    save_png(&out.join(format!("{scenario}-wrinkles.png")), &img)?;
+    if flipbook {
+        let pics = closeup::flipbook_frames(&seq, closeup::CLOSEUP_LR_SIZE, 200)?;
+        save_apng(&out.join(format!("{scenario}-flipbook.png")), &pics, FLIPBOOK_FPS)?;
+    }
+    Ok(())
+}
+
+/// Frame rate of the flip-books: the runs are at 30 fps, so every 2nd frame (runs over 60
+/// frames) plays in real time.
+const FLIPBOOK_FPS: u16 = 15;
 
 /// Time per frame of LR simulation + upscaling vs HR simulation, for the small (given) and the
 /// paper config (random weights: time does not depend on their values).

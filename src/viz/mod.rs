@@ -8,6 +8,8 @@
 //!   comparison rows of tiles sharing one camera.
 //! - [`heat`]: the heat colour scale, per-vertex scalar colours, the colour bar, and a heat
 //!   row with its colour bar.
+//! - [`closeup`]: close-ups where the truth's folds are (LR | Catmull-Rom | anisocb | HR in
+//!   normal shading), stills and flip-book frames.
 //! - [`plot`]: the line plot (loss curves, per-frame errors).
 //! - [`sheet`]: contact sheets (rows of tiles) and the strip of a few frames of a sequence.
 //!
@@ -35,6 +37,7 @@
 //! # Ok::<(), anisocb::Error>(())
 //! ```
 
+pub mod closeup;
 pub mod font;
 pub mod heat;
 pub mod image;

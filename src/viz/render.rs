@@ -36,6 +36,14 @@ impl Default for View {
     }
 }
 
+impl View {
+    /// Unit vector from the target towards the camera.
+    pub fn toward_camera(&self) -> V3 {
+        let (az, el) = (self.azimuth_deg.to_radians(), self.elevation_deg.to_radians());
+        normalize([el.cos() * az.sin(), el.sin(), el.cos() * az.cos()])
+    }
+}
+
 /// Unit vector along `a`; +z for a zero vector.
 #[inline]
 fn normalize(a: V3) -> V3 {
@@ -72,8 +80,7 @@ impl Camera {
         if (0..3).any(|k| !(lo[k].is_finite() && hi[k].is_finite() && hi[k] >= lo[k])) {
             return Err(Error::config(format!("render: empty or non-finite box {lo:?}..{hi:?}")));
         }
-        let (az, el) = (view.azimuth_deg.to_radians(), view.elevation_deg.to_radians());
-        let back = normalize([el.cos() * az.sin(), el.sin(), el.cos() * az.cos()]);
+        let back = view.toward_camera();
         // Looking straight down/up: pick a world "up" that is not parallel to the view.
         let world_up = if back[1].abs() > 0.999 { [0.0, 0.0, -back[1].signum()] } else { [0.0, 1.0, 0.0] };
         let right = normalize(cross(world_up, back));
@@ -194,6 +201,28 @@ pub struct Shading {
     pub bg_bottom: V3,
     /// Supersampling factor per axis (1 = off, 2 = 4 samples per pixel).
     pub ssaa: usize,
+    /// Lit cloth colours, or a colour from the surface normal.
+    pub look: Look,
+}
+
+/// How a surface point gets its colour.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Look {
+    /// The cloth (or heat, or tint) colour lit by ambient, key light, headlight and sheen.
+    Lit,
+    /// A normal map: the camera-space unit normal n (turned towards the camera) as sRGB
+    /// `(0.5 + 0.5·g·n_x, 0.5 + 0.5·g·n_y, 0.5 + 0.5·n_z)`, clamped. A tilt of the surface
+    /// changes the colour in proportion, so millimetre folds that grey Lambert shading washes
+    /// out show as red/green bands; `gain` g > 1 exaggerates the tilt (close-ups). Per-vertex
+    /// colours and tints are ignored.
+    Normals { gain: f32 },
+}
+
+impl Shading {
+    /// The default background and supersampling with [`Look::Normals`] of tilt gain `gain`.
+    pub fn normals(gain: f32) -> Shading {
+        Shading { look: Look::Normals { gain }, ..Shading::default() }
+    }
 }
 
 impl Default for Shading {
@@ -211,6 +240,7 @@ impl Default for Shading {
             bg_top: [0.96, 0.96, 0.97],
             bg_bottom: [0.80, 0.82, 0.85],
             ssaa: 2,
+            look: Look::Lit,
         }
     }
 }
@@ -244,9 +274,32 @@ pub fn render_mesh(
     render_layers(&[Layer { mesh, colors, tint: None }], cam, shade)
 }
 
+/// [`render_mesh`] without per-vertex colours, shaded with the given unit per-vertex
+/// `normals` instead of the mesh's own (e.g. exaggerated ones, see [`super::closeup`]).
+pub fn render_mesh_with_normals(
+    mesh: &GridMesh,
+    normals: &[V3],
+    cam: &Camera,
+    shade: &Shading,
+) -> Result<Rgb8> {
+    rasterize(&[Layer { mesh, colors: None, tint: None }], &[normals], cam, shade)
+}
+
 /// Renders several meshes into one z-buffer (cloth and props), as seen by `cam`.
 pub fn render_layers(layers: &[Layer<'_>], cam: &Camera, shade: &Shading) -> Result<Rgb8> {
-    for l in layers {
+    rasterize(layers, &[], cam, shade)
+}
+
+/// [`render_layers`] where `normals[k]`, if given, shades layer k instead of its vertex normals.
+fn rasterize(layers: &[Layer<'_>], normals: &[&[V3]], cam: &Camera, shade: &Shading) -> Result<Rgb8> {
+    for (k, l) in layers.iter().enumerate() {
+        if normals.get(k).is_some_and(|n| n.len() != l.mesh.pos.len()) {
+            return Err(Error::shape(format!(
+                "render: {} normals for a mesh of {} vertices",
+                normals[k].len(),
+                l.mesh.pos.len()
+            )));
+        }
         if let Some(c) = &l.colors {
             if c.values.len() != l.mesh.pos.len() {
                 return Err(Error::shape(format!(
@@ -270,9 +323,9 @@ pub fn render_layers(layers: &[Layer<'_>], cam: &Camera, shade: &Shading) -> Res
             color[y * w + x] = bg;
         }
     }
-    for layer in layers {
+    for (li, layer) in layers.iter().enumerate() {
         let (mesh, colors) = (layer.mesh, layer.colors);
-        let normals = vertex_normals(mesh);
+        let normals = normals.get(li).map_or_else(|| vertex_normals(mesh), |n| n.to_vec());
         let scr: Vec<(f32, f32, f32)> = mesh.pos.iter().map(|&p| cam_s.project(p)).collect();
         // Vertex normals in camera space.
         let ncam: Vec<V3> =
@@ -329,6 +382,11 @@ pub fn render_layers(layers: &[Layer<'_>], cam: &Camera, shade: &Shading) -> Res
                     let n: V3 =
                         std::array::from_fn(|k| sgn * (l0 * ncam[a][k] + l1 * ncam[b][k] + l2 * ncam[c][k]));
                     let n = normalize(n);
+                    if let Look::Normals { gain } = shade.look {
+                        let c = |v: f32| to_linear((0.5 + 0.5 * v).clamp(0.0, 1.0));
+                        color[i] = [c(gain * n[0]), c(gain * n[1]), c(n[2])];
+                        continue;
+                    }
                     let diff = shade.ambient + shade.key * dot(n, key).max(0.0) + shade.head * n[2].max(0.0);
                     let spec = shade.spec * dot(n, half).max(0.0).powf(shade.shininess);
                     color[i] = std::array::from_fn(|k| (l0 * c0[k] + l1 * c1[k] + l2 * c2[k]) * diff + spec);
