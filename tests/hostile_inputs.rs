@@ -1148,3 +1148,149 @@ fn upscale_stopped_part_way_leaves_upscale_json_marked_incomplete() {
     let help = String::from_utf8_lossy(&anisocb(&["upscale", "--help"]).stdout).into_owned();
     assert!(help.contains("\"complete\": false") && help.contains("\"complete\": true"), "{help}");
 }
+
+/// OBJ text of the `w × h` grid `pos` (row-major) numbered by `s`: file vertex n is vertex n
+/// of the renumbered grid. `faces`: "remap" keeps the grid's own faces, renamed (so the face
+/// list differs from an unnumbered file's), "template" writes the renumbered grid's faces
+/// from the usual template (identical to an unnumbered file's unless `s` transposes).
+fn renumbered_obj(
+    w: usize,
+    h: usize,
+    pos: &[[f32; 3]],
+    s: anisocb::geom::mesh::GridSymmetry,
+    faces: &str,
+) -> String {
+    let src = s.source_index(w, h);
+    let mut text = String::new();
+    for &k in &src {
+        text += &format!("v {} {} {}\n", pos[k][0], pos[k][1], pos[k][2]);
+    }
+    let mut file_of = vec![0; w * h];
+    for (n, &k) in src.iter().enumerate() {
+        file_of[k] = n + 1;
+    }
+    let (tw, th) = if faces == "template" { s.dims(w, h) } else { (w, h) };
+    for j in 0..th - 1 {
+        for i in 0..tw - 1 {
+            let q = [j * tw + i, j * tw + i + 1, (j + 1) * tw + i + 1, (j + 1) * tw + i];
+            let f = q.map(|v| if faces == "template" { v + 1 } else { file_of[v] });
+            text += &format!("f {} {} {} {}\n", f[0], f[1], f[2], f[3]);
+        }
+    }
+    text
+}
+
+/// Frame `t` of a 7 × 5 sheet sliding and rippling.
+fn moving_sheet(t: usize) -> Vec<[f32; 3]> {
+    let mut p = Vec::new();
+    for j in 0..5 {
+        for i in 0..7 {
+            let (x, y) = (i as f32 * 0.1, j as f32 * 0.1);
+            p.push([
+                x + 0.005 * t as f32,
+                y,
+                ((i as f32 + 1.7 * j as f32) * 0.3 + 0.2 * t as f32).sin() * 0.05,
+            ]);
+        }
+    }
+    p
+}
+
+#[test]
+fn upscale_puts_renumbered_frames_back_in_the_first_frames_vertex_order() {
+    use anisocb::geom::mesh::GridSymmetry;
+    let all = GridSymmetry::all();
+    // The 8 renumberings of a 7 × 5 grid are 8 different permutations.
+    let maps: Vec<Vec<usize>> = all.iter().map(|s| s.source_index(7, 5)).collect();
+    for (a, m) in maps.iter().enumerate() {
+        let mut sorted = m.clone();
+        sorted.sort();
+        assert_eq!(sorted, (0..35).collect::<Vec<_>>(), "{:?} is not a permutation", all[a]);
+        assert!(maps[..a].iter().all(|o| o != m), "{:?} repeats another symmetry", all[a]);
+    }
+    let [id, mi, mj, both, tr, ..] = all;
+    assert_eq!(
+        (mi.mirror_i, mj.mirror_j, both.mirror_i && both.mirror_j, tr.transpose),
+        (true, true, true, true)
+    );
+    let d = scratch("upscale_renumbered");
+    let (plain, renum) = (d.join("plain"), d.join("renumbered"));
+    for dir in [&plain, &renum, &d.join("folded")] {
+        std::fs::create_dir_all(dir).unwrap();
+    }
+    // Frame 1: rows reversed, faces renamed; 2: transposed (a 5 × 7 grid in the file);
+    // 3 and 4: turned 180° with the unnumbered file's very faces (only the positions say so);
+    // 5: the first frame's order again, also with the same faces.
+    let numbering = [
+        (id, "template"),
+        (mj, "remap"),
+        (tr, "template"),
+        (both, "template"),
+        (both, "template"),
+        (id, "template"),
+    ];
+    for (t, (s, faces)) in numbering.into_iter().enumerate() {
+        let p = moving_sheet(t);
+        write(&plain, &format!("frame_{t}.obj"), renumbered_obj(7, 5, &p, id, "template").as_bytes());
+        write(&renum, &format!("frame_{t}.obj"), renumbered_obj(7, 5, &p, s, faces).as_bytes());
+    }
+    let s = |p: &Path| p.to_str().unwrap().to_string();
+    let run = |input: &Path, out: &Path, extra: &[&str]| {
+        let mut args = vec!["upscale".to_string(), s(input), "--out".into(), s(out)];
+        args.extend(extra.iter().map(|a| a.to_string()));
+        let o = anisocb(&args.iter().map(String::as_str).collect::<Vec<_>>());
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        String::from_utf8_lossy(&o.stderr).into_owned()
+    };
+    run(&plain, &d.join("out_plain"), &[]);
+    let err = run(&renum, &d.join("out_renum"), &[]);
+    // Every frame comes out exactly as if it had been exported in the first frame's order.
+    for t in 0..6 {
+        let f = format!("frame_{t}.obj");
+        let (a, b) = (
+            std::fs::read(d.join("out_plain").join(&f)).unwrap(),
+            std::fs::read(d.join("out_renum").join(&f)).unwrap(),
+        );
+        assert!(a == b, "{f}: output differs from the unnumbered shot's");
+    }
+    // The user is told which frames were renumbered, and only those.
+    for (t, said) in [(1, true), (2, true), (3, true), (4, false), (5, true)] {
+        let f = s(&renum.join(format!("frame_{t}.obj")));
+        assert_eq!(
+            err.contains(&format!("note: {f}: vertices numbered differently")),
+            said,
+            "frame {t}: {err}"
+        );
+    }
+    // A farm slice starting inside the renumbered frames gives the full run's bytes.
+    run(&renum, &d.join("out_slice"), &["--frames", "4:6"]);
+    for t in 4..6 {
+        let f = format!("frame_{t}.obj");
+        assert!(
+            std::fs::read(d.join("out_slice").join(&f)).unwrap()
+                == std::fs::read(d.join("out_plain").join(&f)).unwrap(),
+            "{f}"
+        );
+    }
+    // A renumbered frame folded exactly onto itself fits two orientations equally: refused,
+    // naming the frame, with nothing claimed finished.
+    let folded = d.join("folded");
+    let p0 = moving_sheet(0);
+    let p1: Vec<[f32; 3]> = (0..35)
+        .map(|k| {
+            let (i, j) = (k % 7, k / 7);
+            let (a, b) = (p0[k], p0[j * 7 + 6 - i]);
+            [(a[0] + b[0]) / 2.0, (a[1] + b[1]) / 2.0, (a[2] + b[2]) / 2.0]
+        })
+        .collect();
+    write(&folded, "frame_0.obj", renumbered_obj(7, 5, &p0, id, "template").as_bytes());
+    let bad = write(&folded, "frame_1.obj", renumbered_obj(7, 5, &p1, mj, "remap").as_bytes());
+    let out = d.join("out_folded");
+    upscale_refused(
+        &[&s(&folded), "--out", &s(&out)],
+        1,
+        &[&s(&bad), "two orientations", "same vertex order"],
+    );
+    let summary = std::fs::read_to_string(out.join("upscale.json")).unwrap_or_default();
+    assert!(!summary.contains("\"complete\": true"), "{summary}");
+}

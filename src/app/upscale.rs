@@ -232,6 +232,9 @@ impl LrSource for Shot {
                     attrs.borrow_mut().insert(f, a);
                     put_frame(&mut t, k, &mesh, domain);
                 }
+                for note in seq.take_notes() {
+                    eprintln!("note: {note}");
+                }
                 Ok(t)
             }
             Shot::Cache { cache, order, w, h, domain } => {

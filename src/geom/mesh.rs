@@ -84,6 +84,74 @@ impl GridMesh {
     }
 }
 
+/// One of the 8 symmetries of a grid's vertex numbering: the same sheet numbered with its
+/// columns reversed (`mirror_i`), rows reversed (`mirror_j`), and/or rows and columns swapped
+/// (`transpose`, applied first). Exporters renumber a grid this way after an edit; aligning a
+/// frame to another means finding the symmetry that maps one numbering onto the other.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct GridSymmetry {
+    pub transpose: bool,
+    pub mirror_i: bool,
+    pub mirror_j: bool,
+}
+
+impl GridSymmetry {
+    pub const IDENTITY: GridSymmetry = GridSymmetry { transpose: false, mirror_i: false, mirror_j: false };
+
+    /// All 8, the identity first.
+    pub fn all() -> [GridSymmetry; 8] {
+        std::array::from_fn(|k| GridSymmetry {
+            transpose: k & 4 != 0,
+            mirror_i: k & 1 != 0,
+            mirror_j: k & 2 != 0,
+        })
+    }
+
+    /// (columns, rows) of a `w × h` grid renumbered by `self`.
+    pub fn dims(self, w: usize, h: usize) -> (usize, usize) {
+        if self.transpose {
+            (h, w)
+        } else {
+            (w, h)
+        }
+    }
+
+    /// For each vertex of the renumbered grid (`j'·w' + i'`, dims from [`Self::dims`]), the
+    /// index of the same vertex in the `w × h` grid it is taken from.
+    pub fn source_index(self, w: usize, h: usize) -> Vec<usize> {
+        let (w2, h2) = self.dims(w, h);
+        let mut idx = Vec::with_capacity(w * h);
+        for j2 in 0..h2 {
+            for i2 in 0..w2 {
+                let (a, b) = if self.transpose { (j2, i2) } else { (i2, j2) };
+                let i = if self.mirror_i { w - 1 - a } else { a };
+                let j = if self.mirror_j { h - 1 - b } else { b };
+                idx.push(j * w + i);
+            }
+        }
+        idx
+    }
+
+    /// `mesh` renumbered by `self`.
+    pub fn apply(self, mesh: &GridMesh) -> GridMesh {
+        let (w2, h2) = self.dims(mesh.w, mesh.h);
+        GridMesh::new(w2, h2, self.source_index(mesh.w, mesh.h).into_iter().map(|k| mesh.pos[k]).collect())
+    }
+
+    /// How a grid numbered by `self` looks next to one numbered the identity's way, in words.
+    pub fn describe(self) -> &'static str {
+        match (self.transpose, self.mirror_i, self.mirror_j) {
+            (false, false, false) => "the same order",
+            (false, true, false) => "each row reversed",
+            (false, false, true) => "rows in reverse order",
+            (false, true, true) => "turned 180 degrees",
+            (true, false, false) => "rows and columns swapped",
+            (true, true, false) | (true, false, true) => "turned 90 degrees",
+            (true, true, true) => "swapped along the other diagonal",
+        }
+    }
+}
+
 /// Rest parameter (u, v) ∈ [0,1]² of vertex (i, j) on a `w × h` grid (corners aligned).
 #[inline]
 pub fn rest_uv(i: usize, j: usize, w: usize, h: usize) -> (f32, f32) {

@@ -13,9 +13,10 @@
 //! triangles of a cell must agree, otherwise the file is rejected with a message that asks
 //! for quads.
 
-use super::mesh::{vertex_normals, GridMesh};
+use super::mesh::{vertex_normals, GridMesh, GridSymmetry};
 use super::vec3::{cross, dot, norm};
 use crate::error::{Error, Result};
+use std::cell::RefCell;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
@@ -570,15 +571,50 @@ pub fn list_obj_files(dir: &Path) -> Result<Vec<PathBuf>> {
 }
 
 /// An OBJ sequence read one frame at a time (memory for one frame, whatever the shot's
-/// length). The first file fixes the grid's orientation, size, UVs and attributes; a frame
-/// with the first file's faces reuses its vertex order, any other must be a grid of the same
-/// size.
+/// length). The first file fixes the grid's orientation, size, UVs and attributes; every other
+/// frame must be a grid of the same size and is returned in the first file's vertex order.
+///
+/// A frame may number its vertices differently (exporters renumber a grid after an edit:
+/// rows reversed, transposed, with the faces renumbered to match or written from the same
+/// template). The grid is known up to its 8 symmetries ([`GridSymmetry`]); the one that fits
+/// is the one that keeps the cloth where the previous frame left it. A frame whose faces are
+/// those of the previous frame keeps the previous frame's numbering unless another symmetry
+/// fits [`CLEARLY_BETTER`] times better; a frame with other faces takes the best fit, and is
+/// refused, naming it, when two symmetries fit about equally (a sheet folded exactly onto
+/// itself). Frames are aligned in order from the first, so reading frame k first aligns the
+/// frames before it once (a farm slice reads the shot's earlier frames): every run gives
+/// frame k the same orientation.
 pub struct ObjSequence {
     pub files: Vec<PathBuf>,
     /// The first file as a grid.
     pub first: ObjGrid,
     faces: Vec<Vec<u32>>,
     vertices: usize,
+    align: RefCell<Alignment>,
+}
+
+/// Squared-distance ratio under which one symmetry fits clearly better than another
+/// ([`ObjSequence`]): an RMS distance under about a third.
+pub const CLEARLY_BETTER: f64 = 0.1;
+
+/// What [`ObjSequence`] knows of its frames' numbering.
+struct Alignment {
+    /// Per frame, the symmetry that takes the frame's grid as read to the first file's order;
+    /// known for frames `0..=last`.
+    sym: Vec<Option<GridSymmetry>>,
+    last: usize,
+    /// The last aligned frame's positions (first file's order) and its faces.
+    last_pos: Vec<[f32; 3]>,
+    last_faces: Vec<Vec<u32>>,
+    /// Frames found renumbered, for the caller to report ([`ObjSequence::take_notes`]).
+    notes: Vec<String>,
+}
+
+/// A frame as read: its grid in the order the file's numbering gives, faces and attributes.
+struct RawFrame {
+    grid: GridMesh,
+    faces: Vec<Vec<u32>>,
+    attrs: ObjAttrs,
 }
 
 impl ObjSequence {
@@ -587,7 +623,16 @@ impl ObjSequence {
         let Some(p) = paths.first() else { return Err(Error::config("no OBJ files given")) };
         let m = parse_obj(&std::fs::read_to_string(p).map_err(|e| Error::io(p, e))?, p)?;
         let first = obj_to_grid(&m, p)?;
-        Ok(ObjSequence { files: paths.to_vec(), first, faces: m.faces, vertices: m.pos.len() })
+        let mut sym = vec![None; paths.len()];
+        sym[0] = Some(GridSymmetry::IDENTITY);
+        let align = RefCell::new(Alignment {
+            sym,
+            last: 0,
+            last_pos: first.mesh.pos.clone(),
+            last_faces: m.faces.clone(),
+            notes: Vec::new(),
+        });
+        Ok(ObjSequence { files: paths.to_vec(), first, faces: m.faces, vertices: m.pos.len(), align })
     }
 
     pub fn len(&self) -> usize {
@@ -603,19 +648,46 @@ impl ObjSequence {
         Ok(self.frame_and_attrs(k)?.0)
     }
 
-    /// Frame `k` and what its file carries besides geometry (exporters write per-frame
-    /// `mtllib`s: Blender's `cloth0002.obj` uses `cloth0002.mtl`).
+    /// Frame `k` in the first file's vertex order, and what its file carries besides geometry
+    /// (exporters write per-frame `mtllib`s: Blender's `cloth0002.obj` uses `cloth0002.mtl`);
+    /// faces wind as the first file's do.
     pub fn frame_and_attrs(&self, k: usize) -> Result<(GridMesh, ObjAttrs)> {
+        let raw = self.raw(k)?;
+        let known = self.align.borrow().sym[k];
+        let s = match known {
+            Some(s) => s,
+            None => {
+                let last = self.align.borrow().last;
+                for n in last + 1..k {
+                    let r = self.raw(n)?;
+                    self.align_next(n, &r)?;
+                }
+                self.align_next(k, &raw)?
+            }
+        };
+        let attrs = ObjAttrs { flipped: self.first.attrs.flipped, ..raw.attrs };
+        Ok((s.apply(&raw.grid), attrs))
+    }
+
+    /// Notes on frames found numbered differently from the frame before them, once each.
+    pub fn take_notes(&self) -> Vec<String> {
+        std::mem::take(&mut self.align.borrow_mut().notes)
+    }
+
+    /// Read frame `k`: a file with the first file's faces reuses its grid order, any other is
+    /// recovered as a grid of its own.
+    fn raw(&self, k: usize) -> Result<RawFrame> {
         let p = &self.files[k];
         let m = parse_obj(&std::fs::read_to_string(p).map_err(|e| Error::io(p, e))?, p)?;
         let g0 = &self.first;
         if m.faces == self.faces && m.pos.len() == self.vertices {
-            let mesh =
+            let grid =
                 GridMesh::new(g0.mesh.w, g0.mesh.h, g0.order.iter().map(|&v| m.pos[v as usize]).collect());
-            return Ok((mesh, ObjAttrs { flipped: g0.attrs.flipped, ..m.attrs }));
+            return Ok(RawFrame { grid, faces: m.faces, attrs: m.attrs });
         }
         let g = obj_to_grid(&m, p)?;
-        if (g.mesh.w, g.mesh.h) != (g0.mesh.w, g0.mesh.h) {
+        let fits = |s: GridSymmetry| s.dims(g.mesh.w, g.mesh.h) == (g0.mesh.w, g0.mesh.h);
+        if !GridSymmetry::all().into_iter().any(fits) {
             return Err(Error::format(
                 p,
                 format!(
@@ -624,8 +696,77 @@ impl ObjSequence {
                 ),
             ));
         }
-        Ok((g.mesh, g.attrs))
+        Ok(RawFrame { grid: g.mesh, faces: m.faces, attrs: g.attrs })
     }
+
+    /// Find frame `n`'s symmetry (frame `n - 1` is the last aligned one) and make it the last.
+    fn align_next(&self, n: usize, raw: &RawFrame) -> Result<GridSymmetry> {
+        let mut al = self.align.borrow_mut();
+        debug_assert_eq!(al.last + 1, n);
+        let (w, h) = (self.first.mesh.w, self.first.mesh.h);
+        let (gw, gh) = (raw.grid.w, raw.grid.h);
+        let cost = |s: GridSymmetry| -> f64 {
+            let idx = s.source_index(gw, gh);
+            idx.iter().zip(&al.last_pos).map(|(&k, q)| dist2(raw.grid.pos[k], *q)).sum()
+        };
+        let mut fits: Vec<(f64, GridSymmetry)> = GridSymmetry::all()
+            .into_iter()
+            .filter(|s| s.dims(gw, gh) == (w, h))
+            .map(|s| (cost(s), s))
+            .collect();
+        fits.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let prev = al.sym[n - 1].expect("aligned in order");
+        let same_faces = raw.faces == al.last_faces;
+        let (best_cost, best) = fits[0];
+        let rms_mm = |c: f64| 1e3 * (c / (w * h) as f64).sqrt();
+        let s = if same_faces {
+            let keep = fits.iter().find(|f| f.1 == prev).map_or(f64::INFINITY, |f| f.0);
+            if best != prev && best_cost < CLEARLY_BETTER * keep {
+                best
+            } else {
+                prev
+            }
+        } else {
+            let second = fits.get(1).map_or(f64::INFINITY, |f| f.0);
+            // (NaN-safe: a NaN cost is never clearly better.)
+            let clear = best_cost < CLEARLY_BETTER * second;
+            if !clear {
+                return Err(Error::format(
+                    &self.files[n],
+                    format!(
+                        "this frame numbers its vertices differently from {}, and two orientations \
+                         of the grid fit the cloth about equally (RMS {:.1} mm and {:.1} mm from the \
+                         frame before), so it cannot be put in the first frame's vertex order; \
+                         export every frame with the same vertex order",
+                        self.files[n - 1].display(),
+                        rms_mm(best_cost),
+                        rms_mm(second)
+                    ),
+                ));
+            }
+            best
+        };
+        if s != prev {
+            let note = format!(
+                "{}: vertices numbered differently from {} (its grid is the first frame's with {}); \
+                 written in the first frame's vertex order",
+                self.files[n].display(),
+                self.files[n - 1].display(),
+                s.describe()
+            );
+            al.notes.push(note);
+        }
+        al.sym[n] = Some(s);
+        al.last = n;
+        al.last_pos = s.apply(&raw.grid).pos;
+        al.last_faces.clone_from(&raw.faces);
+        Ok(s)
+    }
+}
+
+/// Squared distance in f64.
+fn dist2(a: [f32; 3], b: [f32; 3]) -> f64 {
+    (0..3).map(|k| (a[k] as f64 - b[k] as f64).powi(2)).sum()
 }
 
 /// Read a whole OBJ sequence into memory (see [`ObjSequence`]) and its face style.
