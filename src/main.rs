@@ -8,5 +8,13 @@ fn main() {
         let _ = anisocb::app::cpu::write_missing_report(&mut std::io::stderr(), missing.as_slice());
         std::process::exit(3);
     }
+    // Ctrl-C, or SIGTERM from a farm's scheduler: remove the temporary files of the writes in
+    // flight (the outputs already written stay; upscale.json still says "complete": false).
+    let _ = ctrlc::set_handler(|| {
+        eprintln!(
+            "anisocb: interrupted; unfinished temporary files removed (rerun the same command to finish)"
+        );
+        anisocb::io::atomic::remove_live_temps_and_exit(130)
+    });
     std::process::exit(anisocb::app::process_main(std::env::args_os()));
 }

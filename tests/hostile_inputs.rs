@@ -1294,3 +1294,79 @@ fn upscale_puts_renumbered_frames_back_in_the_first_frames_vertex_order() {
     let summary = std::fs::read_to_string(out.join("upscale.json")).unwrap_or_default();
     assert!(!summary.contains("\"complete\": true"), "{summary}");
 }
+
+/// A 64 × 64 point cache of `frames` frames and its rest mesh in `dir` (a run of seconds).
+fn long_cache(dir: &Path, frames: usize) -> (PathBuf, PathBuf) {
+    std::fs::create_dir_all(dir).unwrap();
+    let pc2 = write(
+        dir,
+        "cloth.pc2",
+        &pc2_raw(b"POINTCACHE2\0", 1, 4096, 0.0, 1.0, frames as i32, &grid_xyz(64, 64, frames)),
+    );
+    (pc2, write(dir, "rest.obj", grid_obj(64, 64).as_bytes()))
+}
+
+/// Start `anisocb upscale CACHE --rest REST --out OUT` and wait until its streamed cache's
+/// temporary file exists (the run is then under way, writing).
+fn start_cache_upscale(pc2: &Path, rest: &Path, out: &Path) -> std::process::Child {
+    let s = |p: &Path| p.to_str().unwrap().to_string();
+    let child = std::process::Command::new(env!("CARGO_BIN_EXE_anisocb"))
+        .args(["upscale", &s(pc2), "--rest", &s(rest), "--out", &s(out), "--chunk", "1", "--threads", "1"])
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let t0 = std::time::Instant::now();
+    while !temp_files(out).iter().any(|f| f.starts_with(".cloth.pc2.tmp.")) {
+        assert!(t0.elapsed().as_secs() < 60, "the run never started writing: {:?}", file_names(out));
+        std::thread::sleep(std::time::Duration::from_millis(5));
+    }
+    child
+}
+
+/// Hidden temporary files in `dir` (none if it does not exist).
+fn temp_files(dir: &Path) -> Vec<String> {
+    std::fs::read_dir(dir)
+        .map(|r| {
+            r.flatten()
+                .map(|e| e.file_name().to_string_lossy().into_owned())
+                .filter(|n| n.contains(".tmp."))
+                .collect()
+        })
+        .unwrap_or_default()
+}
+
+#[test]
+fn upscale_interrupted_by_sigint_or_sigterm_removes_its_temp_files() {
+    let d = scratch("upscale_signal");
+    let (pc2, rest) = long_cache(&d.join("in"), 60);
+    for sig in ["-INT", "-TERM"] {
+        let out = d.join(format!("out{sig}"));
+        let child = start_cache_upscale(&pc2, &rest, &out);
+        let k = std::process::Command::new("kill").args([sig, &child.id().to_string()]).status().unwrap();
+        assert!(k.success());
+        let o = child.wait_with_output().unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(130), "{sig}: {err}");
+        assert!(err.contains("interrupted"), "{sig}: {err}");
+        assert!(temp_files(&out).is_empty(), "{sig} left {:?}", temp_files(&out));
+        let summary = std::fs::read_to_string(out.join("upscale.json")).unwrap();
+        assert!(summary.contains("\"complete\": false"), "{sig}: {summary}");
+    }
+}
+
+#[test]
+fn a_second_run_into_the_same_out_leaves_the_first_runs_temp_files_alone() {
+    let d = scratch("upscale_concurrent");
+    let (pc2, rest) = long_cache(&d.join("in"), 30);
+    let out = d.join("out");
+    let first = start_cache_upscale(&pc2, &rest, &out);
+    // The second run (a short shot with the same output name) clears stale temp files of the
+    // outputs it writes before it starts: not the first run's, which is still writing.
+    let (pc2b, restb) = long_cache(&d.join("in2"), 2);
+    let s = |p: &Path| p.to_str().unwrap().to_string();
+    let o = anisocb(&["upscale", &s(&pc2b), "--rest", &s(&restb), "--out", &s(&out)]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let o = first.wait_with_output().unwrap();
+    assert!(o.status.success(), "the first run failed: {}", String::from_utf8_lossy(&o.stderr));
+    assert!(temp_files(&out).is_empty(), "{:?}", temp_files(&out));
+}

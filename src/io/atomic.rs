@@ -1,24 +1,56 @@
 //! Atomic file writes: write to `.NAME.tmp.<pid>.<n>` in the same directory, fsync, rename over
 //! `NAME`, fsync the directory. A crash leaves either the old file or the new one, never half
-//! of one. An error or a panic inside the writer removes the temporary file; only a kill
-//! (SIGKILL, power loss) can leave one behind, and [`remove_stale_temps`] clears those.
+//! of one. An error or a panic inside the writer removes the temporary file; an interrupt
+//! (SIGINT, SIGTERM) removes every open one through [`remove_live_temps_and_exit`], which the
+//! binary calls from its signal handler; only a kill (SIGKILL, power loss) can leave one
+//! behind, and [`remove_stale_temps`] clears those (not another live process's).
 
 use crate::error::{Error, Result};
 use std::fs::{self, File};
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::Mutex;
 
 /// Distinguishes concurrent writes of the same path from one process.
 static COUNTER: AtomicU64 = AtomicU64::new(0);
 
+/// The temporary files this process has open (created, not yet renamed or removed).
+static LIVE: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
+
+fn live() -> std::sync::MutexGuard<'static, Vec<PathBuf>> {
+    LIVE.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+/// Remove every temporary file this process has open, hold off new ones, and exit with
+/// `code`: for a signal handler (`anisocb` on SIGINT / SIGTERM).
+pub fn remove_live_temps_and_exit(code: i32) -> ! {
+    let mut l = live();
+    for p in l.drain(..) {
+        let _ = fs::remove_file(p);
+    }
+    // The lock stays held: a writer about to create a temp file waits for the exit.
+    std::process::exit(code)
+}
+
 /// Removes the temporary file unless disarmed (after a successful rename), also on panic.
 struct TempGuard(Option<PathBuf>);
+
+impl TempGuard {
+    /// Disarm: the file was renamed into place.
+    fn disarm(&mut self) {
+        if let Some(p) = self.0.take() {
+            live().retain(|q| *q != p);
+        }
+    }
+}
 
 impl Drop for TempGuard {
     fn drop(&mut self) {
         if let Some(p) = self.0.take() {
-            let _ = fs::remove_file(p);
+            let mut l = live();
+            let _ = fs::remove_file(&p);
+            l.retain(|q| *q != p);
         }
     }
 }
@@ -44,7 +76,12 @@ impl AtomicFile {
             path.file_name().ok_or_else(|| Error::config(format!("{}: not a file name", path.display())))?;
         let n = COUNTER.fetch_add(1, Ordering::Relaxed);
         let tmp = dir.join(format!("{}{}.{n}", temp_prefix(name), std::process::id()));
-        let file = File::create(&tmp).map_err(|e| Error::io(path, e))?;
+        let file = {
+            let mut l = live();
+            let file = File::create(&tmp).map_err(|e| Error::io(path, e))?;
+            l.push(tmp.clone());
+            file
+        };
         Ok(AtomicFile {
             path: path.to_path_buf(),
             tmp: tmp.clone(),
@@ -69,7 +106,7 @@ impl AtomicFile {
             let file = w.into_inner().map_err(|e| e.into_error())?;
             file.sync_all()?;
             fs::rename(&self.tmp, &self.path)?;
-            self.guard.0 = None;
+            self.guard.disarm();
             // Make the rename itself durable; not every filesystem allows syncing a directory.
             let dir = self.path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
             if let Ok(d) = File::open(dir) {
@@ -91,9 +128,10 @@ pub fn write_atomic_bytes(path: &Path, bytes: &[u8]) -> Result<()> {
     write_atomic(path, |w| w.write_all(bytes))
 }
 
-/// Remove temporary files that a killed writer of `path` left behind (`.NAME.tmp.*` beside it).
-/// Call it where a run restarts (e.g. `--resume`), when no other process writes `path`.
-/// Returns how many were removed.
+/// Remove temporary files that a killed writer of `path` left behind (`.NAME.tmp.<pid>.*`
+/// beside it), where a run restarts (e.g. `--resume`, an upscale rerun). A temp file of a
+/// process that is still running (another run writing the same folder) is left alone (on
+/// Linux, where `/proc` tells). Returns how many were removed.
 pub fn remove_stale_temps(path: &Path) -> Result<usize> {
     let dir = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
     let Some(name) = path.file_name() else { return Ok(0) };
@@ -101,12 +139,21 @@ pub fn remove_stale_temps(path: &Path) -> Result<usize> {
     let Ok(list) = fs::read_dir(dir) else { return Ok(0) };
     let mut removed = 0;
     for e in list.flatten() {
-        if e.file_name().to_string_lossy().starts_with(&prefix) {
-            fs::remove_file(e.path()).map_err(|err| Error::io(e.path(), err))?;
-            removed += 1;
+        let file = e.file_name().to_string_lossy().into_owned();
+        let Some(rest) = file.strip_prefix(&prefix) else { continue };
+        if rest.split('.').next().and_then(|p| p.parse::<u32>().ok()).is_some_and(process_alive) {
+            continue;
         }
+        fs::remove_file(e.path()).map_err(|err| Error::io(e.path(), err))?;
+        removed += 1;
     }
     Ok(removed)
+}
+
+/// Whether process `pid` is running (this one included); without `/proc`, every other process
+/// is taken to be gone.
+fn process_alive(pid: u32) -> bool {
+    pid == std::process::id() || Path::new("/proc").join(pid.to_string()).exists()
 }
 
 /// Create `dir` (and parents), with an error that names it and says what to do.
@@ -169,10 +216,24 @@ mod tests {
     fn stale_temps_of_a_killed_writer_are_removed() {
         let d = scratch("stale");
         let p = d.join("ckpt.npz");
-        fs::write(d.join(".ckpt.npz.tmp.999.0"), b"partial").unwrap();
+        // A pid above Linux's largest possible (2^22): that process is gone.
+        fs::write(d.join(".ckpt.npz.tmp.4194305.0"), b"partial").unwrap();
         fs::write(d.join("other.npz"), b"x").unwrap();
         assert_eq!(remove_stale_temps(&p).unwrap(), 1);
         assert_eq!(entries(&d), ["other.npz"]);
+        let _ = fs::remove_dir_all(&d);
+    }
+
+    #[test]
+    fn temps_of_a_running_process_are_not_stale() {
+        let d = scratch("live");
+        let p = d.join("frame.obj");
+        // Another run writing the same folder right now (this process stands in for it).
+        let mut f = AtomicFile::create(&p).unwrap();
+        f.writer().write_all(b"v 0 0 0").unwrap();
+        assert_eq!(remove_stale_temps(&p).unwrap(), 0);
+        f.commit().unwrap();
+        assert_eq!(entries(&d), ["frame.obj"]);
         let _ = fs::remove_dir_all(&d);
     }
 }
