@@ -677,6 +677,19 @@ fn obj_catalogue_each_bad_file_gives_its_error() {
     let p = write(&d, "ok.obj", good.as_bytes());
     let m = read_obj_grid(&p).unwrap();
     assert_eq!((m.w, m.h), (3, 3));
+    // What some exporters write, read as the plain file: a byte-order mark, CR LF, CR alone.
+    let bom = [&b"\xEF\xBB\xBF"[..], good.as_bytes()].concat();
+    for (name, bytes) in [
+        ("bom.obj", bom),
+        ("crlf.obj", good.replace('\n', "\r\n").into_bytes()),
+        ("cr.obj", good.replace('\n', "\r").into_bytes()),
+    ] {
+        assert_eq!(read_obj_grid(&write(&d, name, &bytes)).unwrap(), m, "{name}");
+    }
+    // A Latin-1 byte in a comment: named with its line.
+    let latin1 = [b"v 0 0 0\nv 1 0 0\n# caf".as_slice(), &[0xE9], b"\n", good.as_bytes()].concat();
+    let p = write(&d, "latin1.obj", &latin1);
+    expect_err(read_obj_grid(&p), &p, &["line 3", "0xE9", "not UTF-8"]);
 }
 
 #[test]
@@ -1369,4 +1382,33 @@ fn a_second_run_into_the_same_out_leaves_the_first_runs_temp_files_alone() {
     let o = first.wait_with_output().unwrap();
     assert!(o.status.success(), "the first run failed: {}", String::from_utf8_lossy(&o.stderr));
     assert!(temp_files(&out).is_empty(), "{:?}", temp_files(&out));
+}
+
+#[test]
+fn upscale_messages_say_what_is_wrong_with_what_was_given() {
+    let d = scratch("upscale_messages");
+    let shot = obj_shot(&d, "shot", 2);
+    let s = |p: &Path| p.to_str().unwrap().to_string();
+    let out = s(&d.join("out"));
+    // A single net where a bundle is needed: called a single net, with the way to bundle it.
+    let single = Path::new(env!("CARGO_MANIFEST_DIR")).join("weights/domain-x2.npz");
+    upscale_refused(
+        &[&s(&shot), "--out", &out, "--weights", &s(&single)],
+        1,
+        &["single geometry net", "anisocb bundle"],
+    );
+    // Two point caches at once: both named, one per run.
+    let xyz = grid_xyz(4, 4, 2);
+    let a = write(&d, "a.pc2", &pc2_raw(b"POINTCACHE2\0", 1, 16, 0.0, 1.0, 2, &xyz));
+    let b = write(&d, "b.pc2", &pc2_raw(b"POINTCACHE2\0", 1, 16, 0.0, 1.0, 2, &xyz));
+    let rest = write(&d, "rest.obj", grid_obj(4, 4).as_bytes());
+    upscale_refused(
+        &[&s(&a), &s(&b), "--rest", &s(&rest), "--out", &out],
+        1,
+        &["2 of them point caches", "a.pc2", "b.pc2", "one point cache per run"],
+    );
+    // A cache without its rest mesh: the message reads as one sentence.
+    let err =
+        upscale_refused(&[&s(&a), "--out", &out], 1, &["--rest MESH.obj (exported from the same object"]);
+    assert!(!err.contains("  "), "stray spaces: {err:?}");
 }

@@ -582,7 +582,8 @@ fn open_input(a: &Args, r: usize) -> Result<Input> {
     if a.input.len() == 1 && CacheFormat::from_path(first).is_some() {
         let Some(rest) = &a.rest else {
             return Err(Error::config(format!(
-                "{}: a point cache holds positions only; give the mesh they move with --rest MESH.obj                  (exported from the same object, same vertex order)",
+                "{}: a point cache holds positions only; give the mesh they move with --rest MESH.obj \
+                 (exported from the same object, same vertex order)",
                 first.display()
             )));
         };
@@ -608,6 +609,16 @@ fn open_input(a: &Args, r: usize) -> Result<Input> {
         let cin = CacheIn { path: first.clone(), header, rest: rest.clone(), rest_grid: g };
         let files = vec![first.clone(), rest.clone()];
         return Ok(Input { shot, npy_domain: None, mesh_out: Some(out), cache_in: Some(cin), files });
+    }
+    let caches: Vec<&PathBuf> = a.input.iter().filter(|p| CacheFormat::from_path(p).is_some()).collect();
+    if !caches.is_empty() {
+        return Err(Error::config(format!(
+            "{} inputs given, {} of them point caches ({}): upscale one point cache per run, alone, \
+             with its --rest mesh",
+            a.input.len(),
+            caches.len(),
+            caches.iter().map(|p| p.display().to_string()).collect::<Vec<_>>().join(", ")
+        )));
     }
     if a.rest.is_some() {
         return Err(Error::config("--rest is for point-cache input (.pc2 / .mdd) only"));

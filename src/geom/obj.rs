@@ -61,8 +61,36 @@ pub struct ObjAttrs {
     pub flipped: bool,
 }
 
-/// Parse OBJ text (`path` only names the file in errors).
+/// The text of an OBJ file; a byte that is not UTF-8 (a Latin-1 name) is refused with its line
+/// number.
+pub fn read_obj_text(path: &Path) -> Result<String> {
+    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let text = std::str::from_utf8(&bytes).map_err(|e| {
+        let at = e.valid_up_to();
+        let line = 1 + bytes[..at].iter().filter(|&&b| b == b'\n').count();
+        Error::format(
+            path,
+            format!(
+                "line {line}: byte 0x{:02X} is not UTF-8 (a name or comment in Latin-1?); save the \
+                 file as UTF-8",
+                bytes[at]
+            ),
+        )
+    })?;
+    Ok(text.to_string())
+}
+
+/// Parse OBJ text (`path` only names the file in errors), as exporters write it: a byte-order
+/// mark is skipped, and CR alone (old Mac) ends a line as LF and CR LF do.
 pub fn parse_obj(text: &str, path: &Path) -> Result<ObjMesh> {
+    let text = text.strip_prefix('\u{FEFF}').unwrap_or(text);
+    let lf;
+    let text = if text.contains('\r') {
+        lf = text.replace("\r\n", "\n").replace('\r', "\n");
+        lf.as_str()
+    } else {
+        text
+    };
     let mut pos = Vec::new();
     let mut uv: Vec<[f32; 2]> = Vec::new();
     let mut attrs = ObjAttrs::default();
@@ -435,8 +463,7 @@ pub fn obj_to_grid(m: &ObjMesh, path: &Path) -> Result<ObjGrid> {
 
 /// Read an OBJ grid and its face style.
 pub fn read_obj_grid_styled(path: &Path) -> Result<ObjGrid> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-    obj_to_grid(&parse_obj(&text, path)?, path)
+    obj_to_grid(&parse_obj(&read_obj_text(path)?, path)?, path)
 }
 
 /// Read an OBJ grid (any vertex order, quads or triangulated quads).
@@ -621,7 +648,7 @@ impl ObjSequence {
     /// Open a sequence (reads the first file).
     pub fn open(paths: &[PathBuf]) -> Result<ObjSequence> {
         let Some(p) = paths.first() else { return Err(Error::config("no OBJ files given")) };
-        let m = parse_obj(&std::fs::read_to_string(p).map_err(|e| Error::io(p, e))?, p)?;
+        let m = parse_obj(&read_obj_text(p)?, p)?;
         let first = obj_to_grid(&m, p)?;
         let mut sym = vec![None; paths.len()];
         sym[0] = Some(GridSymmetry::IDENTITY);
@@ -678,7 +705,7 @@ impl ObjSequence {
     /// recovered as a grid of its own.
     fn raw(&self, k: usize) -> Result<RawFrame> {
         let p = &self.files[k];
-        let m = parse_obj(&std::fs::read_to_string(p).map_err(|e| Error::io(p, e))?, p)?;
+        let m = parse_obj(&read_obj_text(p)?, p)?;
         let g0 = &self.first;
         if m.faces == self.faces && m.pos.len() == self.vertices {
             let grid =

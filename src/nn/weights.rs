@@ -41,12 +41,24 @@ pub fn trunk_from_npz(
 ) -> Result<Trunk> {
     let cfg_name = format!("{prefix}config.json");
     let cfg_bytes = entries.file(&cfg_name).ok_or_else(|| {
-        Error::format(
-            path,
-            format!(
+        // A single net (`train`'s output) where a bundle's net was looked for.
+        let single = (!prefix.is_empty())
+            .then(|| entries.file("config.json"))
+            .flatten()
+            .and_then(|b| NetConfig::from_json(&String::from_utf8_lossy(b)).ok());
+        let why = match single {
+            Some((kind, _)) => format!(
+                "this file is a single {} net (as `anisocb train` writes), not a bundle of the \
+                 three nets that upscaling needs: combine nets with `anisocb bundle --geometry G \
+                 --boundary B --enhance E --out W.npz`, or give a bundle such as \
+                 weights/anisocb-x2.npz",
+                kind.name()
+            ),
+            None => format!(
                 "no '{cfg_name}' entry: not an anisocb weights file (see weights/README.md for the layout)"
             ),
-        )
+        };
+        Error::format(path, why)
     })?;
     let (kind, config) = NetConfig::from_json(&String::from_utf8_lossy(cfg_bytes))
         .map_err(|m| Error::format(path, format!("{cfg_name}: {m}")))?;
