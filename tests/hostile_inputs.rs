@@ -547,6 +547,63 @@ fn cli_train_refuses_bad_inputs_and_writes_nothing() {
     assert_eq!(o.status.code(), Some(1), "{err}");
     assert!(err.contains(&ckpt.display().to_string()), "{err}");
     assert_eq!(file_names(&out), ["checkpoint.npz"]);
+    // --steps 0 would write untrained weights.
+    let out = d.join("zero_steps");
+    let (ds, os) = (data.to_str().unwrap(), out.to_str().unwrap());
+    let o = anisocb(&["train", "--data", ds, "--config", "tiny", "--steps", "0", "--out", os]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(err.contains("--steps 0") && err.contains("untrained"), "{err}");
+    assert!(!out.exists(), "{:?}", file_names(&out));
+}
+
+#[test]
+fn dataset_refuses_an_out_that_would_replace_a_runs_files() {
+    let d = scratch("dataset_out");
+    let run = d.join("run");
+    let s = |p: &Path| p.to_str().unwrap().to_string();
+    let o = anisocb(&[
+        "simulate",
+        "--scenario",
+        "drop",
+        "--res",
+        "8x8",
+        "--frames",
+        "3",
+        "--pair",
+        "--out",
+        &s(&run),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let geometry = run.join("lr").join("geometry.npy");
+    let before = std::fs::read(&geometry).unwrap();
+    let dataset = |out: &Path, extra: &[&str]| {
+        let mut args = vec!["dataset".to_string(), "--runs".into(), s(&run), "--out".into(), s(out)];
+        args.extend(extra.iter().map(|a| a.to_string()));
+        anisocb(&args.iter().map(String::as_str).collect::<Vec<_>>())
+    };
+    // The run's own geometry.npy as --out, an existing file of the run renamed .npz, a .png
+    // over a run file.
+    let inside = write(&run.join("hr"), "old.npz", b"kept");
+    let png_over = run.join("lr").join("geometry.png");
+    std::fs::write(&png_over, b"kept").unwrap();
+    for (out, extra, want) in [
+        (geometry.clone(), vec![], "expected a .npz"),
+        (inside.clone(), vec![], "is a file of the run"),
+        (d.join("ok.npz"), vec!["--png".to_string(), s(&png_over)], "is a file of the run"),
+    ] {
+        let o = dataset(&out, &extra.iter().map(String::as_str).collect::<Vec<_>>());
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{out:?}: {err}");
+        assert!(err.contains(want), "{out:?}: {err}");
+    }
+    assert_eq!(std::fs::read(&geometry).unwrap(), before);
+    assert_eq!(std::fs::read(&inside).unwrap(), b"kept");
+    assert_eq!(std::fs::read(&png_over).unwrap(), b"kept");
+    assert!(!d.join("ok.npz").exists());
+    // A new file beside the runs is fine.
+    let o = dataset(&d.join("data.npz"), &[]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
 }
 
 // ---------------------------------------------------------------------------------------------

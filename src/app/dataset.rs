@@ -3,13 +3,13 @@
 //! contact sheet to check the maps by eye.
 
 use crate::cloth::run_io::{pair_dir, read_pair};
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::geom::anisotropy::BoundaryParams;
 use crate::geom::cloth_frame::InputFrame;
 use crate::imgproc::CannyParams;
 use crate::tensor::Tensor;
 use crate::train::dataset::{benefit_boundary, build, is_held_out, MapParams};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
@@ -56,6 +56,28 @@ pub struct Args {
     pub sheet_frames: usize,
 }
 
+/// Refuse outputs that would replace a file of the run pair `pd` (its `lr/`, `hr/` or the pair
+/// folder itself): a data set written over a run's `geometry.npy` destroys the run.
+fn refuse_writing_into_run(pd: &Path, outputs: &[&PathBuf]) -> Result<()> {
+    for o in outputs {
+        let Some(dir) = o.parent().map(|p| if p.as_os_str().is_empty() { Path::new(".") } else { p }) else {
+            continue;
+        };
+        let (Ok(dir), true) = (dir.canonicalize(), o.exists()) else { continue };
+        for sub in [pd.to_path_buf(), pd.join("lr"), pd.join("hr")] {
+            if sub.canonicalize().is_ok_and(|s| s == dir) {
+                return Err(Error::config(format!(
+                    "{} is a file of the run {}: writing the data set there would replace it; give \
+                     another --out / --png",
+                    o.display(),
+                    pd.display()
+                )));
+            }
+        }
+    }
+    Ok(())
+}
+
 pub fn run(a: Args) -> Result<()> {
     let bd = BoundaryParams::default();
     let cd = CannyParams::default();
@@ -74,6 +96,12 @@ pub fn run(a: Args) -> Result<()> {
     params.boundary.validate()?;
     params.canny.validate()?;
     let input_frame = InputFrame::parse(&a.input_frame)?;
+    let png = a.png.clone().unwrap_or_else(|| a.out.with_extension("png"));
+    for (path, ext, what) in [(&a.out, "npz", "--out"), (&png, "png", "--png")] {
+        if !path.extension().is_some_and(|e| e.eq_ignore_ascii_case(ext)) {
+            return Err(Error::config(format!("{what} {}: expected a .{ext} file name", path.display())));
+        }
+    }
     let mut runs = Vec::new();
     let mut seen = Vec::new();
     for dir in &a.runs {
@@ -82,6 +110,7 @@ pub fn run(a: Args) -> Result<()> {
             continue; // `DIR/lr` and `DIR/hr` both given: one run
         }
         seen.push(pd.clone());
+        refuse_writing_into_run(&pd, &[&a.out, &png])?;
         let r = read_pair(&pd)?;
         if is_held_out(&r, &a.holdout) {
             eprintln!("held out: {} ({})", r.name, r.scenario);
@@ -108,7 +137,6 @@ pub fn run(a: Args) -> Result<()> {
         benefit_boundary(&mut ds, &crate::ops::Cpu, &net)?;
     }
     crate::io::write_npz(&a.out, &ds.to_npz())?;
-    let png = a.png.clone().unwrap_or_else(|| a.out.with_extension("png"));
     super::ui::save_png(&png, &ds.contact_sheet(a.sheet_frames)?)?;
     let pos = |t: &Tensor| t.data.iter().filter(|&&v| v > 0.5).count() as f64 / t.data.len().max(1) as f64;
     eprintln!(

@@ -1,7 +1,7 @@
 //! `anisocb train`: train GeometryNet / BoundaryNet / EnhanceNet (or all three) on a dataset.
 
 use super::ui::{progress, save_png};
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::eval::linear::LinearUpsampler;
 use crate::nn::config::{parse_padding, parse_upsample};
 use crate::nn::{NetConfig, NetKind};
@@ -108,6 +108,11 @@ pub struct Args {
 }
 
 pub fn run(a: Args) -> Result<()> {
+    if a.steps == 0 && a.net != "linear" {
+        return Err(Error::config(
+            "--steps 0 would write untrained weights: give the number of optimisation steps (≥ 1)",
+        ));
+    }
     let upsample = parse_upsample(&a.upsample)?;
     let config =
         NetConfig::preset(&a.config)?.with_padding(parse_padding(&a.padding)?).with_upsample(upsample);
