@@ -1024,7 +1024,10 @@ fn upscale_refuses_absurd_eta_margin_and_temporal_before_reading_or_writing() {
         (&["--margin", "NaN"], &["--margin"]),
         (&["--temporal", "65"], &["--temporal", "at most 64", "65"]),
         (&["--temporal", "1000000"], &["--temporal", "at most 64"]),
-        (&["--batch", "0"], &["batch must be ≥ 1"]),
+        (&["--batch", "0"], &["--batch", "1 to 1024"]),
+        (&["--batch", "100000000"], &["--batch", "1 to 1024"]),
+        (&["--strain-iters", "1000000000"], &["--strain-iters", "at most 1000"]),
+        (&["--chunk", "0"], &["--chunk must be ≥ 1"]),
     ];
     for (extra, want) in cases {
         let mut args = vec![inp, "--out", o];
@@ -1047,6 +1050,13 @@ fn upscale_refuses_thread_counts_that_would_hang() {
     upscale_refused(&[inp, "--out", o, "--threads", "0"], 2, &["--threads must be ≥ 1"]);
     upscale_refused(&[inp, "--out", o, "--threads=-3"], 2, &["--threads", "whole number"]);
     assert!(!out.exists());
+    // demo and eval take the same bound.
+    for cmd in ["demo", "eval"] {
+        let r = anisocb(&[cmd, "--threads", "100000"]);
+        let err = String::from_utf8_lossy(&r.stderr);
+        assert_eq!(r.status.code(), Some(2), "{cmd}: {err}");
+        assert!(err.contains("more than 1024"), "{cmd}: {err}");
+    }
 }
 
 /// Binomial weights of the largest accepted radius, and of radii far beyond it (a library
@@ -1468,4 +1478,32 @@ fn upscale_messages_say_what_is_wrong_with_what_was_given() {
     let err =
         upscale_refused(&[&s(&a), "--out", &out], 1, &["--rest MESH.obj (exported from the same object"]);
     assert!(!err.contains("  "), "stray spaces: {err:?}");
+}
+
+#[test]
+fn upscale_warns_of_gaps_in_the_frame_numbers() {
+    let d = scratch("upscale_gaps");
+    let s = |p: &Path| p.to_str().unwrap().to_string();
+    let run = |dir: &Path| {
+        let o = anisocb(&["upscale", &s(dir), "--out", &s(&dir.with_extension("out"))]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        String::from_utf8_lossy(&o.stderr).into_owned()
+    };
+    let gap = d.join("gap");
+    let every_other = d.join("every_other");
+    for (dir, frames) in [(&gap, [0, 1, 2, 5]), (&every_other, [0, 2, 4, 6])] {
+        std::fs::create_dir_all(dir).unwrap();
+        for k in frames {
+            write(dir, &format!("cloth_{k:04}.obj"), grid_obj(4, 4).as_bytes());
+        }
+    }
+    let err = run(&gap);
+    let want = format!(
+        "warning: 2 frame number(s) missing between {} and {}",
+        s(&gap.join("cloth_0002.obj")),
+        s(&gap.join("cloth_0005.obj"))
+    );
+    assert!(err.contains(&want), "{err}");
+    // A shot exported every other frame has no gap.
+    assert!(!run(&every_other).contains("missing"));
 }

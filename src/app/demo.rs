@@ -56,8 +56,8 @@ pub struct Args {
     /// Weights file instead of the embedded model.
     #[arg(long)]
     pub weights: Option<PathBuf>,
-    /// Worker threads (default: all cores).
-    #[arg(long)]
+    /// Worker threads, 1 to 1024 (default: all cores).
+    #[arg(long, value_parser = super::setup::parse_threads)]
     pub threads: Option<usize>,
     /// Compute device: cpu or cuda.
     #[arg(long, default_value = "cpu")]

@@ -92,8 +92,8 @@ pub struct Args {
     /// Also run the speed study (LR sim + upscale vs HR sim at 32, 64, 128 LR grids).
     #[arg(long)]
     pub speed: bool,
-    /// Worker threads (default: all cores).
-    #[arg(long)]
+    /// Worker threads, 1 to 1024 (default: all cores).
+    #[arg(long, value_parser = super::setup::parse_threads)]
     pub threads: Option<usize>,
     /// Compute device: cpu or cuda.
     #[arg(long, default_value = "cpu")]

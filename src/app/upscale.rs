@@ -294,6 +294,48 @@ fn obj_files(inputs: &[PathBuf]) -> Result<Vec<PathBuf>> {
     Ok(files)
 }
 
+/// Notes on gaps in the frame numbers of `files` (sorted): `cloth_0011.obj` then
+/// `cloth_0015.obj` where the shot otherwise steps by 1 means three frames were not exported
+/// (playback of the output jumps there). The step is the most common difference between
+/// consecutive numbers (a shot exported every other frame steps by 2); names without a
+/// trailing number, or with different stems, say nothing.
+fn frame_gaps(files: &[PathBuf]) -> Vec<String> {
+    let split = |p: &PathBuf| -> Option<(String, u64)> {
+        let stem = p.file_stem()?.to_str()?;
+        let digits = stem.len() - stem.bytes().rev().take_while(u8::is_ascii_digit).count();
+        let n = stem[digits..].parse().ok()?;
+        Some((format!("{}/{}", folder_of(p).display(), &stem[..digits]), n))
+    };
+    let Some(nums) = files.iter().map(split).collect::<Option<Vec<_>>>() else { return Vec::new() };
+    let pairs: Vec<(usize, u64)> = (1..nums.len())
+        .filter(|&k| nums[k].0 == nums[k - 1].0 && nums[k].1 > nums[k - 1].1)
+        .map(|k| (k, nums[k].1 - nums[k - 1].1))
+        .collect();
+    let mut counts: Vec<(u64, usize)> = Vec::new();
+    for &(_, d) in &pairs {
+        match counts.iter_mut().find(|c| c.0 == d) {
+            Some(c) => c.1 += 1,
+            None => counts.push((d, 1)),
+        }
+    }
+    let Some(&(step, _)) = counts.iter().max_by_key(|c| (c.1, std::cmp::Reverse(c.0))) else {
+        return Vec::new();
+    };
+    pairs
+        .iter()
+        .filter(|&&(_, d)| d > step && d % step == 0)
+        .map(|&(k, d)| {
+            format!(
+                "{} frame number(s) missing between {} and {}: the output has no frames there \
+                 either (playback jumps)",
+                d / step - 1,
+                files[k - 1].display(),
+                files[k].display()
+            )
+        })
+        .collect()
+}
+
 /// Refuse OBJ frames that would be written to one output file, before anything is read or
 /// written: a file given twice, the same name in two folders (two shots would merge into
 /// one, one overwriting the other), or names that differ only in bytes that are not UTF-8
@@ -625,6 +667,9 @@ fn open_input(a: &Args, r: usize) -> Result<Input> {
     }
     let files = obj_files(&a.input)?;
     refuse_colliding_names(&files)?;
+    for gap in frame_gaps(&files) {
+        eprintln!("warning: {gap}");
+    }
     let seq = ObjSequence::open(&files)?;
     let names = seq.files.iter().map(|p| p.file_name().unwrap_or_default().to_os_string()).collect();
     let out = MeshOut::of(&seq.first, &seq.files[0], names, r);
@@ -647,6 +692,9 @@ pub fn run(a: Args) -> Result<()> {
     };
     params.validate()?;
     check_margin(a.margin)?;
+    if a.chunk == 0 {
+        return Err(Error::config("--chunk must be ≥ 1 frame (frames read, upscaled and written at a time)"));
+    }
     set_threads(a.threads)?;
     let ops = crate::cuda::ops_for_device(&a.device)?;
     let model = load_model(a.weights.as_deref())?;

@@ -62,6 +62,15 @@ pub const MAX_TEMPORAL: usize = 64;
 /// nets predict, and larger values only blow the mesh up.
 pub const MAX_ETA: f32 = 10.0;
 
+/// Largest strain-limit iteration count [`UpscaleParams::validate`] accepts: the default 10
+/// already removes the swimming; each iteration is a pass over every edge of every frame, so
+/// a count in the millions would run for days.
+pub const MAX_STRAIN_ITERS: usize = 1000;
+
+/// Largest network batch [`UpscaleParams::validate`] accepts (frames per pass): beyond a few
+/// dozen frames a pass is no faster, only larger in memory.
+pub const MAX_BATCH: usize = 1024;
+
 /// Default [`UpscaleParams::mirrors`]: on. Measured on the validation runs (seed 6: neither
 /// training nor held out) with the shipped model, against one pass: the smooth flag's
 /// normal-angle error 1.06 → 0.98× bicubic's and its STED temporal 1.015 → 0.981× (the only
@@ -146,7 +155,8 @@ pub struct UpscaleParams {
 
 impl UpscaleParams {
     /// Refuse values that make no sense or could not finish: η not in [0, [`MAX_ETA`]],
-    /// `temporal` above [`MAX_TEMPORAL`], `batch` 0. Checked before any network runs.
+    /// `temporal` above [`MAX_TEMPORAL`], `batch` not in 1..=[`MAX_BATCH`], `strain_iters`
+    /// above [`MAX_STRAIN_ITERS`]. Checked before any network runs.
     pub fn validate(&self) -> Result<()> {
         if !(self.eta.is_finite() && (0.0..=MAX_ETA).contains(&self.eta)) {
             return Err(Error::config(format!(
@@ -162,8 +172,18 @@ impl UpscaleParams {
                 self.temporal
             )));
         }
-        if self.batch == 0 {
-            return Err(Error::config("batch must be ≥ 1"));
+        if self.batch == 0 || self.batch > MAX_BATCH {
+            return Err(Error::config(format!(
+                "batch (--batch) must be 1 to {MAX_BATCH} frames per network pass, got {}",
+                self.batch
+            )));
+        }
+        if self.strain_iters > MAX_STRAIN_ITERS {
+            return Err(Error::config(format!(
+                "strain-limit iterations (--strain-iters) must be at most {MAX_STRAIN_ITERS}, got {}; \
+                 about 10 removes swimming, 0 = off",
+                self.strain_iters
+            )));
         }
         Ok(())
     }
