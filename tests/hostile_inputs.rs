@@ -1507,3 +1507,57 @@ fn upscale_warns_of_gaps_in_the_frame_numbers() {
     // A shot exported every other frame has no gap.
     assert!(!run(&every_other).contains("missing"));
 }
+
+#[test]
+fn upscale_refuses_finite_but_absurd_output_from_corrupt_weights() {
+    let d = scratch("upscale_absurd_weights");
+    let shot = obj_shot(&d, "shot", 2);
+    let s = |p: &Path| p.to_str().unwrap().to_string();
+    // The shipped model with its last GeometryNet layer's weights scaled: finite, and the
+    // residual it adds is thousands of times the cloth. (Not a bias shift: the four mirror views
+    // would cancel it.)
+    let shipped = Path::new(env!("CARGO_MANIFEST_DIR")).join("weights/anisocb-x2.npz");
+    let mut e = read_npz(&shipped).unwrap();
+    let mut shifted = 0;
+    for (name, t) in e.arrays.iter_mut() {
+        if name.starts_with("geometry") && name.ends_with("tail.3.weight") {
+            t.data.iter_mut().for_each(|v| *v *= 1e6);
+            shifted += 1;
+        }
+    }
+    assert!(shifted > 0, "no GeometryNet output layer found");
+    let bad = d.join("corrupt.npz");
+    anisocb::io::write_npz(&bad, &e).unwrap();
+    let out = d.join("out");
+    upscale_refused(&[&s(&shot), "--out", &s(&out), "--weights", &s(&bad)], 1, &["frame 0", "corrupt"]);
+    assert!(!out.join("frame_0.obj").exists());
+    // The same shot with the shipped weights passes the check.
+    let o = anisocb(&["upscale", &s(&shot), "--out", &s(&out), "--weights", &s(&shipped)]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+}
+
+#[test]
+fn upscale_refuses_a_point_cache_whose_points_are_not_in_the_rest_meshs_order() {
+    let d = scratch("upscale_cache_order");
+    let s = |p: &Path| p.to_str().unwrap().to_string();
+    let rest = write(&d, "rest.obj", grid_obj(8, 8).as_bytes());
+    let xyz = grid_xyz(8, 8, 2);
+    // Shuffled (vertex k takes point 37k mod 64), and merely scaled ×3 (an object scaled in the
+    // scene: the same order, accepted).
+    let shuffled: Vec<f32> = (0..128)
+        .flat_map(|k| {
+            let (f, v) = (k / 64, (k % 64) * 37 % 64);
+            xyz[(f * 64 + v) * 3..(f * 64 + v) * 3 + 3].to_vec()
+        })
+        .collect();
+    let scaled: Vec<f32> = xyz.iter().map(|v| 3.0 * v).collect();
+    let bad = write(&d, "shuffled.pc2", &pc2_raw(b"POINTCACHE2\0", 1, 64, 0.0, 1.0, 2, &shuffled));
+    let good = write(&d, "scaled.pc2", &pc2_raw(b"POINTCACHE2\0", 1, 64, 0.0, 1.0, 2, &scaled));
+    upscale_refused(
+        &[&s(&bad), "--rest", &s(&rest), "--out", &s(&d.join("o1"))],
+        1,
+        &["shuffled.pc2", "not in the rest mesh's vertex order"],
+    );
+    let o = anisocb(&["upscale", &s(&good), "--rest", &s(&rest), "--out", &s(&d.join("o2"))]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+}

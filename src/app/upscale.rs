@@ -531,6 +531,30 @@ impl MeshOut {
     }
 }
 
+/// [`unlike_edges`]: an edge is unlike its rest edge when their length ratio is more than
+/// this far (either way) from the median ratio (a cache may scale the whole object).
+const EDGE_RATIO: f32 = 1.5;
+
+/// Largest fraction of unlike edges a point cache's frame 0 may have against its rest mesh:
+/// cloth stretches by a few percent; a cache whose points are in another order than the rest
+/// mesh's vertices has most of its edges unlike (edges 3.6× longer on average for a shuffled
+/// sheet).
+const MAX_UNLIKE_EDGES: f64 = 0.1;
+
+/// The fraction of `a`'s edges whose length ratio to the same edge of `b` is more than
+/// [`EDGE_RATIO`] from the median ratio (edges of length 0 in `b` left out).
+fn unlike_edges(a: &GridMesh, b: &GridMesh) -> f64 {
+    let mut ratio: Vec<f32> =
+        a.edge_lengths().iter().zip(b.edge_lengths()).filter(|e| e.1 > 0.0).map(|(x, y)| x / y).collect();
+    if ratio.is_empty() {
+        return 0.0;
+    }
+    ratio.sort_by(f32::total_cmp);
+    let m = ratio[ratio.len() / 2];
+    let odd = ratio.iter().filter(|&&q| !(q <= m * EDGE_RATIO && q * EDGE_RATIO >= m)).count();
+    odd as f64 / ratio.len() as f64
+}
+
 /// A point-cache input: the cache file, its header and its rest mesh.
 struct CacheIn {
     path: PathBuf,
@@ -639,6 +663,26 @@ fn open_input(a: &Args, r: usize) -> Result<Input> {
                 format!(
                     "the cache moves {} points but the rest mesh {} has {nv} vertices: export both from the same object",
                     cache.header().points,
+                    rest.display()
+                ),
+            ));
+        }
+        // Points in another order than the rest mesh's vertices (another export, another
+        // object) make a crumpled sheet whose edges have nothing to do with the rest mesh's.
+        let mut cache = cache;
+        let f0 = cache.read_frames(0..1)?;
+        let frame0 = GridMesh::new(g.mesh.w, g.mesh.h, g.order.iter().map(|&v| f0[v as usize]).collect());
+        let odd = unlike_edges(&frame0, &g.mesh);
+        if odd > MAX_UNLIKE_EDGES {
+            return Err(Error::format(
+                first,
+                format!(
+                    "in frame 0 of the cache, {:.0} % of the edges are over {EDGE_RATIO}× longer or \
+                     shorter than the same edges of the rest mesh {} (relative to the typical edge; \
+                     cloth stretches by a few percent): the cache's points are not in the rest \
+                     mesh's vertex order, or belong to another object; export both from the same \
+                     object",
+                    100.0 * odd,
                     rest.display()
                 ),
             ));

@@ -79,6 +79,22 @@ impl GridMesh {
         m
     }
 
+    /// Lengths (metres) of the grid's row edges, then its column edges.
+    pub fn edge_lengths(&self) -> Vec<f32> {
+        let mut v = Vec::with_capacity(2 * self.w * self.h);
+        for j in 0..self.h {
+            for i in 0..self.w.saturating_sub(1) {
+                v.push(dist(self.pos[self.idx(i, j)], self.pos[self.idx(i + 1, j)]));
+            }
+        }
+        for j in 0..self.h.saturating_sub(1) {
+            for i in 0..self.w {
+                v.push(dist(self.pos[self.idx(i, j)], self.pos[self.idx(i, j + 1)]));
+            }
+        }
+        v
+    }
+
     pub fn bounds(&self) -> ([f32; 3], [f32; 3]) {
         bounds(&self.pos)
     }

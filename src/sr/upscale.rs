@@ -501,7 +501,41 @@ pub fn finish(mut out: Upscaled, model: &AnisoCb, params: &UpscaleParams) -> Res
             i / px3
         )));
     }
+    check_detail_size(&out.hr, &out.interpolated)?;
     Ok(out)
+}
+
+/// Largest distance, as a fraction of the frame's extent, by which an upscaled frame may move
+/// from its interpolated input: the nets add folds of millimetres to centimetres on cloth of
+/// metres (a few percent even at the largest η); half the cloth's size is a broken model.
+pub const MAX_DETAIL_FRACTION: f32 = 0.5;
+
+/// Refuse frames of `hr` that lie further than [`MAX_DETAIL_FRACTION`] of their extent from
+/// `interpolated` (both (T, 3, H, W), same coordinates): finite but corrupt weights, or weights
+/// for other data, would otherwise write a cloth kilometres wide with exit status 0.
+pub fn check_detail_size(hr: &Tensor, interpolated: &Tensor) -> Result<()> {
+    let (t, _, h, w) = interpolated.dims4();
+    let px = h * w;
+    for f in 0..t {
+        let (mut extent, mut moved) = (0.0f32, 0.0f32);
+        for c in 0..3 {
+            let at = (f * 3 + c) * px..(f * 3 + c + 1) * px;
+            let u = &interpolated.data[at.clone()];
+            let (lo, hi) =
+                u.iter().fold((f32::INFINITY, f32::NEG_INFINITY), |(l, h), &v| (l.min(v), h.max(v)));
+            extent = extent.max(hi - lo);
+            moved = hr.data[at].iter().zip(u).fold(moved, |m, (a, b)| m.max((a - b).abs()));
+        }
+        if moved > MAX_DETAIL_FRACTION * extent {
+            return Err(Error::numeric(format!(
+                "frame {f}: the upscaled cloth moves up to {:.1}× the frame's size away from the \
+                 interpolated input (the nets add detail of a few percent of it): the weights file \
+                 is corrupt or was trained for other data",
+                moved / extent.max(f32::MIN_POSITIVE)
+            )));
+        }
+    }
+    Ok(())
 }
 
 /// Upscale a mesh sequence with `domain` (the box its geometry images are normalised by):
