@@ -244,15 +244,25 @@ fn fuzz_config_json() {
 
 #[test]
 fn fuzz_obj_reader() {
-    use anisocb::geom::obj::{obj_text, obj_to_grid, parse_obj};
+    use anisocb::geom::obj::{obj_text, obj_text_from_bytes, obj_to_grid, parse_obj};
     use anisocb::geom::GridMesh;
     let mut m = GridMesh::flat(4, 3, 1.0, 0.5);
     m.pos[5][2] = 0.1;
-    let seeds = vec![obj_text(&m, true).into_bytes(), obj_text(&m, false).into_bytes()];
+    let quads = obj_text(&m, true);
+    // Also as other exporters write it: a byte-order mark, CR LF, CR alone.
+    let seeds = vec![
+        quads.clone().into_bytes(),
+        obj_text(&m, false).into_bytes(),
+        [&b"\xEF\xBB\xBF"[..], quads.as_bytes()].concat(),
+        quads.replace('\n', "\r\n").into_bytes(),
+        quads.replace('\n', "\r").into_bytes(),
+    ];
     let p = std::path::Path::new("fuzz.obj");
     fuzz("obj", &seeds, |b| {
+        let strict =
+            obj_text_from_bytes(b, p).and_then(|t| parse_obj(&t, p)).and_then(|o| obj_to_grid(&o, p));
         let text = String::from_utf8_lossy(b);
-        parse_obj(&text, p).and_then(|o| obj_to_grid(&o, p)).is_ok()
+        parse_obj(&text, p).and_then(|o| obj_to_grid(&o, p)).is_ok() || strict.is_ok()
     });
 }
 

@@ -64,8 +64,12 @@ pub struct ObjAttrs {
 /// The text of an OBJ file; a byte that is not UTF-8 (a Latin-1 name) is refused with its line
 /// number.
 pub fn read_obj_text(path: &Path) -> Result<String> {
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
-    let text = std::str::from_utf8(&bytes).map_err(|e| {
+    obj_text_from_bytes(&std::fs::read(path).map_err(|e| Error::io(path, e))?, path)
+}
+
+/// [`read_obj_text`] on bytes already read (`path` names the file in errors).
+pub fn obj_text_from_bytes(bytes: &[u8], path: &Path) -> Result<String> {
+    let text = std::str::from_utf8(bytes).map_err(|e| {
         let at = e.valid_up_to();
         let line = 1 + bytes[..at].iter().filter(|&&b| b == b'\n').count();
         Error::format(
