@@ -698,4 +698,19 @@ fn wrinkle_model_adds_fold_detail_the_shipped_model_averages_away() {
         let ratio = border_length(m) / border_length(&u);
         assert!((ratio - 1.0).abs() < 0.01, "frame {k}: border length ratio {ratio}");
     }
+    // BoundaryNet gating only the coarse part of R keeps more of the folds, and changes only
+    // what lies beyond the LR grid: the coarse shapes S(X) of both outputs agree far more
+    // closely than the outputs themselves.
+    let pc = UpscaleParams { gate_coarse_only: true, ..p };
+    let (wc, _) = upscale_meshes(&Cpu, &wrinkles, lr, &d, &pc, &mut |_| {}).unwrap();
+    let sc = wrinkle_stats(&wc, hr, 32, 32).unwrap();
+    println!("wrinkle ratio, coarse-only gate: {:.3}", sc.ratio);
+    assert!(sc.ratio > 1.3 * sw.ratio, "coarse-only gate ratio {} vs {}", sc.ratio, sw.ratio);
+    let s = |m: &GridMesh| anisocb::eval::metrics::lr_round_trip(m, 32, 32);
+    let (mut coarse, mut whole) = (0.0, 0.0);
+    for (a, b) in wc.iter().zip(&wr) {
+        coarse += vertex_rmse(&s(a), &s(b)).unwrap();
+        whole += vertex_rmse(a, b).unwrap();
+    }
+    assert!(coarse < 0.5 * whole, "S(X) moved by {coarse} vs the outputs by {whole}");
 }

@@ -100,6 +100,11 @@ pub struct Args {
     /// twisted strips) and gives the nets' border as it is.
     #[arg(long, default_value_t = crate::sr::upscale::DEFAULT_KEEP_OUTLINE, action = clap::ArgAction::Set)]
     pub keep_outline: bool,
+    /// BoundaryNet gates only the coarse part of the predicted detail (what the LR grid can
+    /// hold); folds finer than the LR grid are kept as GeometryNet predicts them. For the
+    /// wrinkle model (docs/wrinkles.md), whose BoundaryNet would otherwise flatten them.
+    #[arg(long)]
+    pub gate_coarse_only: bool,
     /// Keep the outermost ring of vertices exactly where the interpolated input puts them
     /// (the outline is then the LR outline's interpolation, whatever the nets predict there).
     /// Off by default: the nets correct the border too, which measured closer to the truth.
@@ -733,6 +738,7 @@ pub fn run(a: Args) -> Result<()> {
         pin_border: a.pin_border,
         mirrors: a.mirrors,
         keep_outline: a.keep_outline,
+        gate_coarse_only: a.gate_coarse_only,
     };
     params.validate()?;
     check_margin(a.margin)?;

@@ -18,7 +18,8 @@ use crate::geom::{Domain, GridMesh};
 use crate::io::npz::npz_from_bytes;
 use crate::nn::bundle::AnisoCb;
 use crate::nn::weights::bundle_from_npz;
-use crate::ops::Ops;
+use crate::ops::resample::resize;
+use crate::ops::{Interp, Ops};
 use crate::tensor::Tensor;
 use std::path::Path;
 
@@ -151,6 +152,11 @@ pub struct UpscaleParams {
     /// invariances hold; off for models in the paper's domain frame and with `pin_border`
     /// ([`DEFAULT_KEEP_OUTLINE`]).
     pub keep_outline: bool,
+    /// BoundaryNet gates only the coarse part of the residual, S(R) (R through the LR grid
+    /// and back, Catmull-Rom), and leaves its fine part R − S(R) — folds finer than the LR
+    /// grid — as the net predicts it: `(1 − Γb)` then cannot flatten wrinkles where the
+    /// BoundaryNet says "interpolate", only their coarse shift. Off by default.
+    pub gate_coarse_only: bool,
 }
 
 impl UpscaleParams {
@@ -200,6 +206,7 @@ impl Default for UpscaleParams {
             strain_iters: DEFAULT_STRAIN_ITERS,
             mirrors: DEFAULT_MIRRORS,
             keep_outline: DEFAULT_KEEP_OUTLINE,
+            gate_coarse_only: false,
         }
     }
 }
@@ -225,6 +232,7 @@ pub struct Upscaled {
     lr_net: Tensor,
     strain_iters: usize,
     pub(crate) keep_outline: bool,
+    gate_coarse_only: bool,
 }
 
 impl Upscaled {
@@ -247,6 +255,7 @@ impl Upscaled {
             lr_net: cut(&self.lr_net),
             strain_iters: self.strain_iters,
             keep_outline: self.keep_outline,
+            gate_coarse_only: self.gate_coarse_only,
         }
     }
 
@@ -286,8 +295,20 @@ impl Upscaled {
                 "η = {eta} needs EnhanceNet's map, which was not computed (upscaled with η = 0)"
             )));
         }
-        let mut g =
-            compose(&self.interpolated, &self.residual, Some(&self.boundary), Some(&self.enhance), eta)?;
+        let mut g = if self.gate_coarse_only {
+            // U + (R − S(R)) + gain · S(R): the fine part of R ungated.
+            let (_, _, h, w) = self.lr_net.dims4();
+            let (_, _, hh, hw) = self.residual.dims4();
+            let coarse =
+                resize(&resize(&self.residual, h, w, Interp::CatmullRom), hh, hw, Interp::CatmullRom);
+            let mut base = self.interpolated.clone();
+            for ((b, r), c) in base.data.iter_mut().zip(&self.residual.data).zip(&coarse.data) {
+                *b += r - c;
+            }
+            compose(&base, &coarse, Some(&self.boundary), Some(&self.enhance), eta)?
+        } else {
+            compose(&self.interpolated, &self.residual, Some(&self.boundary), Some(&self.enhance), eta)?
+        };
         self.keep_outline_all(&mut g);
         self.limit_strain_all(&mut g);
         Ok(g)
@@ -423,6 +444,7 @@ pub fn run_nets(
         lr_net: Tensor::zeros(&[t, 3, h, w]),
         strain_iters: if model.input_frame() == InputFrame::Cloth { params.strain_iters } else { 0 },
         keep_outline: params.keep_outline && !params.pin_border && model.input_frame() == InputFrame::Cloth,
+        gate_coarse_only: params.gate_coarse_only,
     };
     let (px3, px1) = (3 * hh * hw, hh * hw);
     // Every conv's weights packed once for all batches and mirror views.
