@@ -12,14 +12,17 @@ use anisocb::ops::{activation, Padding};
 use anisocb::Tensor;
 use random::TestData;
 
-/// |a − b| ≤ atol + rtol·|b| everywhere; prints the largest difference on failure.
+/// |a − b| ≤ atol + rtol·|b| everywhere, NaN-safe: a NaN or infinity on either side counts as
+/// out of tolerance (`!(d <= tol)`, not `d > tol`, which a NaN passes); prints the largest
+/// difference on failure.
 fn assert_close(what: &str, a: &Tensor, b: &Tensor, atol: f32, rtol: f32) {
     assert_eq!(a.shape, b.shape, "{what}: shapes differ");
     let mut worst = (0.0f32, 0usize);
     let mut bad = 0;
     for (i, (x, y)) in a.data.iter().zip(&b.data).enumerate() {
         let d = (x - y).abs();
-        if d > atol + rtol * y.abs() {
+        let within = d <= atol + rtol * y.abs();
+        if !within {
             bad += 1;
         }
         if d > worst.0 || d.is_nan() {
@@ -250,5 +253,18 @@ fn packed_weights_and_fused_epilogues_give_the_bits_of_the_separate_ops() {
                 "{what} skip, relu"
             );
         }
+    }
+}
+
+/// The comparator itself: a NaN or an infinity from the fast kernel must fail it.
+#[test]
+fn fast_vs_reference_comparator_fails_on_nan_and_infinity() {
+    let r = Tensor::from_vec(&[1, 1, 1, 3], vec![1.0, 2.0, 3.0]).unwrap();
+    assert_close("identical", &r, &r, 1e-6, 1e-6);
+    for bad in [f32::NAN, f32::INFINITY] {
+        let mut f = r.clone();
+        f.data[1] = bad;
+        let caught = std::panic::catch_unwind(|| assert_close("fast", &f, &r, 1e-6, 1e-6));
+        assert!(caught.is_err(), "a {bad} from the fast kernel passed the comparator");
     }
 }
