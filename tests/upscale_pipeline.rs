@@ -713,4 +713,15 @@ fn wrinkle_model_adds_fold_detail_the_shipped_model_averages_away() {
         whole += vertex_rmse(a, b).unwrap();
     }
     assert!(coarse < 0.5 * whole, "S(X) moved by {coarse} vs the outputs by {whole}");
+    // η deepens the folds: the wrinkle bundle's EnhanceNet marks where the cloth folds, and η
+    // scales the fine part of the detail there.
+    let mut last = sc.ratio;
+    for eta in [0.5, 1.0] {
+        let pe = UpscaleParams { eta, ..pc };
+        let (we, _) = upscale_meshes(&Cpu, &wrinkles, lr, &d, &pe, &mut |_| {}).unwrap();
+        let r = wrinkle_stats(&we, hr, 32, 32).unwrap().ratio;
+        println!("wrinkle ratio, coarse-only gate, η = {eta}: {r:.3}");
+        assert!(r > 1.1 * last, "η = {eta}: ratio {r}, not above {last}");
+        last = r;
+    }
 }

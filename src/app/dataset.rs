@@ -48,6 +48,12 @@ pub struct Args {
     /// the residual; the grid border stays 1.
     #[arg(long, value_name = "WEIGHTS")]
     pub boundary_benefit: Option<PathBuf>,
+    /// EnhanceNet's target: `canny` (edges of the HR geometry image, the paper's) or
+    /// `wrinkle-energy` (where the HR truth folds: the local amplitude of its detail beyond the
+    /// LR grid over a 7×7 window, divided by its 90 % quantile, clamped to 1), so that η
+    /// deepens the predicted folds where EnhanceNet expects the cloth to fold.
+    #[arg(long, default_value = "canny", value_parser = ["canny", "wrinkle-energy"])]
+    pub edges: String,
     /// Contact sheet PNG [default: --out with extension .png].
     #[arg(long, value_name = "FILE")]
     pub png: Option<PathBuf>,
@@ -55,6 +61,10 @@ pub struct Args {
     #[arg(long, default_value_t = 4)]
     pub sheet_frames: usize,
 }
+
+/// `dataset --edges wrinkle-energy`: the quantile of the truth's local wrinkle amplitude that
+/// maps to an edge target of 1 (the folds of the most folded tenth of the cloth count fully).
+const WRINKLE_EDGE_QUANTILE: f32 = 0.9;
 
 /// Refuse outputs that would replace a file of the run pair `pd` (its `lr/`, `hr/` or the pair
 /// folder itself): a data set written over a run's `geometry.npy` destroys the run.
@@ -122,6 +132,9 @@ pub fn run(a: Args) -> Result<()> {
     let pb = super::ui::progress(total, "maps");
     let mut ds = build(&runs, &params, input_frame, &a.holdout, &|| pb.inc(1))?;
     pb.finish_and_clear();
+    if a.edges == "wrinkle-energy" {
+        crate::train::dataset::wrinkle_energy_edges(&mut ds, Default::default(), WRINKLE_EDGE_QUANTILE)?;
+    }
     if let Some(w) = &a.boundary_benefit {
         let net = super::setup::load_geometry_net(w)?;
         if net.trunk.config.input_frame != input_frame {

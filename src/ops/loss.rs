@@ -300,6 +300,55 @@ fn window_len(i: usize, n: usize, r: usize) -> usize {
     (i + r + 1).min(n) - i.saturating_sub(r)
 }
 
+/// `a = √(E + ε²)` per pixel (N·H·W) of the high-passed frames `hf` (N, C, H, W): `e = Σ_c hf²`,
+/// `E` its mean over the (2r+1)² window clipped to the image. `e`, `tmp`, `sum`: N·H·W scratch
+/// (`e` is left holding the per-pixel energy).
+fn local_amplitude(
+    hf: &Tensor,
+    r: usize,
+    eps2: f32,
+    e: &mut [f32],
+    tmp: &mut [f32],
+    sum: &mut [f32],
+) -> Vec<f32> {
+    let (n, c, h, w) = hf.dims4();
+    let px = h * w;
+    for (img, ei) in e.chunks_exact_mut(px).enumerate() {
+        ei.fill(0.0);
+        for ch in hf.data[img * c * px..(img + 1) * c * px].chunks_exact(px) {
+            for (a, &v) in ei.iter_mut().zip(ch) {
+                *a += v * v;
+            }
+        }
+    }
+    box_sum(e, h, w, r, tmp, sum);
+    let mut a = vec![0.0f32; n * px];
+    for (i, (a, &s)) in a.iter_mut().zip(sum.iter()).enumerate() {
+        let (y, x) = ((i % px) / w, i % w);
+        *a = (s / (window_len(y, h, r) * window_len(x, w, r)) as f32 + eps2).sqrt();
+    }
+    a
+}
+
+/// The local wrinkle amplitude of each frame of `x` (N, 3, H, W) beyond its (lr_h, lr_w)
+/// version, as [`detail_energy_mse`] measures it for its target (the detail along the normals
+/// of x's smooth part when `p.normal_only`): (N, 1, H, W), in x's units.
+pub fn detail_amplitude(x: &Tensor, lr_h: usize, lr_w: usize, p: DetailEnergy) -> Tensor {
+    let (n, _, h, w) = x.dims4();
+    let mut hf = detail_high_pass(x, lr_h, lr_w);
+    if p.normal_only {
+        let mut smooth = x.clone();
+        for (s, &d) in smooth.data.iter_mut().zip(&hf.data) {
+            *s -= d;
+        }
+        project_on_normals(&mut hf, &image_normals(&smooth));
+    }
+    let (mut e, mut tmp, mut sum) =
+        (vec![0.0f32; n * h * w], vec![0.0f32; n * h * w], vec![0.0f32; n * h * w]);
+    let a = local_amplitude(&hf, p.radius, p.eps * p.eps, &mut e, &mut tmp, &mut sum);
+    Tensor::from_vec(&[n, 1, h, w], a).expect("N·H·W amplitudes")
+}
+
 /// Wrinkle-energy error: with `Hf` the [`detail_high_pass`] of each frame against its
 /// (lr_h, lr_w) version, `e = Σ_c Hf²` per pixel (N, H, W), `E` its mean over the
 /// (2r+1)² window clipped to the image and the local amplitude `a = √(E + ε²)`, returns
@@ -344,23 +393,7 @@ pub fn detail_energy_mse(
     }
     // Per-pixel energy → windowed mean → amplitude, for pred then target. All (N, H, W).
     let (mut e, mut tmp, mut sum) = (vec![0.0f32; n * px], vec![0.0f32; n * px], vec![0.0f32; n * px]);
-    let mut amp = |hf: &Tensor| -> Vec<f32> {
-        for (img, ei) in e.chunks_exact_mut(px).enumerate() {
-            ei.fill(0.0);
-            for ch in hf.data[img * c * px..(img + 1) * c * px].chunks_exact(px) {
-                for (a, &v) in ei.iter_mut().zip(ch) {
-                    *a += v * v;
-                }
-            }
-        }
-        box_sum(&e, h, w, r, &mut tmp, &mut sum);
-        let mut a = vec![0.0f32; n * px];
-        for (i, (a, &s)) in a.iter_mut().zip(&sum).enumerate() {
-            let (y, x) = ((i % px) / w, i % w);
-            *a = (s / (window_len(y, h, r) * window_len(x, w, r)) as f32 + eps2).sqrt();
-        }
-        a
-    };
+    let mut amp = |hf: &Tensor| local_amplitude(hf, r, eps2, &mut e, &mut tmp, &mut sum);
     let (ap, at) = (amp(&hp), amp(&ht));
     // dE / cnt(p), in e's buffer, then its windowed sum = de.
     let mut total = 0.0f64;

@@ -155,7 +155,8 @@ pub struct UpscaleParams {
     /// BoundaryNet gates only the coarse part of the residual, S(R) (R through the LR grid
     /// and back, Catmull-Rom), and leaves its fine part R − S(R) — folds finer than the LR
     /// grid — as the net predicts it: `(1 − Γb)` then cannot flatten wrinkles where the
-    /// BoundaryNet says "interpolate", only their coarse shift. Off by default.
+    /// BoundaryNet says "interpolate", only their coarse shift; η's gain `1 + ηΓe` applies to
+    /// the fine part: Γ = U + (1 − Γb)·S(R) + (1 + ηΓe)·(R − S(R)). Off by default.
     pub gate_coarse_only: bool,
 }
 
@@ -296,16 +297,18 @@ impl Upscaled {
             )));
         }
         let mut g = if self.gate_coarse_only {
-            // U + (R − S(R)) + gain · S(R): the fine part of R ungated.
+            // U + (1 − Γb)·S(R) + (1 + ηΓe)·(R − S(R)): BoundaryNet gates the coarse part,
+            // η deepens the fine part (the folds) where EnhanceNet expects them.
             let (_, _, h, w) = self.lr_net.dims4();
             let (_, _, hh, hw) = self.residual.dims4();
             let coarse =
                 resize(&resize(&self.residual, h, w, Interp::CatmullRom), hh, hw, Interp::CatmullRom);
-            let mut base = self.interpolated.clone();
-            for ((b, r), c) in base.data.iter_mut().zip(&self.residual.data).zip(&coarse.data) {
-                *b += r - c;
+            let mut fine = self.residual.clone();
+            for (f, c) in fine.data.iter_mut().zip(&coarse.data) {
+                *f -= c;
             }
-            compose(&base, &coarse, Some(&self.boundary), Some(&self.enhance), eta)?
+            let base = compose(&self.interpolated, &coarse, Some(&self.boundary), None, 0.0)?;
+            compose(&base, &fine, None, Some(&self.enhance), eta)?
         } else {
             compose(&self.interpolated, &self.residual, Some(&self.boundary), Some(&self.enhance), eta)?
         };

@@ -37,6 +37,7 @@ use crate::imgproc::{enhance_map, CannyParams};
 use crate::io::json::{Layout, Object, Value};
 use crate::io::NpzEntries;
 use crate::nn::geometry_net::GeometryNet;
+use crate::ops::loss::{detail_amplitude, DetailEnergy};
 use crate::ops::Ops;
 use crate::tensor::Tensor;
 use crate::viz::image::{image_rgb8, resize_nearest, upscale_nearest};
@@ -123,6 +124,8 @@ pub struct Dataset {
     pub input_frame: InputFrame,
     /// What `boundary` holds: "anisotropy" (Eq 4–9) or the benefit of a net's residual.
     pub boundary_source: String,
+    /// What the edge target is (Canny edges of the HR frame, or the truth's wrinkle energy).
+    pub edges_source: String,
     pub upscale: usize,
     pub holdout: Vec<String>,
 }
@@ -178,6 +181,7 @@ pub fn build(
         params: *p,
         input_frame,
         boundary_source: "anisotropy (Eq 4-9)".into(),
+        edges_source: "Canny edges of the HR geometry image".into(),
         upscale: hh / hl,
         holdout: holdout.to_vec(),
     };
@@ -225,6 +229,38 @@ pub fn benefit_boundary(ds: &mut Dataset, ops: &dyn Ops, net: &GeometryNet) -> R
         }
     }
     ds.boundary_source = format!("benefit of the residual of {}", net.trunk.config);
+    Ok(())
+}
+
+/// Replace the edge target (EnhanceNet's) by where the HR truth folds: per HR pixel, the
+/// local amplitude `a` of the truth's detail beyond the LR grid (along the normal, over a
+/// (2r+1)² window: [`detail_amplitude`], as the wrinkle-energy loss measures it), divided by
+/// its `quantile` over the whole data set and clamped to [0, 1] (soft targets for BCE). η then
+/// deepens the residual where EnhanceNet expects folds (Eq 12), not on the 0.5 % of pixels
+/// Canny marks, where a net trained on them predicts almost nothing.
+pub fn wrinkle_energy_edges(ds: &mut Dataset, p: DetailEnergy, quantile: f32) -> Result<()> {
+    if !(quantile > 0.0 && quantile <= 1.0) {
+        return Err(Error::config(format!(
+            "wrinkle-energy edges: quantile must be in (0, 1], got {quantile}"
+        )));
+    }
+    let (hl, wl) = (ds.lr.shape[2], ds.lr.shape[3]);
+    let a = detail_amplitude(&ds.hr, hl, wl, p);
+    let mut sorted = a.data.clone();
+    sorted.sort_by(f32::total_cmp);
+    let at = ((sorted.len() as f32 * quantile) as usize).min(sorted.len().saturating_sub(1));
+    // a = √(E + ε²) ≥ ε: a quantile near ε is no detail at all.
+    let scale = sorted.get(at).copied().filter(|v| *v > 10.0 * p.eps).ok_or_else(|| {
+        Error::numeric("wrinkle-energy edges: the truth has no detail beyond the LR grid".to_string())
+    })?;
+    for (e, v) in ds.edges.data.iter_mut().zip(&a.data) {
+        *e = (v / scale).clamp(0.0, 1.0);
+    }
+    ds.edges_source = format!(
+        "wrinkle energy of the HR truth: local amplitude (radius {} px) / its {:.0} % quantile {scale:.3e}, clamped to 1",
+        p.radius,
+        100.0 * quantile
+    );
     Ok(())
 }
 
@@ -290,6 +326,7 @@ impl Dataset {
             .num("upscale", self.upscale)
             .str("input_frame", self.input_frame.name())
             .str("boundary", &self.boundary_source)
+            .str("edges", &self.edges_source)
             .val("holdout", hold);
         Value::from(o).to_json_with(Layout::Indented) + "\n"
     }
@@ -344,6 +381,7 @@ mod tests {
             params: MapParams::default(),
             input_frame: InputFrame::Cloth,
             boundary_source: String::new(),
+            edges_source: String::new(),
             upscale: 2,
             holdout: Vec::new(),
         }
@@ -360,5 +398,50 @@ mod tests {
                 assert!((v - inside).abs() < 1e-4, "sign {sign}, pixel {p}: {v} vs {inside}");
             }
         }
+    }
+
+    /// A 16×16 HR sheet (8×8 LR) with folds of a 4-pixel wavelength (finer than the LR grid)
+    /// across its left half, flat on the right.
+    fn half_folded() -> Dataset {
+        let (h, w) = (16, 16);
+        let mut hr = Tensor::zeros(&[1, 3, h, w]);
+        for y in 0..h {
+            for x in 0..w {
+                let p = y * w + x;
+                hr.data[p] = x as f32 / 15.0;
+                hr.data[h * w + p] = y as f32 / 15.0;
+                hr.data[2 * h * w + p] =
+                    if x < 8 { 0.01 * (x as f32 * std::f32::consts::FRAC_PI_2).sin() } else { 0.0 };
+            }
+        }
+        let map = Tensor::zeros(&[1, 1, h, w]);
+        let mut ds = dataset_with_hr(&constant_residual([0.0; 3]), 1.0);
+        ds.lr = Tensor::zeros(&[1, 3, 8, 8]);
+        ds.hr = hr;
+        (ds.boundary, ds.edges) = (map.clone(), map);
+        ds
+    }
+
+    #[test]
+    fn wrinkle_energy_edges_mark_where_the_truth_folds() {
+        let mut ds = half_folded();
+        wrinkle_energy_edges(&mut ds, DetailEnergy::default(), 0.9).unwrap();
+        let e = &ds.edges.data;
+        assert!(e.iter().all(|v| (0.0..=1.0).contains(v)), "targets outside [0, 1]");
+        let mean = |xs: std::ops::Range<usize>| {
+            let v: Vec<f32> =
+                (4..12).flat_map(|y| xs.clone().map(move |x| y * 16 + x)).map(|p| e[p]).collect();
+            v.iter().sum::<f32>() / v.len() as f32
+        };
+        let (folded, flat) = (mean(1..5), mean(12..15));
+        assert!(folded > 0.7 && flat < 0.2, "folded half {folded}, flat half {flat}");
+        assert!(ds.edges_source.contains("wrinkle energy"), "{}", ds.edges_source);
+        // A truth without any detail beyond the LR grid has nothing to mark.
+        let mut flat_ds = half_folded();
+        for z in &mut flat_ds.hr.data[2 * 256..] {
+            *z = 0.0;
+        }
+        assert!(wrinkle_energy_edges(&mut flat_ds, DetailEnergy::default(), 0.9).is_err());
+        assert!(wrinkle_energy_edges(&mut half_folded(), DetailEnergy::default(), 0.0).is_err());
     }
 }
