@@ -1015,8 +1015,8 @@ fn upscale_refuses_absurd_eta_margin_and_temporal_before_reading_or_writing() {
     let (inp, out) = (shot.to_str().unwrap(), d.join("out"));
     let o = out.to_str().unwrap();
     let cases: &[(&[&str], &[&str])] = &[
-        (&["--eta", "1e30"], &["--eta", "from 0 to 10", "1000000000000000000000000000000"]),
-        (&["--eta=-1"], &["--eta", "from 0 to 10"]),
+        (&["--eta", "1e30"], &["--eta", "from -1 to 10", "1000000000000000000000000000000"]),
+        (&["--eta=-1.5"], &["--eta", "from -1 to 10"]),
         (&["--eta", "NaN"], &["--eta", "NaN"]),
         (&["--eta", "inf"], &["--eta", "inf"]),
         (&["--margin", "1e30"], &["--margin", "from 0 to 1"]),

@@ -61,11 +61,27 @@ fn boundary_pixels_keep_interpolated_input_and_eta_zero_is_plain_residual() {
 }
 
 #[test]
-fn composition_rejects_negative_eta_and_bad_shapes() {
+fn composition_rejects_eta_below_minus_one_and_bad_shapes() {
     let u = Tensor::zeros(&[1, 3, 2, 2]);
-    assert!(compose(&u, &u, None, None, -0.1).is_err());
+    assert!(compose(&u, &u, None, None, -1.1).is_err());
     assert!(compose(&u, &u, None, None, f32::NAN).is_err());
     let bad = Tensor::zeros(&[1, 3, 2, 2]);
     assert!(compose(&u, &u, Some(&bad), None, 0.5).is_err());
     assert!(compose(&u, &Tensor::zeros(&[1, 3, 2, 3]), None, None, 0.5).is_err());
+}
+
+/// Negative η softens the detail on wrinkle edges: −0.5 halves it where Γe = 1, −1 removes it;
+/// off the edges (Γe = 0) nothing changes.
+#[test]
+fn negative_eta_softens_detail_on_wrinkle_edges_only() {
+    let u = Tensor::from_vec(&[1, 3, 1, 2], vec![0.0; 6]).unwrap();
+    let r = Tensor::from_vec(&[1, 3, 1, 2], vec![1.0, 2.0, 3.0, 4.0, 5.0, 6.0]).unwrap();
+    let ge = Tensor::from_vec(&[1, 1, 1, 2], vec![1.0, 0.0]).unwrap();
+    for (eta, gain) in [(-0.5f32, 0.5f32), (-1.0, 0.0)] {
+        let out = compose(&u, &r, None, Some(&ge), eta).unwrap();
+        for ch in 0..3 {
+            assert_eq!(out.data[ch * 2], gain * r.data[ch * 2], "η {eta}, on the edge");
+            assert_eq!(out.data[ch * 2 + 1], r.data[ch * 2 + 1], "η {eta}, off the edge");
+        }
+    }
 }

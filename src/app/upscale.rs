@@ -64,11 +64,12 @@ pub struct Args {
     /// Never the input's own folder: the input is never overwritten.
     #[arg(long)]
     pub out: PathBuf,
-    /// Wrinkle enhancement η from 0 to 10 (Eq 12): 0 = plain predicted detail (the default,
+    /// Wrinkle enhancement η from -1 to 10 (Eq 12): 0 = plain predicted detail (the default,
     /// chosen on validation runs; EnhanceNet is then not run), larger = deeper wrinkles where
-    /// EnhanceNet sees edges (up to 1 + η times the predicted detail). Smooth cloth and the
-    /// border are unaffected.
-    #[arg(long, default_value_t = DEFAULT_ETA)]
+    /// EnhanceNet sees edges (up to 1 + η times the predicted detail), below 0 = softer (-1
+    /// removes them there). With the wrinkle model and --gate-coarse-only it scales the folds
+    /// finer than the LR grid (docs/wrinkles.md). Smooth cloth and the border are unaffected.
+    #[arg(long, default_value_t = DEFAULT_ETA, allow_negative_numbers = true)]
     pub eta: f32,
     /// Temporal smoothing radius in frames of the predicted detail and of the boundary and
     /// wrinkle maps that gate it, in the cloth's own frame (1 = weights ¼ ½ ¼ over the

@@ -31,10 +31,11 @@ pub const DEFAULT_ETA: f32 = 0.0;
 /// Our Eq 12. `gb` / `ge` may be omitted (treated as all-zero maps): `gb = None` is
 /// "anisocb without BoundaryNet", `ge = None` equals `η = 0`.
 ///
-/// u, r: (N, 3, H, W); gb, ge: (N, 1, H, W) → (N, 3, H, W). `eta` is dimensionless, ≥ 0.
+/// u, r: (N, 3, H, W); gb, ge: (N, 1, H, W) → (N, 3, H, W). `eta` is dimensionless, ≥ −1:
+/// below 0 it softens the detail on wrinkle edges (−1 removes it where Γe = 1).
 pub fn compose(u: &Tensor, r: &Tensor, gb: Option<&Tensor>, ge: Option<&Tensor>, eta: f32) -> Result<Tensor> {
-    if !(eta.is_finite() && eta >= 0.0) {
-        return Err(Error::config(format!("enhancement factor η must be a finite number ≥ 0, got {eta}")));
+    if !(eta.is_finite() && eta >= -1.0) {
+        return Err(Error::config(format!("enhancement factor η must be a finite number ≥ -1, got {eta}")));
     }
     let (n, c, h, w) = u.expect_rank4("compose: U")?;
     if r.shape != u.shape {

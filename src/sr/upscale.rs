@@ -63,6 +63,10 @@ pub const MAX_TEMPORAL: usize = 64;
 /// nets predict, and larger values only blow the mesh up.
 pub const MAX_ETA: f32 = 10.0;
 
+/// Smallest η [`UpscaleParams::validate`] accepts: −1 removes the detail where EnhanceNet is
+/// sure of a wrinkle (gain 1 + ηΓe = 0); below it the gain would turn the folds inside out.
+pub const MIN_ETA: f32 = -1.0;
+
 /// Largest strain-limit iteration count [`UpscaleParams::validate`] accepts: the default 10
 /// already removes the swimming; each iteration is a pass over every edge of every frame, so
 /// a count in the millions would run for days.
@@ -161,14 +165,15 @@ pub struct UpscaleParams {
 }
 
 impl UpscaleParams {
-    /// Refuse values that make no sense or could not finish: η not in [0, [`MAX_ETA`]],
+    /// Refuse values that make no sense or could not finish: η not in [[`MIN_ETA`], [`MAX_ETA`]],
     /// `temporal` above [`MAX_TEMPORAL`], `batch` not in 1..=[`MAX_BATCH`], `strain_iters`
     /// above [`MAX_STRAIN_ITERS`]. Checked before any network runs.
     pub fn validate(&self) -> Result<()> {
-        if !(self.eta.is_finite() && (0.0..=MAX_ETA).contains(&self.eta)) {
+        if !(self.eta.is_finite() && (MIN_ETA..=MAX_ETA).contains(&self.eta)) {
             return Err(Error::config(format!(
-                "enhancement factor η (--eta) must be a number from 0 to {MAX_ETA}, got {}; \
-                 0 = the nets' detail as predicted, 1 = up to twice as deep on wrinkle edges",
+                "enhancement factor η (--eta) must be a number from {MIN_ETA} to {MAX_ETA}, got {}; \
+                 0 = the nets' detail as predicted, 1 = up to twice as deep on wrinkle edges, \
+                 -0.5 = half as deep",
                 self.eta
             )));
         }
