@@ -31,6 +31,8 @@
 //! - [`cuda`]: the GPU backend (feature `cuda`); a stub with the same API otherwise.
 //! - `app` (feature `cli`): the command-line front end.
 
+#[cfg(feature = "capi")]
+pub mod capi;
 pub mod cloth;
 pub mod cuda;
 pub mod error;
@@ -41,6 +43,7 @@ pub mod io;
 pub mod nn;
 pub mod ops;
 pub mod perf;
+pub mod pipeline;
 pub mod pool;
 pub mod rng;
 pub mod sr;

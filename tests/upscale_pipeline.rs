@@ -580,7 +580,7 @@ fn frame_slices_concatenate_to_the_whole_shot_byte_for_byte() {
 
 #[test]
 fn bad_frame_ranges_are_usage_errors_naming_the_range() {
-    use anisocb::app::upscale::parse_frames;
+    use anisocb::pipeline::job::parse_frames;
     assert_eq!(parse_frames(None, 5).unwrap(), 0..5);
     assert_eq!(parse_frames(Some("1:3"), 5).unwrap(), 1..3);
     assert_eq!(parse_frames(Some("2:"), 5).unwrap(), 2..5);

@@ -1,0 +1,79 @@
+/*
+ * anisocb — geometry-image super-resolution of cloth animations, as a C library.
+ *
+ * Build: `make c-example` (or `cargo rustc --release --lib --no-default-features --features capi
+ * --crate-type staticlib,cdylib`) gives target/release/libanisocb.a and libanisocb.so; link the
+ * static one with -lpthread -ldl -lm.
+ *
+ * Use: make an upscaler (anisocb_new), give it a shot's LR frames one at a time (anisocb_push),
+ * take the last held-back frames at the end (anisocb_flush), free it (anisocb_free). Frames are
+ * regular grids of w x h vertices, row-major, xyz interleaved (3*w*h floats, metres); results
+ * have (r*w) x (r*h) vertices (r = anisocb_scale, 2). Every buffer is the caller's. Every call
+ * returns a status; on an error anisocb_last_error() says what went wrong. No call panics
+ * across the boundary or aborts the host. A handle is used by one thread at a time.
+ * Each frame gives the same bits as `anisocb upscale` gives it (OBJ output).
+ */
+#ifndef ANISOCB_H
+#define ANISOCB_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef enum anisocb_status {
+    ANISOCB_OK = 0,            /* done; a push or flush wrote a frame */
+    ANISOCB_PENDING = 1,       /* push: no frame out yet (temporal context still coming) */
+    ANISOCB_DONE = 2,          /* flush: no frame left; the next push starts a new shot */
+    ANISOCB_ERR_ARGUMENT = -1, /* a null pointer, a short output buffer, a non-UTF-8 path */
+    ANISOCB_ERR_IO = -2,       /* a file could not be read (weights_path) */
+    ANISOCB_ERR_FORMAT = -3,   /* a file is malformed (weights for another architecture, ...) */
+    ANISOCB_ERR_SHAPE = -4,    /* a frame's size differs from the shot's, a grid too small */
+    ANISOCB_ERR_CONFIG = -5,   /* an option out of range (eta, temporal, threads, ...) */
+    ANISOCB_ERR_NUMERIC = -6,  /* NaN/inf in a frame, or weights that give nonsense */
+    ANISOCB_ERR_DEVICE = -7,   /* the compute device failed */
+    ANISOCB_ERR_PANIC = -99    /* an internal error (a bug): the handle should be freed */
+} anisocb_status;
+
+/* Options; fill with anisocb_options_default, then change what you need. */
+typedef struct anisocb_options {
+    uint32_t threads;         /* worker threads; 0 = the process-wide pool (one per core) */
+    const char *weights_path; /* a weights bundle (.npz, UTF-8), or NULL for the embedded model */
+    float eta;                /* wrinkle enhancement, -1 to 10 (default 0) */
+    uint32_t temporal;        /* temporal smoothing radius in frames, 0 to 64 (default 0) */
+    uint32_t strain_iters;    /* strain-limit iterations, 0 to 1000 (default 0) */
+    int mirrors;              /* 1: average over the grid's four mirror images (default) */
+    int keep_outline;         /* 1: the border never shorter than the LR one (default) */
+    int pin_border;           /* 1: outermost ring where interpolation puts it (default 0) */
+    int gate_coarse_only;     /* 1: BoundaryNet gates only the coarse detail (default 0) */
+} anisocb_options;
+
+typedef struct Upscaler anisocb_upscaler; /* opaque */
+
+/* The message of the last failed call on this thread ("" if none), valid until the next call. */
+const char *anisocb_last_error(void);
+/* The library version, e.g. "0.1.0". */
+const char *anisocb_version(void);
+
+int anisocb_options_default(anisocb_options *opts);
+/* opts may be NULL (defaults). On success *out is a handle to free with anisocb_free. */
+int anisocb_new(const anisocb_options *opts, anisocb_upscaler **out);
+void anisocb_free(anisocb_upscaler *up);
+/* The scale r (2), and the frames a result lags its input (the temporal radius). */
+uint32_t anisocb_scale(const anisocb_upscaler *up);
+uint32_t anisocb_latency(const anisocb_upscaler *up);
+
+/* Give the next LR frame (3*w*h floats). Writes the next HR frame into hr (hr_cap floats, at
+ * least 3*r*w*r*h) and returns ANISOCB_OK, or returns ANISOCB_PENDING. */
+int anisocb_push(anisocb_upscaler *up, uint32_t w, uint32_t h, const float *lr, float *hr,
+                 size_t hr_cap);
+/* At the end of a shot: writes the next held-back HR frame and returns ANISOCB_OK, or returns
+ * ANISOCB_DONE when none is left. */
+int anisocb_flush(anisocb_upscaler *up, float *hr, size_t hr_cap);
+
+#ifdef __cplusplus
+}
+#endif
+#endif /* ANISOCB_H */

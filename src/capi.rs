@@ -1,0 +1,274 @@
+//! The C ABI (feature `capi`; header `include/anisocb.h`, which documents each call): an opaque
+//! [`Upscaler`] handle, status codes with a per-thread last-error message, caller-owned
+//! buffers. No panic crosses the boundary: each call runs under `catch_unwind` and a panic
+//! becomes `ANISOCB_ERR_PANIC`. Built as a static and a shared library by `make c-example`
+//! (`cargo rustc --lib --crate-type staticlib,cdylib`).
+//!
+//! Keep this file and `include/anisocb.h` in step: the status values, the options struct's
+//! field order and every signature are the contract.
+
+use crate::error::Error;
+use crate::geom::GridMesh;
+use crate::nn::bundle::AnisoCb;
+use crate::pipeline::Upscaler;
+use crate::sr::upscale::{embedded_model, UpscaleParams};
+use std::cell::RefCell;
+use std::ffi::{c_char, c_int, CStr, CString};
+use std::panic::{catch_unwind, AssertUnwindSafe};
+use std::path::Path;
+
+/// `anisocb_status` (include/anisocb.h).
+pub const ANISOCB_OK: c_int = 0;
+pub const ANISOCB_PENDING: c_int = 1;
+pub const ANISOCB_DONE: c_int = 2;
+pub const ANISOCB_ERR_ARGUMENT: c_int = -1;
+pub const ANISOCB_ERR_IO: c_int = -2;
+pub const ANISOCB_ERR_FORMAT: c_int = -3;
+pub const ANISOCB_ERR_SHAPE: c_int = -4;
+pub const ANISOCB_ERR_CONFIG: c_int = -5;
+pub const ANISOCB_ERR_NUMERIC: c_int = -6;
+pub const ANISOCB_ERR_DEVICE: c_int = -7;
+pub const ANISOCB_ERR_PANIC: c_int = -99;
+
+/// `anisocb_options` (include/anisocb.h): `repr(C)`, field for field.
+#[repr(C)]
+pub struct AnisocbOptions {
+    /// Worker threads, 0 = the process-wide pool (one per core).
+    pub threads: u32,
+    /// A weights bundle (.npz, UTF-8 path), or null for the embedded ×2 model.
+    pub weights_path: *const c_char,
+    pub eta: f32,
+    pub temporal: u32,
+    pub strain_iters: u32,
+    /// 0 or 1.
+    pub mirrors: c_int,
+    pub keep_outline: c_int,
+    pub pin_border: c_int,
+    pub gate_coarse_only: c_int,
+}
+
+thread_local! {
+    static LAST_ERROR: RefCell<CString> = RefCell::new(CString::default());
+}
+
+fn set_error(msg: &str) {
+    let c = CString::new(msg.replace('\0', " ")).unwrap_or_default();
+    LAST_ERROR.with(|e| *e.borrow_mut() = c);
+}
+
+fn status_of(e: &Error) -> c_int {
+    match e {
+        Error::Io { .. } => ANISOCB_ERR_IO,
+        Error::Format { .. } => ANISOCB_ERR_FORMAT,
+        Error::Shape(_) => ANISOCB_ERR_SHAPE,
+        Error::Config(_) => ANISOCB_ERR_CONFIG,
+        Error::Numeric(_) => ANISOCB_ERR_NUMERIC,
+        Error::Device(_) => ANISOCB_ERR_DEVICE,
+    }
+}
+
+/// A failed call: its status and message.
+struct Fail(c_int, String);
+
+impl From<Error> for Fail {
+    fn from(e: Error) -> Fail {
+        Fail(status_of(&e), e.to_string())
+    }
+}
+
+/// Run `f`, turning a failure into its status (message kept) and a panic into
+/// `ANISOCB_ERR_PANIC`.
+fn guard(f: impl FnOnce() -> Result<c_int, Fail>) -> c_int {
+    match catch_unwind(AssertUnwindSafe(f)) {
+        Ok(Ok(status)) => status,
+        Ok(Err(Fail(status, msg))) => {
+            set_error(&msg);
+            status
+        }
+        Err(p) => {
+            let what = p
+                .downcast_ref::<&str>()
+                .map(|s| s.to_string())
+                .or_else(|| p.downcast_ref::<String>().cloned())
+                .unwrap_or_else(|| "unknown".into());
+            set_error(&format!("internal error (a bug in anisocb, please report it): {what}"));
+            ANISOCB_ERR_PANIC
+        }
+    }
+}
+
+/// A bad argument (null pointer, short buffer, non-UTF-8 path).
+fn argument(msg: &str) -> Fail {
+    Fail(ANISOCB_ERR_ARGUMENT, msg.to_string())
+}
+
+/// The message of the last failed call on this thread ("" if none); valid until the next call
+/// on this thread.
+#[no_mangle]
+pub extern "C" fn anisocb_last_error() -> *const c_char {
+    LAST_ERROR.with(|e| e.borrow().as_ptr())
+}
+
+/// The crate version, a static string.
+#[no_mangle]
+pub extern "C" fn anisocb_version() -> *const c_char {
+    concat!(env!("CARGO_PKG_VERSION"), "\0").as_ptr().cast()
+}
+
+/// Fill `opts` with the command line's defaults.
+///
+/// # Safety
+/// `opts` is null or points to writable memory for an `anisocb_options`.
+#[no_mangle]
+pub unsafe extern "C" fn anisocb_options_default(opts: *mut AnisocbOptions) -> c_int {
+    guard(|| {
+        let o = opts.as_mut().ok_or_else(|| argument("anisocb_options_default: opts is null"))?;
+        let p = UpscaleParams::default();
+        *o = AnisocbOptions {
+            threads: 0,
+            weights_path: std::ptr::null(),
+            eta: p.eta,
+            temporal: p.temporal as u32,
+            strain_iters: p.strain_iters as u32,
+            mirrors: p.mirrors as c_int,
+            keep_outline: p.keep_outline as c_int,
+            pin_border: p.pin_border as c_int,
+            gate_coarse_only: p.gate_coarse_only as c_int,
+        };
+        Ok(ANISOCB_OK)
+    })
+}
+
+/// Make an upscaler (`opts` null: the defaults) into `*out`; free it with `anisocb_free`.
+///
+/// # Safety
+/// `opts` is null or a valid `anisocb_options` whose `weights_path` is null or a NUL-terminated
+/// string; `out` points to writable memory for a pointer.
+#[no_mangle]
+pub unsafe extern "C" fn anisocb_new(opts: *const AnisocbOptions, out: *mut *mut Upscaler) -> c_int {
+    guard(|| {
+        let out = out.as_mut().ok_or_else(|| argument("anisocb_new: out is null"))?;
+        *out = std::ptr::null_mut();
+        let mut params = UpscaleParams::default();
+        let (mut threads, mut model) = (0, None);
+        if let Some(o) = opts.as_ref() {
+            params.eta = o.eta;
+            params.temporal = o.temporal as usize;
+            params.strain_iters = o.strain_iters as usize;
+            params.mirrors = o.mirrors != 0;
+            params.keep_outline = o.keep_outline != 0;
+            params.pin_border = o.pin_border != 0;
+            params.gate_coarse_only = o.gate_coarse_only != 0;
+            threads = o.threads as usize;
+            if !o.weights_path.is_null() {
+                let p = CStr::from_ptr(o.weights_path)
+                    .to_str()
+                    .map_err(|_| argument("anisocb_new: weights_path is not UTF-8"))?;
+                model = Some(AnisoCb::load(Path::new(p))?);
+            }
+        }
+        let model = match model {
+            Some(m) => m,
+            None => embedded_model()?,
+        };
+        let mut up = Upscaler::new(model, params)?;
+        if threads > 0 {
+            up = up.with_threads(threads)?;
+        }
+        *out = Box::into_raw(Box::new(up));
+        Ok(ANISOCB_OK)
+    })
+}
+
+/// Free an upscaler (null is ignored).
+///
+/// # Safety
+/// `up` is null or came from `anisocb_new` and is not used afterwards.
+#[no_mangle]
+pub unsafe extern "C" fn anisocb_free(up: *mut Upscaler) {
+    if !up.is_null() {
+        let _ = catch_unwind(AssertUnwindSafe(|| drop(Box::from_raw(up))));
+    }
+}
+
+/// The model's scale (2), or 0 for a null handle.
+///
+/// # Safety
+/// `up` is null or a live handle.
+#[no_mangle]
+pub unsafe extern "C" fn anisocb_scale(up: *const Upscaler) -> u32 {
+    up.as_ref().map_or(0, |u| u.scale() as u32)
+}
+
+/// Frames between a frame going in and its result coming out (the temporal radius).
+///
+/// # Safety
+/// `up` is null or a live handle.
+#[no_mangle]
+pub unsafe extern "C" fn anisocb_latency(up: *const Upscaler) -> u32 {
+    up.as_ref().map_or(0, |u| u.latency() as u32)
+}
+
+/// Write an HR grid's positions into the caller's buffer of `cap` floats.
+unsafe fn put(hr: &GridMesh, out: *mut f32, cap: usize) -> Result<(), Fail> {
+    let n = 3 * hr.pos.len();
+    if out.is_null() || cap < n {
+        return Err(argument(&format!(
+            "the output buffer holds {cap} floats; the HR frame needs {n} (3·rW·rH)"
+        )));
+    }
+    std::slice::from_raw_parts_mut(out, n).copy_from_slice(bytemuck::cast_slice(&hr.pos));
+    Ok(())
+}
+
+/// Give the next LR frame (`w`×`h` vertices, row-major, xyz interleaved: 3·w·h floats); the
+/// next HR frame (3·rW·rH floats) is written to `hr` and `ANISOCB_OK` returned, or
+/// `ANISOCB_PENDING` while its temporal context is not in yet.
+///
+/// # Safety
+/// `up` is a live handle; `lr` points to 3·w·h floats; `hr` to `hr_cap` writable floats.
+#[no_mangle]
+pub unsafe extern "C" fn anisocb_push(
+    up: *mut Upscaler,
+    w: u32,
+    h: u32,
+    lr: *const f32,
+    hr: *mut f32,
+    hr_cap: usize,
+) -> c_int {
+    guard(|| {
+        let up = up.as_mut().ok_or_else(|| argument("anisocb_push: null handle"))?;
+        let (w, h) = (w as usize, h as usize);
+        if lr.is_null() {
+            return Err(argument("anisocb_push: lr is null"));
+        }
+        let r = up.scale();
+        if hr.is_null() || hr_cap < 3 * r * r * w * h {
+            return Err(argument(&format!(
+                "anisocb_push: the output buffer holds {hr_cap} floats; a {w}×{h} frame needs {}",
+                3 * r * r * w * h
+            )));
+        }
+        let pos: &[[f32; 3]] = bytemuck::cast_slice(std::slice::from_raw_parts(lr, 3 * w * h));
+        match up.push(&GridMesh::new(w, h, pos.to_vec()))? {
+            Some(m) => put(&m, hr, hr_cap).map(|_| ANISOCB_OK),
+            None => Ok(ANISOCB_PENDING),
+        }
+    })
+}
+
+/// At the end of a shot: writes the next held-back HR frame to `hr` and returns `ANISOCB_OK`,
+/// or returns `ANISOCB_DONE` when none is left (the next push starts a new shot).
+///
+/// # Safety
+/// `up` is a live handle; `hr` points to `hr_cap` writable floats.
+#[no_mangle]
+pub unsafe extern "C" fn anisocb_flush(up: *mut Upscaler, hr: *mut f32, hr_cap: usize) -> c_int {
+    guard(|| {
+        let up = up.as_mut().ok_or_else(|| argument("anisocb_flush: null handle"))?;
+        match up.flush_one()? {
+            Some(m) => put(&m, hr, hr_cap).map(|_| ANISOCB_OK),
+            None => Ok(ANISOCB_DONE),
+        }
+    })
+}

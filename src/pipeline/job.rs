@@ -1,0 +1,335 @@
+//! One upscale job on files, as `anisocb upscale` runs it: open and check the input, plan and
+//! check every output, settle the domain, stream the shot through the nets chunk by chunk into
+//! the outputs, and write the run's summary (`upscale.json`). The command line is a thin layer
+//! over [`upscale_files`]; a Rust program calls it the same way and gets the same bytes.
+
+use super::input::{open_input, shot_bounds, FrameAttrs, Input, MeshOut, Shot};
+use super::output::{refuse_duplicate_outputs, refuse_out_over_input, CacheSink, ObjSink, Outputs};
+use crate::cloth::run_io::DOMAIN_MARGIN;
+use crate::error::{Error, Result};
+use crate::geom::cloth_frame::InputFrame;
+use crate::geom::Domain;
+use crate::io::atomic::{ensure_dir, remove_stale_temps, write_atomic_bytes, AtomicFile};
+use crate::io::json::{write_json, Layout, Object, Value};
+use crate::io::npy::NpyWriter;
+use crate::io::point_cache::{write_header, CacheHeader};
+use crate::io::write_npy;
+use crate::nn::bundle::AnisoCb;
+use crate::ops::Ops;
+use crate::sr::stream::{upscale_stream, DEFAULT_CHUNK};
+use crate::sr::upscale::{upscale_meshes, UpscaleParams};
+use std::ops::Range;
+use std::path::PathBuf;
+use std::time::Instant;
+
+/// The output format of a job.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum OutputFormat {
+    /// The input's: OBJ files for OBJ input, the same cache format for a point cache,
+    /// geometry.npy for geometry.npy.
+    Auto,
+    /// One OBJ file per frame.
+    Obj,
+    /// geometry.npy (T, 3, 2H, 2W) + domain.npy.
+    Npy,
+}
+
+/// What to upscale, where to, and how.
+#[derive(Clone, Debug)]
+pub struct UpscaleJob {
+    /// OBJ files, folders of OBJ files, a run folder or geometry.npy, or one point cache
+    /// (.pc2 / .mdd, with `rest`).
+    pub inputs: Vec<PathBuf>,
+    /// Output folder (created if missing); never the input's own folder.
+    pub out: PathBuf,
+    /// Rest mesh of a point-cache input.
+    pub rest: Option<PathBuf>,
+    pub format: OutputFormat,
+    /// Frames `A:B` (0-based, B exclusive; `A:` to the end) of the shot, or all of them. A slice
+    /// gives exactly the bytes the whole shot gives for its frames.
+    pub frames: Option<String>,
+    /// Domain margin for OBJ and point-cache input, a fraction of the shot's largest extent
+    /// (0 to [`MAX_MARGIN`]).
+    pub margin: f32,
+    /// Frames read, upscaled and written at a time (memory is bounded by it).
+    pub chunk: usize,
+    /// Also write the boundary and wrinkle-edge maps (boundary.npy, enhance.npy).
+    pub maps: bool,
+    pub params: UpscaleParams,
+}
+
+impl UpscaleJob {
+    /// A job with the command line's defaults: `inputs` into `out` in the input's format.
+    pub fn new(inputs: Vec<PathBuf>, out: impl Into<PathBuf>) -> UpscaleJob {
+        UpscaleJob {
+            inputs,
+            out: out.into(),
+            rest: None,
+            format: OutputFormat::Auto,
+            frames: None,
+            margin: DOMAIN_MARGIN,
+            chunk: DEFAULT_CHUNK,
+            maps: false,
+            params: UpscaleParams::default(),
+        }
+    }
+}
+
+/// How a job tells its caller what happens (the command line: progress bars and stderr).
+/// Every method does nothing by default ([`Quiet`]).
+pub trait Report {
+    /// A stage of `total` items begins (`"bounds"`: frames read for the domain; `"upscale"`).
+    fn start(&mut self, _stage: &str, _total: usize) {}
+    /// `done` items of the current stage are done.
+    fn progress(&mut self, _done: usize) {}
+    /// The current stage is over.
+    fn end(&mut self) {}
+    /// A line for the user: what runs, notes (`note: …`), warnings (`warning: …`).
+    fn message(&mut self, _line: &str) {}
+}
+
+/// A [`Report`] that says nothing.
+pub struct Quiet;
+impl Report for Quiet {}
+
+/// What a finished job did.
+#[derive(Clone, Debug)]
+pub struct Summary {
+    /// Frames written.
+    pub frames: usize,
+    /// LR and HR grid sizes (columns, rows).
+    pub lr: (usize, usize),
+    pub hr: (usize, usize),
+    pub seconds: f64,
+    /// `obj`, `npy`, `pc2` or `mdd`.
+    pub format: String,
+}
+
+/// Largest `--margin` (a fraction of the shot's extent): beyond it the shot fills a sliver of
+/// the geometry image and f32 loses its detail (at 1e30 every pixel reads 0.5).
+pub const MAX_MARGIN: f32 = 1.0;
+
+/// Refuse `--margin` outside 0 ..= [`MAX_MARGIN`] (NaN included).
+pub fn check_margin(margin: f32) -> Result<()> {
+    if !(margin.is_finite() && (0.0..=MAX_MARGIN).contains(&margin)) {
+        return Err(Error::config(format!(
+            "--margin must be a fraction of the shot's extent from 0 to {MAX_MARGIN}, got {margin} \
+             (the default {DOMAIN_MARGIN} suits any shot)"
+        )));
+    }
+    Ok(())
+}
+
+/// Parse `--frames A:B` against a shot of `t` frames.
+pub fn parse_frames(spec: Option<&str>, t: usize) -> Result<Range<usize>> {
+    let Some(spec) = spec else { return Ok(0..t) };
+    let bad = || {
+        Error::config(format!(
+            "--frames {spec}: expected A:B (0-based, B exclusive) or A: with 0 ≤ A < B ≤ {t}"
+        ))
+    };
+    let (a, b) = spec.split_once(':').ok_or_else(bad)?;
+    let a: usize = a.trim().parse().map_err(|_| bad())?;
+    let b: usize = if b.trim().is_empty() { t } else { b.trim().parse().map_err(|_| bad())? };
+    if a >= b || b > t {
+        return Err(bad());
+    }
+    Ok(a..b)
+}
+
+/// Run `job` with the `model` on `ops` (see the module docs); every option is checked before a
+/// file is read or a net runs, and every file is written atomically.
+pub fn upscale_files(
+    ops: &dyn Ops,
+    model: &AnisoCb,
+    job: &UpscaleJob,
+    report: &mut dyn Report,
+) -> Result<Summary> {
+    let (a, params) = (job, &job.params);
+    params.validate()?;
+    check_margin(a.margin)?;
+    if a.chunk == 0 {
+        return Err(Error::config("--chunk must be ≥ 1 frame (frames read, upscaled and written at a time)"));
+    }
+    let r = model.scale();
+    let mut messages = Vec::new();
+    let opened = open_input(&a.inputs, a.rest.as_deref(), r, &mut messages);
+    for m in &messages {
+        report.message(m);
+    }
+    let Input { mut shot, npy_domain, mesh_out, cache_in, files } = opened?;
+    let fmt = match (a.format, &mesh_out, &cache_in) {
+        (OutputFormat::Auto, _, Some(c)) => c.header.format.name().to_lowercase(),
+        (OutputFormat::Auto, Some(_), None) | (OutputFormat::Obj, ..) => "obj".to_string(),
+        _ => "npy".to_string(),
+    };
+    let fmt = fmt.as_str();
+    let (t, w, h) = shot.size();
+    let range = parse_frames(a.frames.as_deref(), t)?;
+    let sliced = range.len() != t;
+    // Outputs of a slice carry its range in their names (OBJ frames keep their own names).
+    let suffix = if sliced { format!(".{}-{}", range.start, range.end) } else { String::new() };
+    let npy_name = |stem: &str| format!("{stem}{suffix}.npy");
+    let mesh_out = mesh_out.unwrap_or_else(|| MeshOut::plain(t));
+    let cache_name = cache_in.as_ref().map(|c| {
+        let stem = c.path.file_stem().unwrap_or_default().to_string_lossy().into_owned();
+        format!("{stem}{suffix}.{}", c.header.format.name().to_lowercase())
+    });
+    // Every file this run may write.
+    let mut outputs: Vec<PathBuf> = ["geometry", "domain", "boundary", "enhance"]
+        .iter()
+        .map(|n| a.out.join(npy_name(n)))
+        .chain([a.out.join(format!("upscale{suffix}.json"))])
+        .collect();
+    outputs.extend(mesh_out.names[range.clone()].iter().map(|n| a.out.join(n)));
+    outputs.extend(cache_name.iter().map(|n| a.out.join(n)));
+    outputs.extend(cache_in.iter().filter_map(|c| c.rest.file_name()).map(|n| a.out.join(n)));
+    refuse_out_over_input(&a.out, &files, &outputs)?;
+    // What this run writes, each once.
+    let mut writes = vec![a.out.join(format!("upscale{suffix}.json"))];
+    match (fmt, &cache_name) {
+        ("obj", _) => writes.extend(mesh_out.names[range.clone()].iter().map(|n| a.out.join(n))),
+        ("npy", _) => writes.extend(["geometry", "domain"].map(|n| a.out.join(npy_name(n)))),
+        (_, name) => writes.extend(name.iter().map(|n| a.out.join(n))),
+    }
+    if a.maps {
+        writes.extend(["boundary", "enhance"].map(|n| a.out.join(npy_name(n))));
+    }
+    writes.extend(cache_in.iter().filter_map(|c| c.rest.file_name()).map(|n| a.out.join(n)));
+    refuse_duplicate_outputs(&writes)?;
+    // The domain: the file's for .npy input; none needed for a model in the cloth frame writing
+    // meshes (each frame then depends on itself alone); otherwise the whole shot's bounding
+    // box (not a --frames slice's, so slices agree).
+    let (domain, domain_note) = match npy_domain {
+        Some(d) => (d, "domain from domain.npy beside the input".to_string()),
+        None if model.input_frame() == InputFrame::Cloth && fmt != "npy" => {
+            (Domain::UNIT, "no domain needed: the model works in each frame's cloth frame".to_string())
+        }
+        None => {
+            report.start("bounds", t);
+            let d = shot_bounds(&mut shot, a.margin, a.chunk, &mut |k| report.progress(k))?;
+            report.end();
+            shot.set_domain(d);
+            let note = format!(
+                "domain = bounding box of all frames + {:.0}% margin: bmin {:?}, bmax {:?} (m)",
+                a.margin * 100.0,
+                d.bmin,
+                d.bmax
+            );
+            (d, note)
+        }
+    };
+    ensure_dir(&a.out)?;
+    report.message(&format!(
+        "upscaling frames {}..{} of {t}, {w}x{h} -> {}x{} ({}), η = {}",
+        range.start,
+        range.end,
+        r * w,
+        r * h,
+        ops.name(),
+        params.eta
+    ));
+    report.message(&domain_note);
+    // A rerun after a kill: clear the temp files the killed run left (every file is written
+    // atomically, so the outputs themselves are either complete or absent).
+    for p in &outputs {
+        remove_stale_temps(p)?;
+    }
+    // Until the final summary replaces it, the folder says it is unfinished: whatever stops the
+    // run (a kill, a bad frame) leaves this marker, never an earlier run's summary.
+    let summary_path = a.out.join(format!("upscale{suffix}.json"));
+    let started = Object::new()
+        .val("complete", Value::Bool(false))
+        .num("frames", range.len())
+        .val("range", vec![Value::num(range.start), Value::num(range.end)])
+        .num("eta", params.eta)
+        .str("note", "unfinished: this run was stopped part-way or failed; rerun the same command");
+    write_json(&summary_path, &started.into(), Layout::Compact)?;
+    let start = Instant::now();
+    // A point cache plays on an HR rest mesh: the rest OBJ upscaled on its own.
+    if let Some(c) = &cache_in {
+        let rest = &c.rest_grid.mesh;
+        let d = if domain == Domain::UNIT {
+            domain
+        } else {
+            Domain::enclosing(std::slice::from_ref(rest), a.margin)
+        };
+        let (hr, _) = upscale_meshes(ops, model, std::slice::from_ref(rest), &d, params, &mut |_| {})?;
+        let name = c.rest.file_name().unwrap_or_default();
+        write_atomic_bytes(&a.out.join(name), mesh_out.obj_text(&hr[0], &mesh_out.attrs).as_bytes())?;
+    }
+    let maps = if a.maps {
+        let shape = [range.len(), 1, r * h, r * w];
+        Some((
+            NpyWriter::create(&a.out.join(npy_name("boundary")), &shape)?,
+            NpyWriter::create(&a.out.join(npy_name("enhance")), &shape)?,
+        ))
+    } else {
+        None
+    };
+    let mut out = Outputs { obj: None, cache: None, geometry: None, maps };
+    match (fmt, &cache_in) {
+        ("obj", _) => {
+            let attrs = match &shot {
+                Shot::Obj { attrs, .. } => attrs.clone(),
+                _ => FrameAttrs::default(),
+            };
+            out.obj = Some(ObjSink { dir: a.out.clone(), domain, mesh: mesh_out, attrs });
+        }
+        ("npy", _) => {
+            let shape = [range.len(), 3, r * h, r * w];
+            out.geometry = Some(NpyWriter::create(&a.out.join(npy_name("geometry")), &shape)?);
+        }
+        (_, Some(c)) => {
+            let path = a.out.join(cache_name.as_deref().unwrap_or("cache"));
+            let mut header = CacheHeader::new(c.header.format, r * r * w * h, range.len(), 1.0);
+            // The slice's timing: PC2 start frame and sampling, MDD per-frame times.
+            header.sample_rate = c.header.sample_rate;
+            header.start_frame = c.header.start_frame + range.start as f32 * c.header.sample_rate;
+            if !c.header.times.is_empty() {
+                header.times = c.header.times[range.clone()].to_vec();
+            }
+            let mut file = AtomicFile::create(&path)?;
+            write_header(file.writer(), &header).map_err(|e| Error::io(&path, e))?;
+            out.cache =
+                Some(CacheSink { file, format: header.format, domain, frames: range.len(), written: 0 });
+        }
+        _ => unreachable!("fmt is obj, npy, or a cache format for cache input"),
+    }
+    let notes = match &shot {
+        Shot::Obj { notes, .. } => notes.clone(),
+        _ => Default::default(),
+    };
+    report.start("upscale", range.len());
+    let mut on_frames = |k: usize| {
+        for n in notes.borrow_mut().drain(..) {
+            report.message(&format!("note: {n}"));
+        }
+        report.progress(k);
+    };
+    upscale_stream(ops, model, &mut shot, &domain, range.clone(), params, a.chunk, &mut out, &mut on_frames)?;
+    out.finish()?;
+    if fmt == "npy" {
+        write_npy(&a.out.join(npy_name("domain")), &domain.to_tensor())?;
+    }
+    let secs = start.elapsed().as_secs_f64();
+    report.end();
+    let n = range.len();
+    let size = |w: usize, h: usize| vec![Value::num(w), Value::num(h)];
+    let summary = Object::new()
+        .val("complete", Value::Bool(true))
+        .num("frames", n)
+        .val("range", vec![Value::num(range.start), Value::num(range.end)])
+        .val("lr", size(w, h))
+        .val("hr", size(r * w, r * h))
+        .num("eta", params.eta)
+        .str("device", ops.name())
+        .num("seconds", format!("{secs:.3}"))
+        .num("ms_per_frame", format!("{:.3}", 1e3 * secs / n as f64))
+        .val(
+            "domain",
+            Object::new().val("bmin", Value::reals(&domain.bmin)).val("bmax", Value::reals(&domain.bmax)),
+        );
+    write_json(&summary_path, &summary.into(), Layout::Compact)?;
+    Ok(Summary { frames: n, lr: (w, h), hr: (r * w, r * h), seconds: secs, format: fmt.to_string() })
+}

@@ -1,0 +1,27 @@
+//! The upscale pipeline as a library, without the command line (`default-features = false`):
+//!
+//! - [`upscale_files`]: a whole job on files — an OBJ sequence, a point cache with its rest
+//!   mesh, or a geometry.npy in; OBJ, a point cache or `.npy` out — exactly as
+//!   `anisocb upscale` runs it (the command line calls it), with a [`Report`] for progress.
+//! - [`Upscaler`]: frames in memory, one at a time (the temporal context kept inside); what the
+//!   C ABI (`include/anisocb.h`) wraps.
+//! - [`input`] and [`output`]: the frame sources and sinks the job streams between.
+//!
+//! ```no_run
+//! use anisocb::pipeline::{upscale_files, Quiet, UpscaleJob};
+//! use anisocb::sr::upscale::embedded_model;
+//!
+//! let model = embedded_model()?;
+//! let job = UpscaleJob::new(vec!["frames/".into()], "hr/");
+//! let done = upscale_files(&anisocb::ops::Cpu, &model, &job, &mut Quiet)?;
+//! println!("{} frames, {:?} -> {:?}", done.frames, done.lr, done.hr);
+//! # Ok::<(), anisocb::Error>(())
+//! ```
+
+pub mod input;
+pub mod job;
+pub mod output;
+pub mod upscaler;
+
+pub use job::{upscale_files, OutputFormat, Quiet, Report, Summary, UpscaleJob};
+pub use upscaler::Upscaler;
