@@ -2,7 +2,12 @@
 //! upscale pipeline around it.
 
 pub mod compose;
+pub mod outline;
+pub mod params;
+pub mod strain;
 pub mod stream;
+pub mod temporal;
 pub mod upscale;
+pub mod uv;
 
 pub use compose::{compose, DEFAULT_ETA};

@@ -1,0 +1,263 @@
+//! The direct channel-vector kernel (everything the two others do not take): weight packing,
+//! the register micro-kernel, and the row driver (see the overview in `mod.rs`).
+
+use super::*;
+
+/// What the forward does to conv(x) + b as it stores it, fused into the store instead of a
+/// pass of its own over the activations: add `skip` (a tensor of the output's shape: the
+/// residual connection), then ReLU (`relu1`: negative values to 0, −0 and NaN kept). Same bits
+/// as the separate ops.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Epilogue<'a> {
+    pub skip: Option<&'a Tensor>,
+    pub relu: bool,
+}
+
+impl Epilogue<'_> {
+    pub const NONE: Epilogue<'static> = Epilogue { skip: None, relu: false };
+    pub const RELU: Epilogue<'static> = Epilogue { skip: None, relu: true };
+
+    /// The epilogue on a stored tensor (the paths that do not fuse it).
+    pub(super) fn apply(&self, y: &mut Tensor) {
+        if let Some(s) = self.skip {
+            crate::ops::activation::add_assign(y, s);
+        }
+        if self.relu {
+            y.data.iter_mut().for_each(|v| *v = relu1(*v));
+        }
+    }
+}
+
+/// Weights packed for the micro-kernel: for each block of ≤ 64 output channels (rounded up to
+/// whole vectors, zero-filled), [ky][kx][c_in][ov·16]. `get(o, c, ky, kx)` reads the logical
+/// weight of output channel o, input channel c.
+pub(super) struct Packed {
+    pub(super) data: Scratch,
+    /// (offset, vectors) per block.
+    pub(super) blocks: Vec<(usize, usize)>,
+    /// Output channels rounded up to a multiple of 16.
+    pub(super) opad: usize,
+}
+
+pub(super) fn pack_weights(
+    o: usize,
+    c: usize,
+    kh: usize,
+    kw: usize,
+    get: impl Fn(usize, usize, usize, usize) -> f32 + Sync,
+) -> Packed {
+    let opad = o.div_ceil(L) * L;
+    let mut data = Scratch::zeroed(opad * c * kh * kw);
+    let mut blocks = Vec::new();
+    let mut off = 0;
+    for ob in (0..opad).step_by(OB) {
+        let ov = ((opad - ob) / L).min(OB / L);
+        let wdt = ov * L;
+        let jmax = wdt.min(o - ob);
+        // Rayon tasks of whole taps (the block is [tap][c_in][wdt]), ≥ 2¹⁵ floats each: small
+        // layers are packed on one thread, where a task would cost more than the copy.
+        let min_taps = ((1 << 15) / (c * wdt)).max(1);
+        data[off..off + kh * kw * c * wdt]
+            .par_chunks_mut(c * wdt)
+            .with_min_len(min_taps)
+            .enumerate()
+            .for_each(|(t, dst)| {
+                let (ky, kx) = (t / kw, t % kw);
+                for (ci, row) in dst.chunks_exact_mut(wdt).enumerate() {
+                    for (j, d) in row[..jmax].iter_mut().enumerate() {
+                        *d = get(ob + j, ci, ky, kx);
+                    }
+                }
+            });
+        blocks.push((off, ov));
+        off += kh * kw * c * wdt;
+    }
+    Packed { data, blocks, opad }
+}
+
+/// Micro-kernel: P pixels × OV vectors of output channels of one output row.
+/// `xp` points at input pixel (Y = y, X = x0) of the padded NHWC buffer (row stride `wp`
+/// pixels, `c` channels); `wk` at the block's packed weights; `acc_out` at the row scratch
+/// (pixel stride `opad`) and receives the sum, added to what it holds if `accumulate` (else
+/// the tile is overwritten: the caller need not zero it).
+///
+/// # Safety
+/// All reads/writes must be in bounds: rows y..y+kh, columns x0..x0+P+kw−1 of `xp`.
+#[inline(always)]
+#[allow(clippy::too_many_arguments, clippy::needless_range_loop)]
+pub(super) unsafe fn micro<const OV: usize, const P: usize>(
+    xp: *const f32,
+    wp: usize,
+    c: usize,
+    kh: usize,
+    kw: usize,
+    wk: *const f32,
+    acc_out: *mut f32,
+    opad: usize,
+    accumulate: bool,
+) {
+    let mut acc = [[f32x16::ZERO; OV]; P];
+    if accumulate {
+        for p in 0..P {
+            for j in 0..OV {
+                acc[p][j] = (acc_out.add(p * opad + j * L) as *const f32x16).read_unaligned();
+            }
+        }
+    }
+    let wstride = OV * L;
+    for ky in 0..kh {
+        for kx in 0..kw {
+            let xb = xp.add((ky * wp + kx) * c);
+            let wb = wk.add((ky * kw + kx) * c * wstride);
+            for ci in 0..c {
+                let mut wv = [f32x16::ZERO; OV];
+                for j in 0..OV {
+                    wv[j] = (wb.add(ci * wstride + j * L) as *const f32x16).read_unaligned();
+                }
+                for p in 0..P {
+                    let xv = f32x16::splat(*xb.add(p * c + ci));
+                    for j in 0..OV {
+                        acc[p][j] = xv.mul_add(wv[j], acc[p][j]);
+                    }
+                }
+            }
+        }
+    }
+    for p in 0..P {
+        for j in 0..OV {
+            (acc_out.add(p * opad + j * L) as *mut f32x16).write_unaligned(acc[p][j]);
+        }
+    }
+}
+
+/// Weight-gradient micro-kernel: P input channels × OV vectors of output channels of one tap,
+/// summed over `npix` pixels: acc[p][j] += Σ_i x[i·xs + p] · dy[i·ds + j·16 ..].
+/// `x` points at (pixel 0 shifted by the tap, channel c0) of the padded NHWC input (pixel
+/// stride `xs`), `dy` at (pixel 0, output channel ob) of the NHWC dy on the padded grid (pixel
+/// stride `ds`), `acc_out` at the partial dW[tap][c0][ob] (channel stride `opad`).
+///
+/// # Safety
+/// All `npix` pixels of both buffers and the P×OV·16 accumulator block must be in bounds.
+#[inline(always)]
+#[allow(clippy::too_many_arguments, clippy::needless_range_loop)]
+pub(super) unsafe fn micro_dw<const OV: usize, const P: usize>(
+    x: *const f32,
+    xs: usize,
+    dy: *const f32,
+    ds: usize,
+    npix: usize,
+    acc_out: *mut f32,
+    opad: usize,
+) {
+    let mut acc = [[f32x16::ZERO; OV]; P];
+    for p in 0..P {
+        for j in 0..OV {
+            acc[p][j] = (acc_out.add(p * opad + j * L) as *const f32x16).read_unaligned();
+        }
+    }
+    for i in 0..npix {
+        let mut wv = [f32x16::ZERO; OV];
+        for j in 0..OV {
+            wv[j] = (dy.add(i * ds + j * L) as *const f32x16).read_unaligned();
+        }
+        let xb = x.add(i * xs);
+        for p in 0..P {
+            let xv = f32x16::splat(*xb.add(p));
+            for j in 0..OV {
+                acc[p][j] = xv.mul_add(wv[j], acc[p][j]);
+            }
+        }
+    }
+    for p in 0..P {
+        for j in 0..OV {
+            (acc_out.add(p * opad + j * L) as *mut f32x16).write_unaligned(acc[p][j]);
+        }
+    }
+}
+
+/// Split `total` into `ceil(total / max)` near-equal tiles of ≤ `max`: (start, len) pairs.
+pub(super) fn tiles(total: usize, max: usize) -> impl Iterator<Item = (usize, usize)> {
+    let count = total.div_ceil(max).max(1);
+    (0..count).map(move |t| {
+        let start = total * t / count;
+        (start, total * (t + 1) / count - start)
+    })
+}
+
+/// Max pixels per tile for OV vectors (keeps P·OV + OV + 1 ≤ 32 registers).
+pub(super) fn pmax(ov: usize) -> usize {
+    match ov {
+        4 => PMAX,
+        3 => 7,
+        2 => 10,
+        _ => 12,
+    }
+}
+
+/// Correlate a padded NHWC input (n images of hp×wp pixels, c channels) with packed weights
+/// into out_h × out_w outputs per image: out[y][x] = init + Σ_taps,c w · xp[y+ky][x+kx].
+/// The output rows of each image are produced in `groups` of (first row, row count), one rayon
+/// task per (image, group); `sink(n, group index, rows)` then gets the group's rows as NHWC
+/// scratch (rows × out_w × opad floats).
+#[allow(clippy::too_many_arguments)]
+pub(super) fn correlate_rows(
+    xp: &[f32],
+    n: usize,
+    hp: usize,
+    wp: usize,
+    c: usize,
+    kh: usize,
+    kw: usize,
+    pk: &Packed,
+    init: Option<&[f32]>,
+    out_h: usize,
+    out_w: usize,
+    groups: &[(usize, usize)],
+    sink: &(dyn Fn(usize, usize, &[f32]) + Sync),
+) {
+    assert!(out_h + kh - 1 <= hp && out_w + kw - 1 <= wp);
+    assert!(xp.len() >= n * hp * wp * c);
+    assert!(groups.iter().all(|&(y0, r)| y0 + r <= out_h));
+    let opad = pk.opad;
+    let row_len = out_w * opad;
+    let most = groups.iter().map(|g| g.1).max().unwrap_or(0);
+    let fresh = || Scratch::overwritten(most * row_len);
+    (0..n * groups.len()).into_par_iter().for_each_init(fresh, |buf: &mut Scratch, task| {
+        let (ni, gi) = (task / groups.len(), task % groups.len());
+        let (y0, rows) = groups[gi];
+        let buf = &mut buf[..rows * row_len];
+        for (ri, row) in buf.chunks_exact_mut(row_len).enumerate() {
+            let y = y0 + ri;
+            for dst in row.chunks_exact_mut(opad) {
+                match init {
+                    Some(b) => dst.copy_from_slice(b),
+                    None => dst.fill(0.0),
+                }
+            }
+            let xrow = ((ni * hp + y) * wp) * c;
+            for (bi, &(off, ov)) in pk.blocks.iter().enumerate() {
+                for (x0, np) in tiles(out_w, pmax(ov)) {
+                    // SAFETY: rows y..y+kh ≤ hp and columns x0..x0+np+kw−1 ≤ wp of image ni
+                    // (asserted above); the row scratch has out_w × opad floats.
+                    unsafe {
+                        let xptr = xp.as_ptr().add(xrow + x0 * c);
+                        let wptr = pk.data.as_ptr().add(off);
+                        let aptr = row.as_mut_ptr().add(x0 * opad + bi * OB);
+                        match ov {
+                            4 => dispatch_p!(micro, 4, np, xptr, wp, c, kh, kw, wptr, aptr, opad, true),
+                            3 => dispatch_p!(micro, 3, np, xptr, wp, c, kh, kw, wptr, aptr, opad, true),
+                            2 => dispatch_p!(micro, 2, np, xptr, wp, c, kh, kw, wptr, aptr, opad, true),
+                            _ => dispatch_p!(micro, 1, np, xptr, wp, c, kh, kw, wptr, aptr, opad, true),
+                        }
+                    }
+                }
+            }
+        }
+        sink(ni, gi, buf);
+    });
+}
+
+/// One group per output row.
+pub(super) fn single_rows(out_h: usize) -> Vec<(usize, usize)> {
+    (0..out_h).map(|y| (y, 1)).collect()
+}

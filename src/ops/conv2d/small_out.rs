@@ -1,0 +1,155 @@
+//! Few output channels (the nets' last convs: C → 3, C → 1).
+//!
+//! The channel-vector kernel above would fill 3 or 1 of 16 lanes. Here the lanes run along the
+//! output row instead: the input is padded planar (NCHW, each row widened to whole vectors plus
+//! the kernel's overhang), the weights are broadcast, and one register tile holds O output
+//! channels × P vectors of 16 pixels. Per (c_in, tap): P unaligned loads, O broadcasts, O·P FMAs.
+
+use super::*;
+
+/// Output channels up to which [`conv2d`] takes the pixel-vector path.
+pub const SMALL_OUT_MAX: usize = 4;
+/// Vectors of 16 pixels per register tile of the pixel-vector path.
+pub(super) const SMALL_P: usize = 4;
+
+/// Padded planar copy of `x` (N, C, H, W): plane (n, c) at (n·C + c)·hp·wq, rows of `wq` ≥ W + 2pw
+/// floats, pixel (Y, X) holding x[n, c, Y−ph, X−pw] with `pad` applied (0 beyond W + 2pw).
+pub(super) fn pad_planar(x: &Tensor, ph: usize, pw: usize, pad: Padding, wq: usize) -> (Scratch, usize) {
+    let (n, c, h, w) = x.dims4();
+    let hp = h + 2 * ph;
+    let mut out = Scratch::zeroed(n * c * hp * wq);
+    out.par_chunks_mut(hp * wq).enumerate().for_each(|(plane, dst)| {
+        let src = &x.data[plane * h * w..][..h * w];
+        for (yy, drow) in dst.chunks_exact_mut(wq).enumerate() {
+            let Some(sy) = pad_index(yy as isize - ph as isize, h, pad) else {
+                continue;
+            };
+            let srow = &src[sy * w..][..w];
+            drow[pw..pw + w].copy_from_slice(srow);
+            for xx in (0..pw).chain(pw + w..w + 2 * pw) {
+                if let Some(sx) = pad_index(xx as isize - pw as isize, w, pad) {
+                    drow[xx] = srow[sx];
+                }
+            }
+        }
+    });
+    (out, hp)
+}
+
+/// Pixel-vector micro-kernel: O output channels × P vectors (16 pixels each) of one output row.
+/// `xp` points at (channel 0, row y, column x0) of the padded planar input (row stride `wq`,
+/// plane stride `plane`), `wk` at the packed weights [c_in][ky][kx][O], `out` at the row's
+/// scratch for output channel 0 (channel stride `ostride`), already holding the initial value.
+///
+/// # Safety
+/// Rows y..y+kh, columns x0..x0+16P+kw−1 of all `c` planes and the O×16P outputs in bounds.
+#[inline(always)]
+#[allow(clippy::too_many_arguments, clippy::needless_range_loop)]
+pub(super) unsafe fn micro_px<const O: usize, const P: usize>(
+    xp: *const f32,
+    wq: usize,
+    plane: usize,
+    c: usize,
+    kh: usize,
+    kw: usize,
+    wk: *const f32,
+    out: *mut f32,
+    ostride: usize,
+) {
+    let mut acc = [[f32x16::ZERO; P]; O];
+    for j in 0..O {
+        for p in 0..P {
+            acc[j][p] = (out.add(j * ostride + p * L) as *const f32x16).read_unaligned();
+        }
+    }
+    for ci in 0..c {
+        for ky in 0..kh {
+            let xr = xp.add(ci * plane + ky * wq);
+            let wr = wk.add((ci * kh + ky) * kw * O);
+            for kx in 0..kw {
+                let mut xv = [f32x16::ZERO; P];
+                for p in 0..P {
+                    xv[p] = (xr.add(kx + p * L) as *const f32x16).read_unaligned();
+                }
+                for j in 0..O {
+                    let wv = f32x16::splat(*wr.add(kx * O + j));
+                    for p in 0..P {
+                        acc[j][p] = wv.mul_add(xv[p], acc[j][p]);
+                    }
+                }
+            }
+        }
+    }
+    for j in 0..O {
+        for p in 0..P {
+            (out.add(j * ostride + p * L) as *mut f32x16).write_unaligned(acc[j][p]);
+        }
+    }
+}
+
+/// Weights (O, C, KH, KW) as [`conv2d_small_out`] reads them: [c_in][ky][kx][o].
+pub(super) fn pack_small_out(w: &Tensor) -> Vec<f32> {
+    let (o, c, kh, kw) = w.dims4();
+    let mut wk = vec![0.0f32; c * kh * kw * o];
+    for (i, v) in wk.iter_mut().enumerate() {
+        let (oi, t) = (i % o, i / o);
+        *v = w.data[oi * c * kh * kw + t];
+    }
+    wk
+}
+
+/// Forward for o ≤ [`SMALL_OUT_MAX`] output channels (same contract as [`conv2d_ref`]), with
+/// the weights from [`pack_small_out`] of an (o, C, kh, kw) kernel.
+pub(super) fn conv2d_small_out(
+    x: &Tensor,
+    wk: &[f32],
+    [o, kh, kw]: [usize; 3],
+    b: Option<&Tensor>,
+    pad: Padding,
+) -> Tensor {
+    let (n, c, h, wd) = x.dims4();
+    assert!((1..=SMALL_OUT_MAX).contains(&o) && wk.len() == c * kh * kw * o);
+    let (ph, pw) = (kh / 2, kw / 2);
+    let nv = wd.div_ceil(L); // vectors per output row
+    let wq = nv * L + kw - 1;
+    let (xp, hp) = pad_planar(x, ph, pw, pad, wq);
+    let mut y = Tensor::for_overwrite(&[n, o, h, wd]);
+    let yp = SyncPtr(y.data.as_mut_ptr());
+    let row_len = nv * L;
+    // Rows per task: ≈ 2¹⁸ multiply-adds or more, so rayon's overhead stays small on small images.
+    let rows_per_task = ((1 << 18) / (o * c * kh * kw * row_len).max(1)).clamp(1, h);
+    let tasks = h.div_ceil(rows_per_task);
+    let fresh = || Scratch::overwritten(o * row_len);
+    (0..n * tasks).into_par_iter().for_each_init(fresh, |buf: &mut Scratch, task| {
+        let (ni, ti) = (task / tasks, task % tasks);
+        for yy in ti * rows_per_task..((ti + 1) * rows_per_task).min(h) {
+            for (oi, dst) in buf.chunks_exact_mut(row_len).enumerate() {
+                dst.fill(b.map_or(0.0, |b| b.data[oi]));
+            }
+            for v0 in (0..nv).step_by(SMALL_P) {
+                let np = (nv - v0).min(SMALL_P);
+                // SAFETY: rows yy..yy+kh < hp and columns v0·16..(v0+np)·16+kw−1 ≤ wq of every
+                // plane of image ni; the buffer holds o rows of nv·16 floats.
+                unsafe {
+                    let xptr = xp.as_ptr().add(ni * c * hp * wq + yy * wq + v0 * L);
+                    let optr = buf.as_mut_ptr().add(v0 * L);
+                    let (plane, wptr) = (hp * wq, wk.as_ptr());
+                    match o {
+                        1 => dispatch_px!(1, np, xptr, wq, plane, c, kh, kw, wptr, optr, row_len),
+                        2 => dispatch_px!(2, np, xptr, wq, plane, c, kh, kw, wptr, optr, row_len),
+                        3 => dispatch_px!(3, np, xptr, wq, plane, c, kh, kw, wptr, optr, row_len),
+                        _ => dispatch_px!(4, np, xptr, wq, plane, c, kh, kw, wptr, optr, row_len),
+                    }
+                }
+            }
+            for (oi, src) in buf.chunks_exact(row_len).enumerate() {
+                // SAFETY: row (ni, oi, yy) is written by this task only.
+                let dst = unsafe {
+                    std::slice::from_raw_parts_mut(yp.get().add(((ni * o + oi) * h + yy) * wd), wd)
+                };
+                dst.copy_from_slice(&src[..wd]);
+            }
+        }
+    });
+    y
+}
