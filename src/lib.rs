@@ -24,7 +24,8 @@
 //! - [`imgproc`]: Gaussian, Sobel, Canny.
 //! - [`sr`]: composition (Eq 12) and the upscale pipeline.
 //! - [`eval`]: metrics (incl. STED), the interpolation and learned-linear baselines, tables.
-//! - [`viz`]: every picture (raster image, font, renderer, plots, heat tiles, sheets).
+//! - `viz` (feature `viz`, on with `cli`): every picture (raster image, font, renderer, plots,
+//!   heat tiles, sheets).
 //! - [`io`]: `.npy`/`.npz`, JSON, PC2/MDD point caches, atomic writes.
 //! - [`rng`]: the seeded random number generator everything shares.
 //! - [`perf`]: speed measurement for benchmarks (FMA peak, timers, the conv table).
@@ -49,6 +50,7 @@ pub mod rng;
 pub mod sr;
 pub mod tensor;
 pub mod train;
+#[cfg(feature = "viz")]
 pub mod viz;
 
 #[cfg(feature = "cli")]

@@ -2,6 +2,9 @@
 //! sizes, C_in ≠ C_out, channel counts that are not multiples of 16, 1×1 / 3×3 / 5×5 / 3×5
 //! kernels, both paddings, with and without bias and dx; gradients must accumulate (+=).
 
+#[path = "common/close.rs"]
+mod close;
+use close::assert_close;
 use anisocb::rng::Rng;
 #[path = "common/random.rs"]
 mod random;
@@ -11,33 +14,6 @@ use anisocb::ops::conv2d::{
 use anisocb::ops::{activation, Padding};
 use anisocb::Tensor;
 use random::TestData;
-
-/// |a − b| ≤ atol + rtol·|b| everywhere, NaN-safe: a NaN or infinity on either side counts as
-/// out of tolerance (`!(d <= tol)`, not `d > tol`, which a NaN passes); prints the largest
-/// difference on failure.
-fn assert_close(what: &str, a: &Tensor, b: &Tensor, atol: f32, rtol: f32) {
-    assert_eq!(a.shape, b.shape, "{what}: shapes differ");
-    let mut worst = (0.0f32, 0usize);
-    let mut bad = 0;
-    for (i, (x, y)) in a.data.iter().zip(&b.data).enumerate() {
-        let d = (x - y).abs();
-        let within = d <= atol + rtol * y.abs();
-        if !within {
-            bad += 1;
-        }
-        if d > worst.0 || d.is_nan() {
-            worst = (d, i);
-        }
-    }
-    assert!(
-        bad == 0,
-        "{what}: {bad} values out of tolerance; largest |diff| {} at flat index {} (fast {}, ref {})",
-        worst.0,
-        worst.1,
-        a.data[worst.1],
-        b.data[worst.1]
-    );
-}
 
 #[allow(clippy::too_many_arguments)]
 fn check_case(

@@ -4,6 +4,9 @@
 //! "skipped: no CUDA device (...)" and passes. The same checks also run with the CPU op table
 //! standing in for the device, so the harness itself (shapes, tolerances) is always exercised.
 
+#[path = "common/close.rs"]
+mod close;
+use close::{assert_close, assert_close_f32};
 use anisocb::rng::Rng;
 #[path = "common/random.rs"]
 mod random;
@@ -22,34 +25,6 @@ fn device() -> Option<Box<dyn Ops>> {
             None
         }
     }
-}
-
-/// |got − want| ≤ atol + rtol·|want| everywhere; prints the largest difference.
-fn assert_close(what: &str, got: &Tensor, want: &Tensor, atol: f32, rtol: f32) {
-    assert_eq!(got.shape, want.shape, "{what}: shapes differ");
-    let (mut worst, mut at) = (0.0f32, 0usize);
-    let mut bad = None;
-    for (i, (&g, &w)) in got.data.iter().zip(&want.data).enumerate() {
-        let d = (g - w).abs();
-        if d > worst || d.is_nan() {
-            (worst, at) = (d, i);
-        }
-        if (d.is_nan() || d > atol + rtol * w.abs()) && bad.is_none() {
-            bad = Some(i);
-        }
-    }
-    println!("{what}: largest difference {worst:.3e} at {at}");
-    if let Some(i) = bad {
-        panic!(
-            "{what}: element {i}: got {} want {} (largest difference {worst:.3e})",
-            got.data[i], want.data[i]
-        );
-    }
-}
-
-fn assert_close_f32(what: &str, got: f32, want: f32, atol: f32, rtol: f32) {
-    println!("{what}: {got} vs {want}");
-    assert!((got - want).abs() <= atol + rtol * want.abs(), "{what}: got {got} want {want}");
 }
 
 // ---------------------------------------------------------------- the checks, device-agnostic

@@ -3,6 +3,9 @@
 //! parameter gradient, for the `tiny` config with both paddings; and 10 Adam steps of
 //! GeometryNet against optax.adam (loss trajectory and final weights).
 
+#[path = "common/close.rs"]
+mod close;
+use close::assert_close;
 use anisocb::io::{read_npz, NpzEntries};
 use anisocb::nn::config::parse_padding;
 use anisocb::nn::weights::load_net;
@@ -17,25 +20,6 @@ fn fixture(name: &str) -> PathBuf {
 
 fn load(name: &str) -> NpzEntries {
     read_npz(&fixture(name)).unwrap()
-}
-
-/// |got − want| ≤ atol + rtol·|want| everywhere; prints the first mismatches and the largest difference.
-fn assert_close(what: &str, got: &Tensor, want: &Tensor, atol: f32, rtol: f32) {
-    assert_eq!(got.shape, want.shape, "{what}: shape");
-    let mut worst = (0.0f32, 0usize);
-    let mut bad = Vec::new();
-    for (i, (g, w)) in got.data.iter().zip(&want.data).enumerate() {
-        let d = (g - w).abs();
-        if d > worst.0 || d.is_nan() {
-            worst = (d, i);
-        }
-        let ok = d <= atol + rtol * w.abs();
-        if !ok && bad.len() < 5 {
-            bad.push(format!("[{i}] got {g} want {w}"));
-        }
-    }
-    println!("{what}: max |diff| {:.3e} at {}", worst.0, worst.1);
-    assert!(bad.is_empty(), "{what}: mismatches (atol {atol}, rtol {rtol}): {}", bad.join(", "));
 }
 
 fn cases() -> Vec<(NetKind, &'static str)> {

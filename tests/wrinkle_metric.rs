@@ -6,6 +6,9 @@
 //! on coordinates up to ~1 m, so S(X) and D agree to atol 2e-6 m + rtol 1e-4; normals (unit)
 //! atol 1e-5; the statistics (f64 sums of those D) rtol 1e-4.
 
+#[path = "common/close.rs"]
+mod close;
+use close::assert_close_slice as close;
 use anisocb::eval::baseline::interpolate_sequence;
 use anisocb::eval::metrics::{grid_normals, lr_round_trip, wrinkle_detail, wrinkle_stats};
 use anisocb::geom::{Domain, GridMesh};
@@ -18,28 +21,6 @@ fn fx(name: &str) -> Tensor {
     let p =
         PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/wrinkle").join(format!("{name}.npy"));
     read_npy(&p).unwrap_or_else(|e| panic!("{e}"))
-}
-
-/// |got − want| ≤ atol + rtol·|want| everywhere; fails with the first mismatch and the largest
-/// difference, prints the largest difference when it passes.
-fn close(what: &str, got: &[f32], want: &[f32], atol: f32, rtol: f32) {
-    assert_eq!(got.len(), want.len(), "{what}: length");
-    let (mut worst, mut at, mut first) = (0.0f32, 0usize, None);
-    for (i, (g, w)) in got.iter().zip(want).enumerate() {
-        let d = (g - w).abs();
-        // NaN fails too.
-        let ok = d <= atol + rtol * w.abs();
-        if !ok && first.is_none() {
-            first = Some((i, *g, *w));
-        }
-        if d > worst || d.is_nan() {
-            (worst, at) = (d, i);
-        }
-    }
-    if let Some((i, g, w)) = first {
-        panic!("{what}[{i}]: got {g}, want {w}; largest difference {worst:.3e} at {at}");
-    }
-    println!("{what}: largest difference {worst:.3e} at {at}");
 }
 
 /// A (T, H, W, 3) fixture as T grids.

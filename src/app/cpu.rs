@@ -132,16 +132,6 @@ pub fn explain_missing(missing: &[&str]) -> String {
     String::from_utf8_lossy(&v).trim_end().trim_start_matches("anisocb: ").to_string()
 }
 
-/// Check every x86 feature enabled at compile time against the running CPU.
-pub fn check_cpu_features() -> Result<(), String> {
-    let m = missing_cpu_features();
-    if m.is_empty() {
-        Ok(())
-    } else {
-        Err(explain_missing(m.as_slice()))
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;

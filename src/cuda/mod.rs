@@ -97,11 +97,6 @@ pub fn ops_for_device(name: &str) -> Result<Box<dyn Ops>> {
     }
 }
 
-/// Whether [`Cuda::new`] would succeed here (builds the backend once to find out).
-pub fn cuda_available() -> bool {
-    Cuda::new().is_ok()
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;

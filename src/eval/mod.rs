@@ -15,6 +15,8 @@
 //! ```
 
 pub mod baseline;
+pub mod invariance;
 pub mod linear;
 pub mod metrics;
 pub mod report;
+pub mod wrinkle;

@@ -7,6 +7,7 @@ pub mod geometry_image;
 pub mod laplacian;
 pub mod mesh;
 pub mod obj;
+pub mod obj_sequence;
 pub mod vec3;
 
 pub use geometry_image::Domain;

@@ -4,6 +4,7 @@
 
 pub mod atomic;
 pub mod json;
+mod json_parse;
 pub mod npy;
 pub mod npz;
 pub mod point_cache;

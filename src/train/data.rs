@@ -126,12 +126,6 @@ impl TrainingData {
         }
         h
     }
-
-    /// Fraction of positive pixels of a map target (for choosing `pos_weight`).
-    pub fn positive_fraction(&self, kind: NetKind) -> f64 {
-        let t = self.target(kind);
-        t.data.iter().map(|&v| v as f64).sum::<f64>() / t.len().max(1) as f64
-    }
 }
 
 /// Train / validation frame indices: the last `⌈val_frac·N⌉` frames are held out (a contiguous

@@ -40,8 +40,11 @@ use crate::nn::geometry_net::GeometryNet;
 use crate::ops::loss::{detail_amplitude, DetailEnergy};
 use crate::ops::Ops;
 use crate::tensor::Tensor;
+#[cfg(feature = "viz")]
 use crate::viz::image::{image_rgb8, resize_nearest, upscale_nearest};
+#[cfg(feature = "viz")]
 use crate::viz::sheet::{evenly_spaced, sheet};
+#[cfg(feature = "viz")]
 use crate::viz::Rgb8;
 use rayon::prelude::*;
 
@@ -273,6 +276,7 @@ impl Dataset {
         self.frames.is_empty()
     }
 
+    #[cfg(feature = "viz")]
     /// Rows of (LR, HR, boundary map, edge map) for up to `count` evenly spaced frames, to check
     /// the maps by eye: geometry images as RGB clamped to [0,1], maps white on black, nearest
     /// upscaling (LR to the HR size, then all to about 128 px).

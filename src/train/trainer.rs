@@ -23,6 +23,7 @@ use crate::nn::{AnisoCb, NetConfig, NetKind, Trunk};
 use crate::ops::loss::DetailEnergy;
 use crate::ops::{AdamParams, Ops};
 use crate::tensor::Tensor;
+#[cfg(feature = "viz")]
 use crate::viz::plot::LinePlot;
 use std::path::{Path, PathBuf};
 
@@ -326,6 +327,7 @@ pub fn write_loss_csv(path: &Path, history: &[LogRow]) -> Result<()> {
     write_atomic_bytes(path, s.as_bytes())
 }
 
+#[cfg(feature = "viz")]
 /// The loss curve of `net`: per-step training loss (light blue) and its exponential moving
 /// average over ~2% of the run (dark blue), validation loss (orange); log y, x = step.
 /// Non-positive and non-finite losses are left out.

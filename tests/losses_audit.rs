@@ -1,4 +1,4 @@
-//! Audit of the fidelity additions against references written by JAX/NumPy
+//! Audit of the losses against references written by JAX/NumPy
 //! (tests/fixtures/gen_losses.py → tests/fixtures/losses/*.npy; versions in VERSIONS.txt):
 //! the edge-vector, curvature (Laplacian) and edge-length losses and their gradients, the
 //! combined GeometryNet loss (MSE + w·edge, MSE + w_e·edge + w_l·laplacian,
@@ -9,6 +9,9 @@
 //! atol 1e-8 + rtol 1e-5 (magnitude ~1/count); the frame atol 1e-5 (f32 positions of
 //! magnitude ≤ 3 m, f64 arithmetic after that).
 
+#[path = "common/close.rs"]
+mod close;
+use close::assert_close_slice as close;
 use anisocb::geom::cloth_frame::ClothFrame;
 use anisocb::geom::GridMesh;
 use anisocb::io::read_npy;
@@ -22,19 +25,6 @@ fn fx(name: &str) -> Tensor {
     let p =
         PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/losses").join(format!("{name}.npy"));
     read_npy(&p).unwrap_or_else(|e| panic!("{e}"))
-}
-
-fn close(what: &str, got: &[f32], want: &[f32], atol: f32, rtol: f32) {
-    assert_eq!(got.len(), want.len(), "{what}: length");
-    let mut worst = (0.0f32, 0usize);
-    for (i, (g, w)) in got.iter().zip(want).enumerate() {
-        let d = (g - w).abs();
-        assert!(d <= atol + rtol * w.abs(), "{what}[{i}]: got {g}, want {w} (diff {d})");
-        if d > worst.0 {
-            worst = (d, i);
-        }
-    }
-    println!("{what}: largest diff {:.2e} at {}", worst.0, worst.1);
 }
 
 #[test]
