@@ -4,8 +4,8 @@
 
 #[path = "common/close.rs"]
 mod close;
-use close::assert_close;
 use anisocb::rng::Rng;
+use close::assert_close;
 #[path = "common/random.rs"]
 mod random;
 use anisocb::ops::conv2d::{

@@ -5,21 +5,21 @@
 //! fixed-seed PRNG scaled by the measured duration of a clean run, so they land at varied
 //! points (before the first checkpoint, mid-write, after the last) on any machine speed.
 
+#[path = "common/tempdir.rs"]
+mod tempdir;
 use anisocb::rng::Rng;
+use tempdir::TempDir;
 #[path = "common/random.rs"]
 mod random;
 use anisocb::io::{read_npz, write_npz, NpzEntries};
 use anisocb::tensor::Tensor;
 use random::TestData;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-fn scratch(test: &str) -> PathBuf {
-    let d = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("crash-{test}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
+fn scratch(test: &str) -> TempDir {
+    TempDir::new(&format!("crash-{test}"))
 }
 
 fn bin() -> Command {
@@ -232,7 +232,6 @@ fn killed_training_resumes_to_the_same_bits_and_never_leaves_a_partial_checkpoin
     }
     assert!(temps(&out).is_empty(), "stray temporary files after resume: {:?}", temps(&out));
     eprintln!("train: {kills} kills, clean run {clean:?}");
-    let _ = std::fs::remove_dir_all(&d);
 }
 
 /// An OBJ of a w×h grid of quads (vertex (i, j) at j*w+i), one frame of a wave.
@@ -303,5 +302,4 @@ fn killed_upscale_reruns_to_a_complete_identical_sequence() {
     assert!(j.contains("\"complete\": true"), "{j}");
     assert!(temps(&out).is_empty(), "stray temporary files after the rerun: {:?}", temps(&out));
     assert!(meshes(&out) == want, "rerun after {kills} kills did not complete the sequence identically");
-    let _ = std::fs::remove_dir_all(&d);
 }

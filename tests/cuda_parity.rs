@@ -6,8 +6,8 @@
 
 #[path = "common/close.rs"]
 mod close;
-use close::{assert_close, assert_close_f32};
 use anisocb::rng::Rng;
+use close::{assert_close, assert_close_f32};
 #[path = "common/random.rs"]
 mod random;
 use anisocb::cuda::ops_for_device;

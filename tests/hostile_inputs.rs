@@ -2,9 +2,12 @@
 //! names the file and the problem; nothing allocates beyond the size of the file it reads
 //! (checked with a counting allocator); nothing is left half-written.
 
+#[path = "common/tempdir.rs"]
+mod tempdir;
 use anisocb::io::{npz, read_npy, read_npz, write_npy, NpzEntries};
 use anisocb::tensor::Tensor;
 use std::path::{Path, PathBuf};
+use tempdir::TempDir;
 
 #[path = "common/alloc.rs"]
 mod alloc;
@@ -13,11 +16,8 @@ use alloc::largest_alloc;
 // ---------------------------------------------------------------------------------------------
 // Helpers.
 
-fn scratch(test: &str) -> PathBuf {
-    let d = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("hostile-{test}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
+fn scratch(test: &str) -> TempDir {
+    TempDir::new(&format!("hostile-{test}"))
 }
 
 /// Assert `r` failed with a message naming `path` and containing every piece of `want`.

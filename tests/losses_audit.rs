@@ -11,7 +11,6 @@
 
 #[path = "common/close.rs"]
 mod close;
-use close::assert_close_slice as close;
 use anisocb::geom::cloth_frame::ClothFrame;
 use anisocb::geom::GridMesh;
 use anisocb::io::read_npy;
@@ -19,6 +18,7 @@ use anisocb::nn::geometry_net::{estimate_loss, GeometryLoss};
 use anisocb::ops::loss::DetailEnergy;
 use anisocb::ops::{loss, Cpu};
 use anisocb::Tensor;
+use close::assert_close_slice as close;
 use std::path::PathBuf;
 
 fn fx(name: &str) -> Tensor {

@@ -5,14 +5,17 @@
 
 #[path = "common/close.rs"]
 mod close;
-use close::assert_close;
+#[path = "common/tempdir.rs"]
+mod tempdir;
 use anisocb::io::{read_npz, NpzEntries};
 use anisocb::nn::config::parse_padding;
 use anisocb::nn::weights::load_net;
 use anisocb::nn::{GeometryNet, MapNet, NetConfig, NetKind, Trunk};
 use anisocb::ops::{AdamParams, Cpu, Ops};
 use anisocb::Tensor;
+use close::assert_close;
 use std::path::PathBuf;
+use tempdir::TempDir;
 
 fn fixture(name: &str) -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/nets").join(name)
@@ -128,7 +131,7 @@ fn ten_adam_steps_of_geometry_net_follow_optax() {
 #[test]
 fn audit_command_writes_every_layer_as_npy_matching_jax() {
     let (_, io) = load_case(NetKind::Geometry, "replicate");
-    let dir = std::env::temp_dir().join(format!("anisocb-audit-cli-{}", std::process::id()));
+    let dir = TempDir::new("audit-cli");
     std::fs::create_dir_all(&dir).unwrap();
     let input = dir.join("x.npy");
     anisocb::io::write_npy(&input, io.array("input").unwrap()).unwrap();

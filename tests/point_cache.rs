@@ -3,20 +3,20 @@
 //! here — independently of the writer — are read (and written) as the formats define them.
 //! The broken-file catalogue lives in tests/hostile_inputs.rs.
 
+#[path = "common/tempdir.rs"]
+mod tempdir;
 use anisocb::io::point_cache::{
     parse_header, write_frame, write_header, write_point_cache, CacheFormat, CacheHeader, PointCacheReader,
 };
 use anisocb::rng::Rng;
 use std::cell::Cell;
 use std::io::{Cursor, Read, Seek, SeekFrom};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::rc::Rc;
+use tempdir::TempDir;
 
-fn scratch(test: &str) -> PathBuf {
-    let d = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("point-cache-{test}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
+fn scratch(test: &str) -> TempDir {
+    TempDir::new(&format!("point-cache-{test}"))
 }
 
 /// Finite f32s from random bit patterns: every exponent, subnormals, ±0.

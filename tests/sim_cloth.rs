@@ -1,5 +1,7 @@
 //! Checks of the XPBD cloth simulator and its scenarios.
 
+#[path = "common/tempdir.rs"]
+mod tempdir;
 use anisocb::cloth::collision::{Cuboid, Sphere};
 use anisocb::cloth::run_io::{read_run, write_pair, write_single};
 use anisocb::cloth::scenarios::run_at;
@@ -8,6 +10,7 @@ use anisocb::cloth::{paired_run, run_single, Material, Scenario, ScenarioSpec};
 use anisocb::geom::geometry_image::{image_to_mesh, sequence_to_images};
 use anisocb::geom::mesh::{border_loop, closed_loop_length, dist};
 use anisocb::geom::{Domain, GridMesh};
+use tempdir::TempDir;
 
 fn spec(s: Scenario, w: usize, h: usize, frames: usize) -> ScenarioSpec {
     let mut sp = ScenarioSpec::new(s);
@@ -233,7 +236,7 @@ fn tracking_reduces_the_low_frequency_lr_hr_difference() {
 
 #[test]
 fn run_directory_round_trips() {
-    let dir = std::env::temp_dir().join(format!("anisocb-sim-test-{}", std::process::id()));
+    let dir = TempDir::new("sim-test");
     let sp = spec(Scenario::TwistZeroG, 8, 4, 5);
     let frames = run_at(&sp, 8, 4, None, &mut |_| {}).unwrap();
     let img = write_single(&dir.join("one"), &sp, &frames, true).unwrap();
@@ -260,7 +263,6 @@ fn run_directory_round_trips() {
     let back = anisocb::cloth::run_io::read_pair(&dir.join("pair")).unwrap();
     assert_eq!((back.lr, back.hr, back.domain), (written.lr, written.hr, written.domain));
     assert!(read_run(&dir.join("missing")).is_err());
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// Mean |strain| of row and column edges over frames `from..`.
@@ -296,7 +298,7 @@ fn hr_run_of_a_pair_is_as_inextensible_as_the_lr_run() {
 
 #[test]
 fn obj_frames_of_a_run_read_back_as_one_sequence() {
-    let dir = std::env::temp_dir().join(format!("anisocb-sim-seq-{}", std::process::id()));
+    let dir = TempDir::new("sim-seq");
     let sp = spec(Scenario::Twist, 9, 4, 12);
     let frames = run_single(&sp).unwrap();
     write_single(&dir, &sp, &frames, true).unwrap();
@@ -305,7 +307,6 @@ fn obj_frames_of_a_run_read_back_as_one_sequence() {
     let (back, style) = anisocb::geom::obj::read_obj_sequence(&files).unwrap();
     assert_eq!(style, anisocb::geom::obj::FaceStyle::Quads);
     assert_eq!(back, frames);
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]

@@ -10,7 +10,8 @@ use anisocb::Tensor;
 use std::path::PathBuf;
 
 fn tmp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("anisocb-train-{}-{name}", std::process::id()));
+    let d = std::path::Path::new(env!("CARGO_TARGET_TMPDIR"))
+        .join(format!("anisocb-train-{}-{name}", std::process::id()));
     let _ = std::fs::remove_dir_all(&d);
     d
 }

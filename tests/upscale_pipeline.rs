@@ -1,6 +1,8 @@
 //! The upscale pipeline end to end: OBJ sequence in → OBJ sequence out (4× the vertices),
 //! the border does not shrink, and the result is deterministic.
 
+#[path = "common/tempdir.rs"]
+mod tempdir;
 use anisocb::cloth::scenarios::{run_single, Scenario, ScenarioSpec};
 use anisocb::geom::geometry_image::sequence_to_images;
 use anisocb::geom::obj::{parse_obj, write_obj_grid};
@@ -13,6 +15,7 @@ use anisocb::sr::upscale::{
 };
 use std::path::Path;
 use std::process::Command;
+use tempdir::TempDir;
 
 fn small_run(frames: usize) -> Vec<GridMesh> {
     let mut spec = ScenarioSpec::new(Scenario::Drape);
@@ -224,8 +227,7 @@ fn bin() -> &'static str {
 
 #[test]
 fn cli_upscales_an_obj_sequence_into_obj_with_four_times_the_vertices() {
-    let dir = std::env::temp_dir().join(format!("anisocb-upscale-cli-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
+    let dir = TempDir::new("upscale-cli");
     let input = dir.join("in");
     std::fs::create_dir_all(&input).unwrap();
     let frames = small_run(3);
@@ -253,12 +255,11 @@ fn cli_upscales_an_obj_sequence_into_obj_with_four_times_the_vertices() {
     }
     let summary = std::fs::read_to_string(dir.join("out1/upscale.json")).unwrap();
     assert!(summary.contains("\"domain\""), "{summary}");
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]
 fn cli_refuses_a_missing_input_with_its_name() {
-    let out = std::env::temp_dir().join(format!("anisocb-missing-{}", std::process::id()));
+    let out = TempDir::new("missing");
     let o = Command::new(bin())
         .args(["upscale", "no/such/dir", "--out", out.to_str().unwrap()])
         .output()
@@ -270,8 +271,7 @@ fn cli_refuses_a_missing_input_with_its_name() {
 
 #[test]
 fn demo_and_eval_write_their_tables_and_pictures() {
-    let dir = std::env::temp_dir().join(format!("anisocb-demo-eval-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
+    let dir = TempDir::new("demo-eval");
     let demo = dir.join("demo");
     let o = Command::new(bin())
         .args(["demo", "--frames", "8", "--out", demo.to_str().unwrap()])
@@ -314,7 +314,6 @@ fn demo_and_eval_write_their_tables_and_pictures() {
         out.join("sim-rmse.png").is_file() && out.join("sim-worst.png").is_file(),
         "runs are labelled by directory"
     );
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// Upscale `frames` moved frame by frame by `t(k)` with the shipped model and return the
@@ -488,8 +487,7 @@ fn upscale_cli(args: &[&str]) {
 #[test]
 fn blender_obj_keeps_uvs_material_names_normals_and_winding() {
     use anisocb::geom::obj::obj_to_grid;
-    let dir = std::env::temp_dir().join(format!("anisocb-blender-obj-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
+    let dir = TempDir::new("blender-obj");
     let input = dir.join("in");
     std::fs::create_dir_all(&input).unwrap();
     let frames = small_run(3);
@@ -534,13 +532,11 @@ fn blender_obj_keeps_uvs_material_names_normals_and_winding() {
             assert_eq!(uv[c], lr_uv[lc], "{name}: corner UV moved");
         }
     }
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]
 fn frame_slices_concatenate_to_the_whole_shot_byte_for_byte() {
-    let dir = std::env::temp_dir().join(format!("anisocb-slices-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
+    let dir = TempDir::new("slices");
     let input = dir.join("in");
     std::fs::create_dir_all(&input).unwrap();
     let frames = small_run(7);
@@ -575,7 +571,6 @@ fn frame_slices_concatenate_to_the_whole_shot_byte_for_byte() {
     let b = anisocb::io::read_npy(&sn.join("geometry.3-6.npy")).unwrap();
     assert_eq!(b.shape, [3, 3, 24, 24]);
     assert!(a.slice_batch(3, 3).data.iter().zip(&b.data).all(|(x, y)| x.to_bits() == y.to_bits()));
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]
@@ -594,8 +589,7 @@ fn bad_frame_ranges_are_usage_errors_naming_the_range() {
 fn point_cache_with_rest_obj_upscales_to_an_hr_rest_obj_and_cache() {
     use anisocb::geom::obj::obj_to_grid;
     use anisocb::io::point_cache::{write_point_cache, CacheFormat, CacheHeader, PointCacheReader};
-    let dir = std::env::temp_dir().join(format!("anisocb-pc2-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
+    let dir = TempDir::new("pc2");
     let objs = dir.join("objs");
     std::fs::create_dir_all(&objs).unwrap();
     let frames = small_run(4);
@@ -652,7 +646,6 @@ fn point_cache_with_rest_obj_upscales_to_an_hr_rest_obj_and_cache() {
         assert_eq!(o2.status.code(), Some(1));
         assert!(String::from_utf8_lossy(&o2.stderr).contains("--rest"));
     }
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// The opt-in wrinkle model (weights/anisocb-x2-wrinkles.npz, docs/wrinkles.md) exists to add

@@ -1,9 +1,12 @@
 //! Close-ups where the folds are (`viz::closeup`) and the animated PNG writer. Set
 //! ANISOCB_SAVE_PICTURES=DIR to write the pictures these tests draw for a look.
 
+#[path = "common/tempdir.rs"]
+mod tempdir;
 use anisocb::geom::GridMesh;
 use anisocb::viz::closeup::{closeup_rows, flipbook_frames, wrinkle_window, Frame, Patch};
 use anisocb::viz::image::Rgb8;
+use tempdir::TempDir;
 
 fn save(name: &str, img: &Rgb8) {
     #[cfg(feature = "cli")]
@@ -139,7 +142,7 @@ fn patch_cut_keeps_rows_and_columns() {
 #[cfg(feature = "cli")]
 #[test]
 fn apng_writer_writes_an_animation_png_decodes_frame_by_frame() {
-    let dir = std::env::temp_dir().join(format!("anisocb-apng-{}", std::process::id()));
+    let dir = TempDir::new("apng");
     std::fs::create_dir_all(&dir).unwrap();
     let path = dir.join("flip.png");
     let frames: Vec<Rgb8> = (0..5u8).map(|k| Rgb8::new(7, 3, [40 * k, 255 - 40 * k, 9])).collect();
@@ -183,8 +186,7 @@ fn apng_frames(path: &std::path::Path) -> usize {
 #[test]
 fn demo_writes_wrinkles_png_and_eval_flipbook_writes_an_animation() {
     use std::process::Command;
-    let dir = std::env::temp_dir().join(format!("anisocb-closeups-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
+    let dir = TempDir::new("closeups");
     let demo = dir.join("demo");
     let o = Command::new(env!("CARGO_BIN_EXE_anisocb"))
         .args(["demo", "--frames", "8", "--out", demo.to_str().unwrap()])
@@ -210,5 +212,4 @@ fn demo_writes_wrinkles_png_and_eval_flipbook_writes_an_animation() {
     let said = run(&["--flipbook"]);
     assert!(said.contains("-flipbook.png"), "{said}");
     assert_eq!(apng_frames(&out.join("sim-flipbook.png")), 8);
-    let _ = std::fs::remove_dir_all(&dir);
 }

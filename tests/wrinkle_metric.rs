@@ -8,13 +8,13 @@
 
 #[path = "common/close.rs"]
 mod close;
-use close::assert_close_slice as close;
 use anisocb::eval::baseline::interpolate_sequence;
 use anisocb::eval::metrics::{grid_normals, lr_round_trip, wrinkle_detail, wrinkle_stats};
 use anisocb::geom::{Domain, GridMesh};
 use anisocb::io::read_npy;
 use anisocb::ops::{Cpu, Interp};
 use anisocb::Tensor;
+use close::assert_close_slice as close;
 use std::path::PathBuf;
 
 fn fx(name: &str) -> Tensor {

@@ -24,7 +24,8 @@ pub fn assert_close_slice(what: &str, got: &[f32], want: &[f32], atol: f32, rtol
         if d > worst || (d.is_nan() && !worst.is_nan()) {
             (worst, at) = (d, i);
         }
-        if !(d <= atol + rtol * w.abs()) {
+        let within = d <= atol + rtol * w.abs();
+        if !within {
             n_bad += 1;
             if bad.len() < 5 {
                 bad.push(format!("[{i}] got {g} want {w}"));
