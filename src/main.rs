@@ -2,10 +2,10 @@
 
 fn main() {
     // First, before anything that may use the wide instructions this binary was compiled for
-    // (see src/app/cpu.rs for what this can and cannot guarantee).
-    let missing = anisocb::app::cpu::missing_cpu_features();
+    // (see src/app/cpu_check.rs for what this can and cannot guarantee).
+    let missing = anisocb::app::cpu_check::missing_cpu_features();
     if !missing.is_empty() {
-        let _ = anisocb::app::cpu::write_missing_report(&mut std::io::stderr(), missing.as_slice());
+        let _ = anisocb::app::cpu_check::write_missing_report(&mut std::io::stderr(), missing.as_slice());
         std::process::exit(3);
     }
     // Ctrl-C, or SIGTERM from a farm's scheduler: remove the temporary files of the writes in

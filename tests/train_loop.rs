@@ -4,7 +4,7 @@
 use anisocb::nn::weights::load_net;
 use anisocb::nn::{AnisoCb, NetConfig, NetKind};
 use anisocb::ops::{AdamParams, Cpu, Ops};
-use anisocb::train::data::{split, PatchSampler, TrainingData};
+use anisocb::train::patches::{split, PatchSampler, TrainingData};
 use anisocb::train::trainer::{train, train_all, Event, TrainOptions};
 use anisocb::Tensor;
 use std::path::PathBuf;

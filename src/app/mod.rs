@@ -4,7 +4,7 @@
 pub mod audit;
 pub mod bench;
 pub mod bundle;
-pub mod cpu;
+pub mod cpu_check;
 pub mod dataset;
 pub mod demo;
 pub mod eval;

@@ -6,7 +6,7 @@ use crate::eval::linear::LinearUpsampler;
 use crate::nn::config::{parse_padding, parse_upsample};
 use crate::nn::{NetConfig, NetKind};
 use crate::ops::{AdamParams, Interp};
-use crate::train::data::{gather, interpolate_all, split, TrainingData};
+use crate::train::patches::{gather, interpolate_all, split, TrainingData};
 use crate::train::trainer::{loss_plot, train, train_all, Event, TrainOptions};
 use std::path::PathBuf;
 

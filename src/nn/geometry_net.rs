@@ -78,7 +78,7 @@ impl GeometryNet {
     }
 
     /// `MSE(U + R, HR)` for a batch, with `U` given (e.g. cropped from a whole-frame
-    /// interpolation, see `train::data`); adds the parameter gradients into `grads` if given.
+    /// interpolation, see `train::patches`); adds the parameter gradients into `grads` if given.
     pub fn loss(
         &self,
         ops: &dyn Ops,

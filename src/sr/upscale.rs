@@ -41,7 +41,7 @@ pub struct Upscaled {
     enhance_ran: bool,
     /// Per frame: (domain → nets' frame, back) and the LR frame in the nets' frame (for the
     /// strain limit and the outline floor); `strain_iters` and `keep_outline` as run.
-    maps: Vec<(Affine, Affine)>,
+    net_frames: Vec<(Affine, Affine)>,
     lr_net: Tensor,
     strain_iters: usize,
     pub(crate) keep_outline: bool,
@@ -64,7 +64,7 @@ impl Upscaled {
             boundary: cut(&self.boundary),
             enhance: cut(&self.enhance),
             enhance_ran: self.enhance_ran,
-            maps: self.maps[r.clone()].to_vec(),
+            net_frames: self.net_frames[r.clone()].to_vec(),
             lr_net: cut(&self.lr_net),
             strain_iters: self.strain_iters,
             keep_outline: self.keep_outline,
@@ -86,7 +86,7 @@ impl Upscaled {
         if self.hr.shape[0] >= n {
             self.hr.drop_batch_front(n);
         }
-        self.maps.drain(..n);
+        self.net_frames.drain(..n);
     }
 
     /// Append `other`'s frames (the same sizes; `hr` is not carried: run [`finish`] after).
@@ -96,7 +96,7 @@ impl Upscaled {
         self.boundary.append_batch(&other.boundary);
         self.enhance.append_batch(&other.enhance);
         self.lr_net.append_batch(&other.lr_net);
-        self.maps.extend_from_slice(&other.maps);
+        self.net_frames.extend_from_slice(&other.net_frames);
         self.hr = Tensor::zeros(&[0, 3, self.interpolated.shape[2], self.interpolated.shape[3]]);
     }
 
@@ -143,18 +143,18 @@ impl Upscaled {
         for (k, img) in hr.data.chunks_exact_mut(px3).enumerate() {
             let floor = loop_length(&self.lr_net.data[k * 3 * h * w..(k + 1) * 3 * h * w], &lr_ring);
             let mut hr_net = img.to_vec();
-            self.maps[k].0.apply_image(&mut hr_net, true);
+            self.net_frames[k].0.apply_image(&mut hr_net, true);
             // Long enough already (α = 1): nothing to scale, no normals to compute.
             if loop_length(&hr_net, &hr_ring) >= floor {
                 continue;
             }
             let mut u_net = self.interpolated.data[k * px3..(k + 1) * px3].to_vec();
-            self.maps[k].0.apply_image(&mut u_net, true);
+            self.net_frames[k].0.apply_image(&mut u_net, true);
             let base_net = outline_base(&hr_net, &u_net, hh, hw);
             let a = outline_weight(&hr_net, &base_net, &hr_ring, floor);
             if a < 1.0 {
                 let mut base = base_net;
-                self.maps[k].1.apply_image(&mut base, true);
+                self.net_frames[k].1.apply_image(&mut base, true);
                 blend_outer_rings(img, &base, hh, hw, a);
             }
         }
@@ -171,9 +171,9 @@ impl Upscaled {
         for (k, img) in hr.data.chunks_exact_mut(3 * hh * hw).enumerate() {
             let lr = &self.lr_net.data[k * 3 * h * w..(k + 1) * 3 * h * w];
             let (lx, ly) = hr_edge_targets(lr, h, w, hh, hw);
-            self.maps[k].0.apply_image(img, true);
+            self.net_frames[k].0.apply_image(img, true);
             limit_strain(img, hh, hw, &lx, &ly, self.strain_iters);
-            self.maps[k].1.apply_image(img, true);
+            self.net_frames[k].1.apply_image(img, true);
         }
     }
 }
@@ -193,7 +193,7 @@ pub fn upscale_images(
 }
 
 /// Step 1 of [`upscale_images`], per frame: each LR frame in the nets' frame and the three
-/// nets, batch by batch. U, R and the per-frame maps stay in the nets' frame (`hr` is empty)
+/// nets, batch by batch. U, R and the per-frame `net_frames` stay in the nets' frame (`hr` is empty)
 /// until [`finish`]; the result can be cut and joined along frames ([`Upscaled::drop_front`],
 /// [`Upscaled::append`]), which the streaming pipeline does so every frame runs once.
 pub fn run_nets(
@@ -226,7 +226,7 @@ pub fn run_nets(
         boundary: Tensor::zeros(&[t, 1, hh, hw]),
         enhance: Tensor::zeros(&[t, 1, hh, hw]),
         enhance_ran: params.eta != 0.0 || params.enhance_map,
-        maps: Vec::with_capacity(t),
+        net_frames: Vec::with_capacity(t),
         lr_net: Tensor::zeros(&[t, 3, h, w]),
         strain_iters: if model.input_frame() == InputFrame::Cloth { params.strain_iters } else { 0 },
         keep_outline: params.keep_outline && !params.pin_border && model.input_frame() == InputFrame::Cloth,
@@ -238,9 +238,9 @@ pub fn run_nets(
     let mut done = 0;
     while done < t {
         let n = params.batch.min(t - done);
-        out.maps.extend((done..done + n).map(|f| model.input_frame().image_maps(lr, f, domain)));
+        out.net_frames.extend((done..done + n).map(|f| model.input_frame().image_maps(lr, f, domain)));
         let mut x = lr.slice_batch(done, n);
-        for (img, m) in x.data.chunks_exact_mut(3 * h * w).zip(&out.maps[done..]) {
+        for (img, m) in x.data.chunks_exact_mut(3 * h * w).zip(&out.net_frames[done..]) {
             m.0.apply_image(img, true);
         }
         out.lr_net.data[done * 3 * h * w..(done + n) * 3 * h * w].copy_from_slice(&x.data);
@@ -296,7 +296,7 @@ pub fn finish(mut out: Upscaled, model: &AnisoCb, params: &UpscaleParams) -> Res
     }
     // 3. Back to the sequence's domain, then Eq 12 and the strain limit (`with_eta`).
     if model.input_frame() != InputFrame::Domain {
-        for (k, m) in out.maps.iter().enumerate() {
+        for (k, m) in out.net_frames.iter().enumerate() {
             let at = k * px3..(k + 1) * px3;
             m.1.apply_image(&mut out.interpolated.data[at.clone()], true);
             m.1.apply_image(&mut out.residual.data[at], false);

@@ -9,10 +9,10 @@
 //! `DIR/checkpoint.npz` holds `net.*` (weights + `net.config.json`), `adam.*` ([`Adam::save`]),
 //! `history` (K, 3: step, train loss, val loss or NaN) and `trainer.json` (step, seed and every
 //! option that must not change across a resume). Sampling is keyed by (seed, step) (see
-//! [`super::data`]), so `(seed, step)` *is* the RNG state.
+//! [`super::patches`]), so `(seed, step)` *is* the RNG state.
 
 use super::adam::Adam;
-use super::data::{gather, interpolate_all, split, PatchSampler, TrainingData};
+use super::patches::{gather, interpolate_all, split, PatchSampler, TrainingData};
 use crate::error::{Error, Result};
 use crate::io::json::Object;
 use crate::io::{read_npz, write_atomic_bytes, write_npz, NpzEntries};
