@@ -15,6 +15,60 @@ use crate::ops::{Ops, Padding};
 use crate::rng::{mix_seed, Rng};
 use crate::tensor::Tensor;
 
+/// One convolution of a trunk. [`layout`] lists them in the canonical order (the order of
+/// [`Trunk::convs`], [`Trunk::pack`], the weights file and the random initialisation).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Layer {
+    ConvIn,
+    /// `blocks.k.conv1` and `blocks.k.conv2`.
+    Conv1(usize),
+    Conv2(usize),
+    /// The C → r²C conv before the pixel shuffle.
+    Upscale,
+    /// `tail.i`, i < [`TAIL_CONVS`].
+    Tail(usize),
+}
+
+impl Layer {
+    /// Position in the canonical order of a trunk with `blocks` residual blocks.
+    pub fn index(self, blocks: usize) -> usize {
+        match self {
+            Layer::ConvIn => 0,
+            Layer::Conv1(k) => 1 + 2 * k,
+            Layer::Conv2(k) => 2 + 2 * k,
+            Layer::Upscale => 1 + 2 * blocks,
+            Layer::Tail(i) => 2 + 2 * blocks + i,
+        }
+    }
+
+    /// The PyTorch-style name (`conv_in`, `blocks.3.conv1`, `upscale`, `tail.0`).
+    pub fn name(self) -> String {
+        match self {
+            Layer::ConvIn => "conv_in".into(),
+            Layer::Conv1(k) => format!("blocks.{k}.conv1"),
+            Layer::Conv2(k) => format!("blocks.{k}.conv2"),
+            Layer::Upscale => "upscale".into(),
+            Layer::Tail(i) => format!("tail.{i}"),
+        }
+    }
+}
+
+/// The trunk of a `kind` net with `config`: every conv in canonical order with its (output,
+/// input) channels. The one description of the layout: construction, initialisation, names,
+/// packing, the forward's indices and the weights file's shapes all read it.
+pub fn layout(kind: NetKind, config: NetConfig) -> Vec<(Layer, usize, usize)> {
+    let c = config.channels;
+    let mut v = vec![(Layer::ConvIn, c, IN_CHANNELS)];
+    for k in 0..config.blocks {
+        v.extend([(Layer::Conv1(k), c, c), (Layer::Conv2(k), c, c)]);
+    }
+    v.push((Layer::Upscale, c * config.scale * config.scale, c));
+    for i in 0..TAIL_CONVS {
+        v.push((Layer::Tail(i), if i + 1 == TAIL_CONVS { kind.out_channels() } else { c }, c));
+    }
+    v
+}
+
 /// A 3×3 convolution: weight (O, I, 3, 3) OIHW, bias (O).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Conv {
@@ -115,19 +169,18 @@ impl Default for Tape {
 impl Trunk {
     /// All parameters zero (the shape of a gradient buffer).
     pub fn zeros(kind: NetKind, config: NetConfig) -> Trunk {
-        let c = config.channels;
-        Trunk {
-            kind,
-            config,
-            conv_in: Conv::zeros(c, IN_CHANNELS),
-            blocks: (0..config.blocks)
-                .map(|_| Block { conv1: Conv::zeros(c, c), conv2: Conv::zeros(c, c) })
-                .collect(),
-            upscale: Conv::zeros(c * config.scale * config.scale, c),
-            tail: (0..TAIL_CONVS)
-                .map(|i| Conv::zeros(if i + 1 == TAIL_CONVS { kind.out_channels() } else { c }, c))
-                .collect(),
-        }
+        Trunk::from_convs(kind, config, layout(kind, config).into_iter().map(|(_, o, i)| Conv::zeros(o, i)))
+    }
+
+    /// A trunk from its convs in [`layout`] order.
+    fn from_convs(kind: NetKind, config: NetConfig, convs: impl IntoIterator<Item = Conv>) -> Trunk {
+        let mut it = convs.into_iter();
+        let mut next = || it.next().expect("one conv per layout entry");
+        let conv_in = next();
+        let blocks = (0..config.blocks).map(|_| Block { conv1: next(), conv2: next() }).collect();
+        let upscale = next();
+        let tail = (0..TAIL_CONVS).map(|_| next()).collect();
+        Trunk { kind, config, conv_in, blocks, upscale, tail }
     }
 
     /// Deterministic initialisation from `seed` (same seed, same bits).
@@ -139,29 +192,21 @@ impl Trunk {
     /// bicubic baseline. Biases start at 0.
     pub fn init(kind: NetKind, config: NetConfig, seed: u64) -> Trunk {
         let mut rng = Rng::new(mix_seed(&[seed, kind as u64]));
-        let c = config.channels;
         let relu_gain = std::f32::consts::SQRT_2;
         let conv2_gain = if kind.residual() { 1.0 / (config.blocks.max(1) as f32).sqrt() } else { 1.0 };
-        let conv_in = Conv::kaiming(c, IN_CHANNELS, 1.0, &mut rng);
-        let blocks = (0..config.blocks)
-            .map(|_| {
-                let conv1 = Conv::kaiming(c, c, relu_gain, &mut rng);
-                let conv2 = Conv::kaiming(c, c, conv2_gain, &mut rng);
-                Block { conv1, conv2 }
-            })
-            .collect();
-        let upscale = Conv::kaiming(c * config.scale * config.scale, c, 1.0, &mut rng);
         let last_gain = if kind == NetKind::Geometry { 0.1 } else { 1.0 };
-        let tail = (0..TAIL_CONVS)
-            .map(|i| {
-                if i + 1 == TAIL_CONVS {
-                    Conv::kaiming(kind.out_channels(), c, last_gain, &mut rng)
-                } else {
-                    Conv::kaiming(c, c, relu_gain, &mut rng)
-                }
-            })
+        let gain = |l: Layer| match l {
+            Layer::Conv1(_) => relu_gain,
+            Layer::Conv2(_) => conv2_gain,
+            Layer::Tail(i) if i + 1 == TAIL_CONVS => last_gain,
+            Layer::Tail(_) => relu_gain,
+            Layer::ConvIn | Layer::Upscale => 1.0,
+        };
+        let convs: Vec<Conv> = layout(kind, config)
+            .into_iter()
+            .map(|(l, o, i)| Conv::kaiming(o, i, gain(l), &mut rng))
             .collect();
-        Trunk { kind, config, conv_in, blocks, upscale, tail }
+        Trunk::from_convs(kind, config, convs)
     }
 
     pub fn zeros_like(&self) -> Trunk {
@@ -171,16 +216,18 @@ impl Trunk {
     /// The convolutions with their PyTorch-style names (`conv_in`, `blocks.3.conv1`, `upscale`,
     /// `tail.0` …), in the canonical order.
     pub fn convs(&self) -> Vec<(String, &Conv)> {
-        let mut v = vec![("conv_in".to_string(), &self.conv_in)];
-        for (k, b) in self.blocks.iter().enumerate() {
-            v.push((format!("blocks.{k}.conv1"), &b.conv1));
-            v.push((format!("blocks.{k}.conv2"), &b.conv2));
+        layout(self.kind, self.config).into_iter().map(|(l, ..)| (l.name(), self.conv(l))).collect()
+    }
+
+    /// The conv at `l`.
+    pub fn conv(&self, l: Layer) -> &Conv {
+        match l {
+            Layer::ConvIn => &self.conv_in,
+            Layer::Conv1(k) => &self.blocks[k].conv1,
+            Layer::Conv2(k) => &self.blocks[k].conv2,
+            Layer::Upscale => &self.upscale,
+            Layer::Tail(i) => &self.tail[i],
         }
-        v.push(("upscale".to_string(), &self.upscale));
-        for (i, t) in self.tail.iter().enumerate() {
-            v.push((format!("tail.{i}"), t));
-        }
-        v
     }
 
     fn convs_mut(&mut self) -> Vec<&mut Conv> {
@@ -242,17 +289,18 @@ impl Trunk {
     /// without packing the weights on every call or a pass of their own for the ReLUs and adds.
     pub fn forward_packed(&self, ops: &dyn Ops, x: &Tensor, packed: &[PackedConv]) -> Tensor {
         let (nb, last) = (self.blocks.len(), self.tail.len() - 1);
-        assert_eq!(packed.len(), 2 * nb + 2 + self.tail.len(), "packed weights of another net");
+        let at = |l: Layer| &packed[l.index(nb)];
+        assert_eq!(packed.len(), Layer::Tail(last).index(nb) + 1, "packed weights of another net");
         let pad = self.config.padding;
         let (_, c, _, _) = x.dims4();
         assert_eq!(c, IN_CHANNELS, "trunk input must have {IN_CHANNELS} channels");
-        let mut a = self.conv_in.forward_packed(ops, x, pad, &packed[0], Epilogue::NONE);
+        let mut a = self.conv_in.forward_packed(ops, x, pad, at(Layer::ConvIn), Epilogue::NONE);
         for (k, b) in self.blocks.iter().enumerate() {
-            let r1 = b.conv1.forward_packed(ops, &a, pad, &packed[1 + 2 * k], Epilogue::RELU);
+            let r1 = b.conv1.forward_packed(ops, &a, pad, at(Layer::Conv1(k)), Epilogue::RELU);
             let skip = self.kind.residual().then_some(&a);
-            a = b.conv2.forward_packed(ops, &r1, pad, &packed[2 + 2 * k], Epilogue { skip, relu: false });
+            a = b.conv2.forward_packed(ops, &r1, pad, at(Layer::Conv2(k)), Epilogue { skip, relu: false });
         }
-        let u = self.upscale.forward_packed(ops, &a, pad, &packed[1 + 2 * nb], Epilogue::NONE);
+        let u = self.upscale.forward_packed(ops, &a, pad, at(Layer::Upscale), Epilogue::NONE);
         let mut z = ops.pixel_shuffle(&u, self.config.scale);
         drop(u);
         for (i, conv) in self.tail.iter().enumerate() {
@@ -260,7 +308,7 @@ impl Trunk {
                 ops,
                 &z,
                 pad,
-                &packed[2 + 2 * nb + i],
+                at(Layer::Tail(i)),
                 Epilogue { skip: None, relu: i < last },
             );
         }
@@ -374,19 +422,10 @@ impl Trunk {
 
 /// Names and shapes of every parameter of a net, in canonical order (what a weights file holds).
 pub fn param_shapes(kind: NetKind, config: NetConfig) -> Vec<(String, Vec<usize>)> {
-    let c = config.channels;
-    let mut convs = vec![("conv_in".to_string(), c, IN_CHANNELS)];
-    for k in 0..config.blocks {
-        convs.push((format!("blocks.{k}.conv1"), c, c));
-        convs.push((format!("blocks.{k}.conv2"), c, c));
-    }
-    convs.push(("upscale".to_string(), c * config.scale * config.scale, c));
-    for i in 0..TAIL_CONVS {
-        convs.push((format!("tail.{i}"), if i + 1 == TAIL_CONVS { kind.out_channels() } else { c }, c));
-    }
-    convs
+    layout(kind, config)
         .into_iter()
-        .flat_map(|(n, o, i)| {
+        .flat_map(|(l, o, i)| {
+            let n = l.name();
             [(format!("{n}.weight"), vec![o, i, KERNEL, KERNEL]), (format!("{n}.bias"), vec![o])]
         })
         .collect()
