@@ -59,7 +59,7 @@ fn set_error(msg: &str) {
 fn status_of(e: &Error) -> c_int {
     match e {
         Error::Io { .. } => ANISOCB_ERR_IO,
-        Error::Format { .. } => ANISOCB_ERR_FORMAT,
+        Error::Format { .. } | Error::Malformed(_) => ANISOCB_ERR_FORMAT,
         Error::Shape(_) => ANISOCB_ERR_SHAPE,
         Error::Config(_) => ANISOCB_ERR_CONFIG,
         Error::Numeric(_) => ANISOCB_ERR_NUMERIC,

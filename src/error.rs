@@ -18,6 +18,9 @@ pub enum Error {
     Numeric(String),
     /// The CUDA path is unavailable or failed.
     Device(String),
+    /// Bytes or text that are not what they claim, found by a parser that does not know the
+    /// file they came from ([`Error::in_file`] names it).
+    Malformed(String),
 }
 
 pub type Result<T> = std::result::Result<T, Error>;
@@ -44,7 +47,9 @@ impl Error {
     /// Attach a file to an error that did not know it (e.g. a shape error while loading `path`).
     pub fn in_file(self, path: impl AsRef<Path>) -> Self {
         match self {
-            Error::Shape(m) | Error::Config(m) | Error::Numeric(m) => Error::format(path, m),
+            Error::Shape(m) | Error::Config(m) | Error::Numeric(m) | Error::Malformed(m) => {
+                Error::format(path, m)
+            }
             e => e,
         }
     }
@@ -59,6 +64,7 @@ impl fmt::Display for Error {
             Error::Config(m) => write!(f, "invalid option: {m}"),
             Error::Numeric(m) => write!(f, "numeric failure: {m}"),
             Error::Device(m) => write!(f, "device: {m}"),
+            Error::Malformed(m) => write!(f, "malformed data: {m}"),
         }
     }
 }

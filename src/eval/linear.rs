@@ -181,7 +181,7 @@ impl LinearUpsampler {
     /// Read what [`LinearUpsampler::to_npz`] wrote; errors name `path`.
     pub fn from_npz(e: &NpzEntries, path: &Path) -> Result<LinearUpsampler> {
         let cfg = e.file("config.json").ok_or_else(|| Error::format(path, "no config.json entry"))?;
-        let o = Object::parse(&String::from_utf8_lossy(cfg)).map_err(|m| Error::format(path, m))?;
+        let o = Object::parse(&String::from_utf8_lossy(cfg)).map_err(|e| e.in_file(path))?;
         if o.get("format").and_then(|v| v.as_str()) != Some("anisocb-linear") {
             return Err(Error::format(path, "not a linear upsampler (config.json format ≠ anisocb-linear)"));
         }

@@ -154,7 +154,12 @@ impl Value {
     }
 
     /// Parse one JSON value (surrounding whitespace allowed, nothing else after it).
-    pub fn parse(text: &str) -> std::result::Result<Value, String> {
+    pub fn parse(text: &str) -> crate::Result<Value> {
+        super::json_parse::parse(text).map_err(crate::Error::Malformed)
+    }
+
+    /// [`Value::parse`] with the message alone (for parsers that add their own context).
+    pub(crate) fn parse_str(text: &str) -> std::result::Result<Value, String> {
         super::json_parse::parse(text)
     }
 }
@@ -229,8 +234,13 @@ impl Object {
     }
 
     /// Parse a JSON object (anything else is an error).
-    pub fn parse(text: &str) -> std::result::Result<Object, String> {
-        match Value::parse(text)? {
+    pub fn parse(text: &str) -> crate::Result<Object> {
+        Object::parse_str(text).map_err(crate::Error::Malformed)
+    }
+
+    /// [`Object::parse`] with the message alone (for parsers that add their own context).
+    pub(crate) fn parse_str(text: &str) -> std::result::Result<Object, String> {
+        match super::json_parse::parse(text)? {
             Value::Obj(o) => Ok(o),
             _ => Err("expected a JSON object".into()),
         }
@@ -247,7 +257,7 @@ pub fn write_json(path: &Path, v: &Value, layout: Layout) -> Result<()> {
 /// Read and parse the JSON file `path`; errors name the file.
 pub fn read_json(path: &Path) -> Result<Value> {
     let text = std::fs::read_to_string(path).map_err(|e| crate::Error::io(path, e))?;
-    Value::parse(&text).map_err(|m| crate::Error::format(path, m))
+    Value::parse(&text).map_err(|e| e.in_file(path))
 }
 
 // ---- writer ----
@@ -389,7 +399,7 @@ mod tests {
             assert!(Value::parse(bad).is_err(), "{bad:?} parsed");
         }
         let deep = "[".repeat(10_000);
-        assert!(Value::parse(&deep).unwrap_err().contains("nested deeper"));
+        assert!(Value::parse(&deep).unwrap_err().to_string().contains("nested deeper"));
         assert_eq!(Value::parse("NaN").unwrap().as_f64().map(f64::is_nan), Some(true));
     }
 }

@@ -16,7 +16,7 @@ pub const MAX_ELEMENTS: u64 = 1 << 30;
 
 pub fn read_npy(path: &Path) -> Result<Tensor> {
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
-    tensor_from_npy_bytes(&bytes).map_err(|m| Error::format(path, m))
+    tensor_from_npy_bytes(&bytes).map_err(|e| e.in_file(path))
 }
 
 /// Longest header text we parse (numpy's own default `max_header_size`). The header is a Python
@@ -49,7 +49,11 @@ impl NpyHeader {
 /// Parse and check the header at the start of `bytes` (which need hold only the header) of a
 /// `.npy` file of `file_len` bytes: a float array in C order whose data fills the file
 /// exactly. Nothing is allocated beyond the header text.
-pub fn parse_npy_header(bytes: &[u8], file_len: u64) -> std::result::Result<NpyHeader, String> {
+pub fn parse_npy_header(bytes: &[u8], file_len: u64) -> Result<NpyHeader> {
+    parse_npy_header_str(bytes, file_len).map_err(Error::Malformed)
+}
+
+fn parse_npy_header_str(bytes: &[u8], file_len: u64) -> std::result::Result<NpyHeader, String> {
     if bytes.is_empty() {
         return Err("empty file (0 bytes); expected a .npy array".into());
     }
@@ -120,8 +124,12 @@ fn decode_floats(bytes: &[u8], item: usize) -> Vec<f32> {
 
 /// Parse `.npy` bytes; the error is a plain message that the caller attaches a file name to.
 /// Nothing is allocated beyond what the bytes present can fill.
-pub fn tensor_from_npy_bytes(bytes: &[u8]) -> std::result::Result<Tensor, String> {
-    let h = parse_npy_header(bytes, bytes.len() as u64)?;
+pub fn tensor_from_npy_bytes(bytes: &[u8]) -> Result<Tensor> {
+    tensor_from_npy_bytes_str(bytes).map_err(Error::Malformed)
+}
+
+pub(crate) fn tensor_from_npy_bytes_str(bytes: &[u8]) -> std::result::Result<Tensor, String> {
+    let h = parse_npy_header_str(bytes, bytes.len() as u64)?;
     // Bounded by the payload present, checked by the header parse.
     let data = decode_floats(&bytes[h.offset..], h.item);
     Tensor::from_vec(&h.shape, data).map_err(|e| e.to_string())
@@ -144,7 +152,7 @@ impl NpyFrames {
             .take(12 + MAX_HEADER_BYTES as u64)
             .read_to_end(&mut head)
             .map_err(|e| Error::io(path, e))?;
-        let header = parse_npy_header(&head, len).map_err(|m| Error::format(path, m))?;
+        let header = parse_npy_header(&head, len).map_err(|e| e.in_file(path))?;
         if header.shape.is_empty() {
             return Err(Error::format(path, "a scalar, not a sequence of frames"));
         }
@@ -278,12 +286,16 @@ fn header_len(bytes: &[u8]) -> Option<usize> {
 /// finite. The first bad value is reported by frame, channel and pixel (row, col).
 pub fn read_geometry_images(path: &Path) -> Result<Tensor> {
     let t = read_npy(path)?;
-    check_geometry_images(&t).map_err(|m| Error::format(path, m))?;
+    check_geometry_images(&t).map_err(|e| e.in_file(path))?;
     Ok(t)
 }
 
 /// The checks of [`read_geometry_images`] on a tensor already in memory.
-pub fn check_geometry_images(t: &Tensor) -> std::result::Result<(), String> {
+pub fn check_geometry_images(t: &Tensor) -> Result<()> {
+    check_geometry_images_str(t).map_err(Error::Malformed)
+}
+
+fn check_geometry_images_str(t: &Tensor) -> std::result::Result<(), String> {
     if t.rank() != 4 {
         return Err(format!(
             "geometry images must have shape (T, 3, H, W), got rank {} shape {:?}{}",

@@ -4,7 +4,7 @@
 //! not pull a zip crate with C compression libraries; `np.savez_compressed` files get a clear
 //! error asking for `np.savez`.
 
-use super::npy::{npy_bytes, tensor_from_npy_bytes};
+use super::npy::{npy_bytes, tensor_from_npy_bytes_str};
 use crate::error::{Error, Result};
 use crate::tensor::Tensor;
 use std::path::Path;
@@ -111,7 +111,7 @@ pub fn write_npz(path: &Path, entries: &NpzEntries) -> Result<()> {
 
 pub fn read_npz(path: &Path) -> Result<NpzEntries> {
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
-    npz_from_bytes(&bytes).map_err(|m| Error::format(path, m))
+    npz_from_bytes(&bytes).map_err(|e| e.in_file(path))
 }
 
 fn u16_at(b: &[u8], i: usize) -> std::result::Result<u16, String> {
@@ -123,7 +123,11 @@ fn u32_at(b: &[u8], i: usize) -> std::result::Result<u32, String> {
         .ok_or_else(|| "truncated zip".into())
 }
 
-pub fn npz_from_bytes(b: &[u8]) -> std::result::Result<NpzEntries, String> {
+pub fn npz_from_bytes(b: &[u8]) -> Result<NpzEntries> {
+    npz_from_bytes_str(b).map_err(Error::Malformed)
+}
+
+fn npz_from_bytes_str(b: &[u8]) -> std::result::Result<NpzEntries, String> {
     if b.is_empty() {
         return Err("empty file (0 bytes); expected an .npz archive".into());
     }
@@ -186,7 +190,7 @@ pub fn npz_from_bytes(b: &[u8]) -> std::result::Result<NpzEntries, String> {
         }
         match name.strip_suffix(".npy") {
             Some(stem) => {
-                let t = tensor_from_npy_bytes(data).map_err(|m| format!("array '{stem}': {m}"))?;
+                let t = tensor_from_npy_bytes_str(data).map_err(|m| format!("array '{stem}': {m}"))?;
                 entries.arrays.push((stem.to_string(), t));
             }
             None => entries.files.push((name, data.to_vec())),

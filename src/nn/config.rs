@@ -184,8 +184,12 @@ impl NetConfig {
     }
 
     /// Parse a `config.json` entry; the message says which field is missing or wrong.
-    pub fn from_json(text: &str) -> std::result::Result<(NetKind, NetConfig), String> {
-        let o = Object::parse(text)?;
+    pub fn from_json(text: &str) -> crate::Result<(NetKind, NetConfig)> {
+        Self::from_json_str(text).map_err(crate::Error::Malformed)
+    }
+
+    pub(crate) fn from_json_str(text: &str) -> std::result::Result<(NetKind, NetConfig), String> {
+        let o = Object::parse_str(text)?;
         let s =
             |k: &str| o.get(k).and_then(|v| v.as_str()).ok_or(format!("config.json: missing string '{k}'"));
         let n = |k: &str| {
@@ -308,7 +312,7 @@ mod tests {
         assert!(!old.contains("upsample"), "{old}");
         assert_eq!(NetConfig::from_json(&old).unwrap().1.upsample, Interp::Bicubic);
         let bl = NetConfig::small().to_json(NetKind::Geometry).replace("\"bicubic\"", "\"bilinear\"");
-        assert!(NetConfig::from_json(&bl).unwrap_err().contains("upsample"));
+        assert!(NetConfig::from_json(&bl).unwrap_err().to_string().contains("upsample"));
         let d = NetConfig::small().diff(&NetConfig::paper());
         assert_eq!(d, vec!["channels: 32 vs 64".to_string(), "blocks: 4 vs 10".to_string()]);
     }

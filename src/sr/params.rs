@@ -13,7 +13,7 @@ pub static EMBEDDED_WEIGHTS: &[u8] = include_bytes!("../../weights/anisocb-x2.np
 /// Decode [`EMBEDDED_WEIGHTS`].
 pub fn embedded_model() -> Result<AnisoCb> {
     let what = Path::new("<embedded weights/anisocb-x2.npz>");
-    let e = npz_from_bytes(EMBEDDED_WEIGHTS).map_err(|m| Error::format(what, m))?;
+    let e = npz_from_bytes(EMBEDDED_WEIGHTS).map_err(|e| e.in_file(what))?;
     bundle_from_npz(&e, what)
 }
 

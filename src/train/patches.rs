@@ -48,7 +48,7 @@ impl TrainingData {
         if let Some(bytes) = e.file("params.json") {
             let text =
                 std::str::from_utf8(bytes).map_err(|_| Error::format(path, "params.json is not UTF-8"))?;
-            let v = Value::parse(text).map_err(|m| Error::format(path, format!("params.json: {m}")))?;
+            let v = Value::parse_str(text).map_err(|m| Error::format(path, format!("params.json: {m}")))?;
             if let Some(f) = v.get("input_frame").and_then(Value::as_str) {
                 d.input_frame = InputFrame::parse(f).map_err(|e| e.in_file(path))?;
             }

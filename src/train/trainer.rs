@@ -303,7 +303,7 @@ fn read_checkpoint(path: &Path, net: NetKind, o: &TrainOptions, fp: u64) -> Resu
     let e = read_npz(path)?;
     let tj =
         e.file("trainer.json").ok_or_else(|| Error::format(path, "not a checkpoint (no trainer.json)"))?;
-    let saved = Object::parse(&String::from_utf8_lossy(tj)).map_err(|m| Error::format(path, m))?;
+    let saved = Object::parse(&String::from_utf8_lossy(tj)).map_err(|e| e.in_file(path))?;
     let step = check_resumable(path, &saved, net, o, fp)?;
     let trunk = trunk_from_npz(&e, "net.", path, Some((net, o.config)))?;
     let mut adam = new_adam(&trunk, o);
