@@ -211,8 +211,8 @@ fn methods_for_run(
         )?);
         // The outline floor only recomposes the same network outputs.
         let mut flipped = up.clone();
-        flipped.keep_outline = !up.keep_outline;
-        let what = if flipped.keep_outline { "+ outline floor" } else { "without outline floor" };
+        flipped.set_keep_outline(!up.keeps_outline());
+        let what = if flipped.keeps_outline() { "+ outline floor" } else { "without outline floor" };
         out.push(Method {
             name: format!("anisocb {what}, eta={DEFAULT_ETA}"),
             meshes: images_to_sequence(&flipped.with_eta(DEFAULT_ETA)?, domain),

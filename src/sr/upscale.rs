@@ -24,51 +24,72 @@ use crate::ops::resample::resize;
 use crate::ops::{Interp, Ops};
 use crate::tensor::Tensor;
 
-/// What the pipeline produces for a sequence.
+/// How the nets were run, for the composition: fixed for a shot.
+#[derive(Clone, Copy, Debug)]
+struct Composition {
+    /// Whether EnhanceNet ran (it does not at η = 0, where Eq 12 ignores Γe).
+    enhance_ran: bool,
+    strain_iters: usize,
+    keep_outline: bool,
+    gate_coarse_only: bool,
+}
+
+/// Step 1's result ([`run_nets`]): the nets' outputs for consecutive frames, in the nets' frame.
+/// It can be cut and joined along frames, which the streaming pipeline does so that every
+/// frame runs through the nets once; [`finish`] turns it into an [`Upscaled`].
+#[derive(Clone, Debug)]
+pub struct NetOutputs {
+    /// Catmull-Rom interpolation U (T, 3, rH, rW), in the nets' frame.
+    pub interpolated: Tensor,
+    /// GeometryNet's residual R (T, 3, rH, rW), in the nets' frame.
+    pub residual: Tensor,
+    /// Γb (T, 1, rH, rW).
+    pub boundary: Tensor,
+    /// Γe (T, 1, rH, rW); all 0 where EnhanceNet was not run.
+    pub enhance: Tensor,
+    /// Per frame: (domain → nets' frame, back).
+    net_frames: Vec<(Affine, Affine)>,
+    /// The LR frames in the nets' frame (T, 3, H, W), for the strain limit and outline floor.
+    lr_net: Tensor,
+    how: Composition,
+}
+
+/// What the pipeline produces for a sequence ([`finish`]): the composed HR frames and the
+/// outputs they were composed from, all in the sequence's domain.
 #[derive(Clone, Debug)]
 pub struct Upscaled {
     /// Γfinal, the HR geometry images (T, 3, rH, rW).
     pub hr: Tensor,
-    /// Bicubic interpolation U (T, 3, rH, rW): the baseline.
+    /// Catmull-Rom interpolation U (T, 3, rH, rW): the baseline.
     pub interpolated: Tensor,
     /// GeometryNet's residual R (T, 3, rH, rW), before composition.
     pub residual: Tensor,
     /// Γb (T, 1, rH, rW).
     pub boundary: Tensor,
-    /// Γe (T, 1, rH, rW); all 0 where EnhanceNet was not run (`enhance_ran`).
+    /// Γe (T, 1, rH, rW); all 0 where EnhanceNet was not run.
     pub enhance: Tensor,
-    /// Whether EnhanceNet ran (it does not at η = 0, where Eq 12 ignores Γe).
-    enhance_ran: bool,
-    /// Per frame: (domain → nets' frame, back) and the LR frame in the nets' frame (for the
-    /// strain limit and the outline floor); `strain_iters` and `keep_outline` as run.
     net_frames: Vec<(Affine, Affine)>,
     lr_net: Tensor,
-    strain_iters: usize,
-    pub(crate) keep_outline: bool,
-    gate_coarse_only: bool,
+    how: Composition,
 }
 
-impl Upscaled {
+impl NetOutputs {
     /// Frames in it.
     pub fn frames(&self) -> usize {
         self.interpolated.shape[0]
     }
 
-    /// A copy of frames `r` (`hr` is not carried: run [`finish`] after).
-    pub fn slice_frames(&self, r: std::ops::Range<usize>) -> Upscaled {
+    /// A copy of frames `r`.
+    pub fn slice_frames(&self, r: std::ops::Range<usize>) -> NetOutputs {
         let cut = |t: &Tensor| t.slice_batch(r.start, r.len());
-        Upscaled {
-            hr: Tensor::zeros(&[0, 3, self.interpolated.shape[2], self.interpolated.shape[3]]),
+        NetOutputs {
             interpolated: cut(&self.interpolated),
             residual: cut(&self.residual),
             boundary: cut(&self.boundary),
             enhance: cut(&self.enhance),
-            enhance_ran: self.enhance_ran,
             net_frames: self.net_frames[r.clone()].to_vec(),
             lr_net: cut(&self.lr_net),
-            strain_iters: self.strain_iters,
-            keep_outline: self.keep_outline,
-            gate_coarse_only: self.gate_coarse_only,
+            how: self.how,
         }
     }
 
@@ -83,32 +104,40 @@ impl Upscaled {
         ] {
             t.drop_batch_front(n);
         }
-        if self.hr.shape[0] >= n {
-            self.hr.drop_batch_front(n);
-        }
         self.net_frames.drain(..n);
     }
 
-    /// Append `other`'s frames (the same sizes; `hr` is not carried: run [`finish`] after).
-    pub fn append(&mut self, other: &Upscaled) {
+    /// Append `other`'s frames (the same sizes).
+    pub fn append(&mut self, other: &NetOutputs) {
         self.interpolated.append_batch(&other.interpolated);
         self.residual.append_batch(&other.residual);
         self.boundary.append_batch(&other.boundary);
         self.enhance.append_batch(&other.enhance);
         self.lr_net.append_batch(&other.lr_net);
         self.net_frames.extend_from_slice(&other.net_frames);
-        self.hr = Tensor::zeros(&[0, 3, self.interpolated.shape[2], self.interpolated.shape[3]]);
+    }
+}
+
+impl Upscaled {
+    /// Whether [`Upscaled::with_eta`] applies the outline floor ([`UpscaleParams::keep_outline`]).
+    pub fn keeps_outline(&self) -> bool {
+        self.how.keep_outline
+    }
+
+    /// Compose with or without the outline floor from now on (`eval`'s comparison).
+    pub fn set_keep_outline(&mut self, on: bool) {
+        self.how.keep_outline = on;
     }
 
     /// Γfinal for another enhancement factor `eta`, from the same network outputs (Eq 12, the
     /// same outline floor and strain limit as [`Upscaled::hr`]).
     pub fn with_eta(&self, eta: f32) -> Result<Tensor> {
-        if eta != 0.0 && !self.enhance_ran {
+        if eta != 0.0 && !self.how.enhance_ran {
             return Err(Error::config(format!(
                 "η = {eta} needs EnhanceNet's map, which was not computed (upscaled with η = 0)"
             )));
         }
-        let mut g = if self.gate_coarse_only {
+        let mut g = if self.how.gate_coarse_only {
             // U + (1 − Γb)·S(R) + (1 + ηΓe)·(R − S(R)): BoundaryNet gates the coarse part,
             // η deepens the fine part (the folds) where EnhanceNet expects them.
             let (_, _, h, w) = self.lr_net.dims4();
@@ -134,7 +163,7 @@ impl Upscaled {
     /// each frame's cloth frame, the blend ([`blend_outer_rings`]) in the domain (a blend
     /// commutes with the affine map between them).
     pub(crate) fn keep_outline_all(&self, hr: &mut Tensor) {
-        if !self.keep_outline {
+        if !self.how.keep_outline {
             return;
         }
         let (_, _, h, w) = self.lr_net.dims4();
@@ -163,7 +192,7 @@ impl Upscaled {
     /// [`limit_strain`] on every frame of `hr` (T, 3, rH, rW, in the domain), in each frame's
     /// cloth frame, toward the HR edge lengths implied by the LR frame's own edges.
     fn limit_strain_all(&self, hr: &mut Tensor) {
-        if self.strain_iters == 0 {
+        if self.how.strain_iters == 0 {
             return;
         }
         let (_, _, h, w) = self.lr_net.dims4();
@@ -172,7 +201,7 @@ impl Upscaled {
             let lr = &self.lr_net.data[k * 3 * h * w..(k + 1) * 3 * h * w];
             let (lx, ly) = hr_edge_targets(lr, h, w, hh, hw);
             self.net_frames[k].0.apply_image(img, true);
-            limit_strain(img, hh, hw, &lx, &ly, self.strain_iters);
+            limit_strain(img, hh, hw, &lx, &ly, self.how.strain_iters);
             self.net_frames[k].1.apply_image(img, true);
         }
     }
@@ -193,9 +222,9 @@ pub fn upscale_images(
 }
 
 /// Step 1 of [`upscale_images`], per frame: each LR frame in the nets' frame and the three
-/// nets, batch by batch. U, R and the per-frame `net_frames` stay in the nets' frame (`hr` is empty)
-/// until [`finish`]; the result can be cut and joined along frames ([`Upscaled::drop_front`],
-/// [`Upscaled::append`]), which the streaming pipeline does so every frame runs once.
+/// nets, batch by batch, into [`NetOutputs`] (U and R in the nets' frame until [`finish`]),
+/// which can be cut and joined along frames ([`NetOutputs::drop_front`],
+/// [`NetOutputs::append`]): the streaming pipeline does so that every frame runs once.
 pub fn run_nets(
     ops: &dyn Ops,
     model: &AnisoCb,
@@ -203,7 +232,7 @@ pub fn run_nets(
     domain: &Domain,
     params: &UpscaleParams,
     on_frames: &mut dyn FnMut(usize),
-) -> Result<Upscaled> {
+) -> Result<NetOutputs> {
     let (t, c, h, w) = lr.expect_rank4("upscale input")?;
     if c != 3 {
         return Err(Error::shape(format!("upscale input must have 3 channels (xyz), got {c}")));
@@ -219,18 +248,20 @@ pub fn run_nets(
     domain.validate()?;
     let r = model.scale();
     let (hh, hw) = (r * h, r * w);
-    let mut out = Upscaled {
-        hr: Tensor::zeros(&[0, 3, hh, hw]),
+    let cloth = model.input_frame() == InputFrame::Cloth;
+    let mut out = NetOutputs {
         interpolated: Tensor::zeros(&[t, 3, hh, hw]),
         residual: Tensor::zeros(&[t, 3, hh, hw]),
         boundary: Tensor::zeros(&[t, 1, hh, hw]),
         enhance: Tensor::zeros(&[t, 1, hh, hw]),
-        enhance_ran: params.eta != 0.0 || params.enhance_map,
         net_frames: Vec::with_capacity(t),
         lr_net: Tensor::zeros(&[t, 3, h, w]),
-        strain_iters: if model.input_frame() == InputFrame::Cloth { params.strain_iters } else { 0 },
-        keep_outline: params.keep_outline && !params.pin_border && model.input_frame() == InputFrame::Cloth,
-        gate_coarse_only: params.gate_coarse_only,
+        how: Composition {
+            enhance_ran: params.eta != 0.0 || params.enhance_map,
+            strain_iters: if cloth { params.strain_iters } else { 0 },
+            keep_outline: params.keep_outline && !params.pin_border && cloth,
+            gate_coarse_only: params.gate_coarse_only,
+        },
     };
     let (px3, px1) = (3 * hh * hw, hh * hw);
     // Every conv's weights packed once for all batches and mirror views.
@@ -244,7 +275,7 @@ pub fn run_nets(
             m.0.apply_image(img, true);
         }
         out.lr_net.data[done * 3 * h * w..(done + n) * 3 * h * w].copy_from_slice(&x.data);
-        let o = nets.forward_with(ops, &x, out.enhance_ran)?;
+        let o = nets.forward_with(ops, &x, out.how.enhance_ran)?;
         let (r_at, m_at) = (done * px3..(done + n) * px3, done * px1..(done + n) * px1);
         out.interpolated.data[r_at.clone()].copy_from_slice(&o.u.data);
         out.residual.data[r_at.clone()].copy_from_slice(&o.r.data);
@@ -256,7 +287,7 @@ pub fn run_nets(
         let add = |acc: &mut [f32], t: &Tensor| acc.iter_mut().zip(&t.data).for_each(|(a, b)| *a += b);
         for &(rows, cols) in mirrors {
             let o =
-                nets.forward_with(ops, &mirror_net_images(&x, rows, cols, frame, true), out.enhance_ran)?;
+                nets.forward_with(ops, &mirror_net_images(&x, rows, cols, frame, true), out.how.enhance_ran)?;
             add(&mut out.residual.data[r_at.clone()], &mirror_net_images(&o.r, rows, cols, frame, false));
             add(&mut out.boundary.data[m_at.clone()], &o.boundary.flipped(rows, cols));
             add(&mut out.enhance.data[m_at.clone()], &o.enhance.flipped(rows, cols));
@@ -281,7 +312,7 @@ pub fn run_nets(
 /// Steps 2–3 of [`upscale_images`] on [`run_nets`]'s output for consecutive frames: temporal
 /// smoothing (the window renormalised at `raw`'s ends), back to the sequence's domain, Eq 12
 /// and the strain limit.
-pub fn finish(mut out: Upscaled, model: &AnisoCb, params: &UpscaleParams) -> Result<Upscaled> {
+pub fn finish(mut out: NetOutputs, model: &AnisoCb, params: &UpscaleParams) -> Result<Upscaled> {
     let px3 = out.interpolated.len() / out.interpolated.shape[0].max(1);
     // 2. Temporal smoothing of R where it is comparable across frames: in the cloth frame a
     //    wrinkle that stays on the cloth has the same residual whatever the cloth does. The
@@ -290,7 +321,7 @@ pub fn finish(mut out: Upscaled, model: &AnisoCb, params: &UpscaleParams) -> Res
     if params.temporal > 0 && model.input_frame() == InputFrame::Cloth {
         out.residual = smooth_in_time(&out.residual, params.temporal);
         out.boundary = smooth_in_time(&out.boundary, params.temporal);
-        if out.enhance_ran {
+        if out.how.enhance_ran {
             out.enhance = smooth_in_time(&out.enhance, params.temporal);
         }
     }
@@ -302,6 +333,10 @@ pub fn finish(mut out: Upscaled, model: &AnisoCb, params: &UpscaleParams) -> Res
             m.1.apply_image(&mut out.residual.data[at], false);
         }
     }
+    let NetOutputs { interpolated, residual, boundary, enhance, net_frames, lr_net, how } = out;
+    let (_, _, hh, hw) = interpolated.dims4();
+    let hr = Tensor::zeros(&[0, 3, hh, hw]);
+    let mut out = Upscaled { hr, interpolated, residual, boundary, enhance, net_frames, lr_net, how };
     out.hr = out.with_eta(params.eta)?;
     if let Some((i, v)) = out.hr.first_non_finite() {
         return Err(Error::numeric(format!(
