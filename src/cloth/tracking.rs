@@ -1,4 +1,4 @@
-//! "Tracking" (DESIGN.md, training data): a high-resolution run is softly attached to its
+//! "Tracking" (docs/architecture.md, "Training data and tracking"): a high-resolution run is softly attached to its
 //! low-resolution twin, so the pair differs by detail, not by chaos.
 //!
 //! - [`TrackingMode::Coarse`] (default): one constraint per LR node on a weighted average of

@@ -24,7 +24,7 @@ use rayon::prelude::*;
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct BoundaryParams {
     /// Threshold on `σ3/σ1` (dimensionless). A vertex whose neighbourhood has
-    /// `σ3 ≥ γ σ1` is a boundary vertex. Default 0.05 (DESIGN.md): a flat or gently curved
+    /// `σ3 ≥ γ σ1` is a boundary vertex. Default 0.05 (docs/architecture.md, "Ground-truth boundary map"): a flat or gently curved
     /// sheet stays well below (σ3/σ1 ≈ 0 flat, < 0.01 for bends of radius ≥ 2r), a crease
     /// sharper than ~60° or a sheet folded back onto itself is well above (≈ 0.1–0.5).
     pub gamma: f64,

@@ -8,7 +8,7 @@
 //! 4. hysteresis: pixels kept by (3) with magnitude ≥ `low` form 8-connected components; a
 //!    component is an edge if it holds a pixel with magnitude ≥ `high`.
 //!
-//! The ground-truth enhance map (DESIGN.md) is the OR of the per-channel Canny edges of the HR
+//! The ground-truth enhance map (docs/architecture.md, "Ground-truth enhance map") is the OR of the per-channel Canny edges of the HR
 //! geometry image ([`enhance_map`]).
 
 use super::gaussian::gaussian_blur_normalized;

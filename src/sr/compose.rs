@@ -1,4 +1,4 @@
-//! Composition of the networks' outputs into the HR geometry image (our Eq 12, DESIGN.md):
+//! Composition of the networks' outputs into the HR geometry image (our Eq 12, docs/architecture.md "Composition (Eq 12)"):
 //!
 //! ```text
 //! Γfinal = U + (1 − Γb) ⊙ (1 + η·Γe) ⊙ R

@@ -1,5 +1,5 @@
 //! The training set: LR geometry images paired with HR ground truth and the two ground-truth
-//! maps computed on it (DESIGN.md "Ground-truth boundary map", "Ground-truth enhance map").
+//! maps computed on it (docs/architecture.md "Ground-truth boundary map", "Ground-truth enhance map").
 //!
 //! Input: simulated run pairs as written by `anisocb simulate --pair --out DIR`, i.e. `DIR/lr/`
 //! and `DIR/hr/`, each with `geometry.npy` (T, 3, H, W) f32, `domain.npy` (2, 3) = [bmin; bmax]
