@@ -9,7 +9,7 @@
 #                    normalisation (`eval --prior`): what the cloth frame changes
 #   linear-x2.npz    the learned linear upsampler (`eval --linear`): what any net must beat
 #
-# Held out of training, chosen before training (used by `anisocb demo`, the README's
+# Held out of training, chosen before training (used by `anisocb demo`, docs/results.md's
 # evaluation and `eval`): the scenarios flag-sphere and twist-zero-g, seeds ≥ 7 of every
 # scenario, and every Blender test scene (tests/blender/make_scenes.py, both test sets). Seed 6
 # of every scenario and the Blender validation scenes (make_scenes.py's VALIDATION_SCENES) are

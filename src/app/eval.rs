@@ -46,7 +46,7 @@ use std::time::Instant;
   anisocb eta=E      anisocb in full, Eq 12, for each --eta value
   anisocb paper      the paper-size config (--paper FILE), eta = default
 
-Example (the README's headline table):
+Example (the headline table: README, commands in docs/results.md):
   anisocb simulate --scenario flag-sphere --pair --seed 1000 --frames 120 --tracking 1000 --track vertex --out runs/flag-sphere
   anisocb simulate --scenario twist-zero-g --res 32x32 --pair --seed 1000 --frames 120 --tracking 1000 --track vertex --out runs/twist-zero-g
   anisocb eval --runs runs/* --prior weights/domain-x2.npz --linear weights/linear-x2.npz --moved --out eval-out")]

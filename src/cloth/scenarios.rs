@@ -190,7 +190,7 @@ impl Variation {
 }
 
 /// Default tracking strength (1/s²): attachment natural frequency ≈ 5 Hz, soft enough for
-/// wrinkles to form, strong enough to keep the HR run on its LR twin. Measured (README, "What
+/// wrinkles to form, strong enough to keep the HR run on its LR twin. Measured (docs/results.md, "What
 /// there is to learn"): at 100 1/s² most of HR − U on a held-out flag is the HR run drifting
 /// away (3.6 mm), at 1000 it is 2.1 mm and at 10 000 2.0 mm, so 1000 keeps the wrinkles and
 /// drops the drift no upscaler could predict. The shipped model is trained at this strength.

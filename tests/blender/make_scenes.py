@@ -403,7 +403,7 @@ def scene_hammock(n, frames):
     return cloth
 
 
-# The test scenes: the README's Blender table. Nothing is chosen on them.
+# The test scenes: docs/results.md, "Cloth from another tool: Blender". Nothing is chosen on them.
 SCENES = {
     "drop-sphere": scene_drop_sphere,
     "flag-wind": scene_flag_wind,
