@@ -112,9 +112,9 @@ fn ensemble_bundle_round_trips_and_averages_its_geometry_nets() {
     let out = m.forward(&anisocb::ops::Cpu, &x).unwrap();
     let (u1, r1) = m.geometry.forward(&anisocb::ops::Cpu, &x).unwrap();
     let (_, r2) = m.more_geometry[0].forward(&anisocb::ops::Cpu, &x).unwrap();
-    assert_eq!(out.u, u1);
+    assert_eq!(out.interpolated, u1);
     let mean: Vec<f32> = r1.data.iter().zip(&r2.data).map(|(a, b)| (a + b) * 0.5).collect();
-    assert_eq!(out.r.data, mean);
+    assert_eq!(out.residual.data, mean);
     assert!(r1.max_abs_diff(&r2) > 0.0, "the two members must differ for the test to tell");
     let other = Trunk::init(NetKind::Geometry, cfg.with_padding(Padding::Replicate), 7);
     let err = AnisoCb::new(cfg, 5).with_more_geometry(vec![other]).unwrap_err().to_string();
@@ -141,8 +141,8 @@ fn packed_bundle_gives_the_bits_of_the_plain_bundle() {
             let (a, b) =
                 (m.forward_with(&Cpu, &x, enhance).unwrap(), nets.forward_with(&Cpu, &x, enhance).unwrap());
             for (what, p, q) in [
-                ("U", &a.u, &b.u),
-                ("R", &a.r, &b.r),
+                ("U", &a.interpolated, &b.interpolated),
+                ("R", &a.residual, &b.residual),
                 ("Γb", &a.boundary, &b.boundary),
                 ("Γe", &a.enhance, &b.enhance),
             ] {

@@ -23,11 +23,11 @@ pub struct AnisoCb {
 
 /// What the nets say about one batch; every map is (N, ·, r·H, r·W).
 #[derive(Clone, Debug)]
-pub struct SrOutputs {
-    /// Cubic (align-corners) interpolation U of the input (`config.upsample`), (N, 3, rH, rW).
-    pub u: Tensor,
-    /// GeometryNet's residual, (N, 3, rH, rW).
-    pub r: Tensor,
+pub struct NetsOutput {
+    /// U: the input interpolated (`config.upsample`, align corners), (N, 3, rH, rW).
+    pub interpolated: Tensor,
+    /// R: GeometryNet's residual, (N, 3, rH, rW).
+    pub residual: Tensor,
     /// Γb = σ(BoundaryNet logits), (N, 1, rH, rW), in [0, 1].
     pub boundary: Tensor,
     /// Γe = σ(EnhanceNet logits), (N, 1, rH, rW), in [0, 1].
@@ -115,13 +115,13 @@ impl AnisoCb {
 
     /// lr (N, 3, H, W) → (U, R, Γb, Γe). Inference only: no activations are kept; run it in
     /// batches that fit memory (≈ 2·C·r²·H·W floats per sample at the widest layer).
-    pub fn forward(&self, ops: &dyn Ops, lr: &Tensor) -> Result<SrOutputs> {
+    pub fn forward(&self, ops: &dyn Ops, lr: &Tensor) -> Result<NetsOutput> {
         self.forward_with(ops, lr, true)
     }
 
     /// [`AnisoCb::forward`], with EnhanceNet run only if `enhance` (else Γe = 0, which is all
     /// Eq 12 reads of it at η = 0): a third less work for the default η.
-    pub fn forward_with(&self, ops: &dyn Ops, lr: &Tensor, enhance: bool) -> Result<SrOutputs> {
+    pub fn forward_with(&self, ops: &dyn Ops, lr: &Tensor, enhance: bool) -> Result<NetsOutput> {
         self.run(ops, lr, enhance, None)
     }
 
@@ -140,7 +140,7 @@ impl AnisoCb {
         lr: &Tensor,
         enhance: bool,
         packed: Option<&[Vec<PackedConv>]>,
-    ) -> Result<SrOutputs> {
+    ) -> Result<NetsOutput> {
         check_input(lr, "AnisoCb input")?;
         let pk = |k: usize| packed.map(|p| p[k].as_slice());
         let ng = 1 + self.more_geometry.len();
@@ -159,7 +159,7 @@ impl AnisoCb {
             } else {
                 Tensor::zeros(&boundary.shape)
             };
-            Ok(SrOutputs { u, r, boundary, enhance })
+            Ok(NetsOutput { interpolated: u, residual: r, boundary, enhance })
         })
     }
 }
@@ -175,7 +175,7 @@ pub struct PackedAnisoCb<'a> {
 
 impl PackedAnisoCb<'_> {
     /// [`AnisoCb::forward_with`].
-    pub fn forward_with(&self, ops: &dyn Ops, lr: &Tensor, enhance: bool) -> Result<SrOutputs> {
+    pub fn forward_with(&self, ops: &dyn Ops, lr: &Tensor, enhance: bool) -> Result<NetsOutput> {
         self.model.run(ops, lr, enhance, Some(&self.packed))
     }
 }

@@ -17,7 +17,7 @@ pub mod layers;
 pub mod map_net;
 pub mod weights;
 
-pub use bundle::{AnisoCb, SrOutputs};
+pub use bundle::{AnisoCb, NetsOutput};
 pub use config::{NetConfig, NetKind};
 pub use geometry_net::GeometryNet;
 pub use layers::{Conv, Tape, Trunk};

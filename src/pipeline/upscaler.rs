@@ -11,7 +11,7 @@ use crate::geom::geometry_image::{image_to_mesh, mesh_to_image};
 use crate::geom::{Domain, GridMesh};
 use crate::nn::bundle::AnisoCb;
 use crate::ops::{Cpu, Ops};
-use crate::sr::upscale::{embedded_model, finish, run_nets, NetOutputs, UpscaleParams};
+use crate::sr::upscale::{embedded_model, finish, run_nets, Predictions, UpscaleParams};
 
 /// A model ready to upscale a shot frame by frame (see the module docs).
 pub struct Upscaler {
@@ -26,7 +26,7 @@ pub struct Upscaler {
     /// The shot's LR grid (columns, rows), fixed by its first frame.
     grid: Option<(usize, usize)>,
     /// The nets' outputs for frames `raw_lo .. pushed` of the shot.
-    raw: Option<NetOutputs>,
+    raw: Option<Predictions>,
     raw_lo: usize,
     /// Frames given to [`Upscaler::push`] and handed out so far.
     pushed: usize,

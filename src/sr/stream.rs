@@ -9,7 +9,7 @@
 //! Every other step is per frame, so frame `f`'s result depends only on frames `f − k … f + k`
 //! of the shot, as in [`super::upscale::upscale_images`].
 
-use super::upscale::{finish, run_nets, NetOutputs, UpscaleParams, Upscaled};
+use super::upscale::{finish, run_nets, Predictions, UpscaleParams, Upscaled};
 use crate::error::{Error, Result};
 use crate::geom::cloth_frame::InputFrame;
 use crate::geom::Domain;
@@ -82,13 +82,13 @@ pub fn upscale_stream(
     };
     // The nets' outputs for frames buf_lo..buf_lo + raw.frames(): each chunk's window, whose
     // overlap with the next window is kept so that every frame runs through the nets once.
-    let mut raw: Option<NetOutputs> = None;
+    let mut raw: Option<Predictions> = None;
     let mut buf_lo = 0;
     let mut a = range.start;
     while a < range.end {
         let b = (a + chunk).min(range.end);
         let (lo, hi) = (a.saturating_sub(k), (b + k).min(t));
-        let have = raw.as_ref().map_or(0, NetOutputs::frames);
+        let have = raw.as_ref().map_or(0, Predictions::frames);
         if buf_lo + have <= lo {
             raw = None;
             buf_lo = lo;
@@ -96,7 +96,7 @@ pub fn upscale_stream(
             r.drop_front(lo - buf_lo);
             buf_lo = lo;
         }
-        let from = buf_lo + raw.as_ref().map_or(0, NetOutputs::frames);
+        let from = buf_lo + raw.as_ref().map_or(0, Predictions::frames);
         if from < hi {
             let lr = src.read(from..hi)?;
             let new = run_nets(ops, model, &lr, domain, params, &mut |_| {}).map_err(from_frame(from))?;

@@ -38,7 +38,7 @@ struct Composition {
 /// It can be cut and joined along frames, which the streaming pipeline does so that every
 /// frame runs through the nets once; [`finish`] turns it into an [`Upscaled`].
 #[derive(Clone, Debug)]
-pub struct NetOutputs {
+pub struct Predictions {
     /// Catmull-Rom interpolation U (T, 3, rH, rW), in the nets' frame.
     pub interpolated: Tensor,
     /// GeometryNet's residual R (T, 3, rH, rW), in the nets' frame.
@@ -73,16 +73,16 @@ pub struct Upscaled {
     how: Composition,
 }
 
-impl NetOutputs {
+impl Predictions {
     /// Frames in it.
     pub fn frames(&self) -> usize {
         self.interpolated.shape[0]
     }
 
     /// A copy of frames `r`.
-    pub fn slice_frames(&self, r: std::ops::Range<usize>) -> NetOutputs {
+    pub fn slice_frames(&self, r: std::ops::Range<usize>) -> Predictions {
         let cut = |t: &Tensor| t.slice_batch(r.start, r.len());
-        NetOutputs {
+        Predictions {
             interpolated: cut(&self.interpolated),
             residual: cut(&self.residual),
             boundary: cut(&self.boundary),
@@ -108,7 +108,7 @@ impl NetOutputs {
     }
 
     /// Append `other`'s frames (the same sizes).
-    pub fn append(&mut self, other: &NetOutputs) {
+    pub fn append(&mut self, other: &Predictions) {
         self.interpolated.append_batch(&other.interpolated);
         self.residual.append_batch(&other.residual);
         self.boundary.append_batch(&other.boundary);
@@ -222,9 +222,9 @@ pub fn upscale_images(
 }
 
 /// Step 1 of [`upscale_images`], per frame: each LR frame in the nets' frame and the three
-/// nets, batch by batch, into [`NetOutputs`] (U and R in the nets' frame until [`finish`]),
-/// which can be cut and joined along frames ([`NetOutputs::drop_front`],
-/// [`NetOutputs::append`]): the streaming pipeline does so that every frame runs once.
+/// nets, batch by batch, into [`Predictions`] (U and R in the nets' frame until [`finish`]),
+/// which can be cut and joined along frames ([`Predictions::drop_front`],
+/// [`Predictions::append`]): the streaming pipeline does so that every frame runs once.
 pub fn run_nets(
     ops: &dyn Ops,
     model: &AnisoCb,
@@ -232,7 +232,7 @@ pub fn run_nets(
     domain: &Domain,
     params: &UpscaleParams,
     on_frames: &mut dyn FnMut(usize),
-) -> Result<NetOutputs> {
+) -> Result<Predictions> {
     let (t, c, h, w) = lr.expect_rank4("upscale input")?;
     if c != 3 {
         return Err(Error::shape(format!("upscale input must have 3 channels (xyz), got {c}")));
@@ -249,7 +249,7 @@ pub fn run_nets(
     let r = model.scale();
     let (hh, hw) = (r * h, r * w);
     let cloth = model.input_frame() == InputFrame::Cloth;
-    let mut out = NetOutputs {
+    let mut out = Predictions {
         interpolated: Tensor::zeros(&[t, 3, hh, hw]),
         residual: Tensor::zeros(&[t, 3, hh, hw]),
         boundary: Tensor::zeros(&[t, 1, hh, hw]),
@@ -277,8 +277,8 @@ pub fn run_nets(
         out.lr_net.data[done * 3 * h * w..(done + n) * 3 * h * w].copy_from_slice(&x.data);
         let o = nets.forward_with(ops, &x, out.how.enhance_ran)?;
         let (r_at, m_at) = (done * px3..(done + n) * px3, done * px1..(done + n) * px1);
-        out.interpolated.data[r_at.clone()].copy_from_slice(&o.u.data);
-        out.residual.data[r_at.clone()].copy_from_slice(&o.r.data);
+        out.interpolated.data[r_at.clone()].copy_from_slice(&o.interpolated.data);
+        out.residual.data[r_at.clone()].copy_from_slice(&o.residual.data);
         out.boundary.data[m_at.clone()].copy_from_slice(&o.boundary.data);
         out.enhance.data[m_at.clone()].copy_from_slice(&o.enhance.data);
         // The other mirrors of the grid, each in its own frame; their outputs back onto this one.
@@ -288,7 +288,10 @@ pub fn run_nets(
         for &(rows, cols) in mirrors {
             let o =
                 nets.forward_with(ops, &mirror_net_images(&x, rows, cols, frame, true), out.how.enhance_ran)?;
-            add(&mut out.residual.data[r_at.clone()], &mirror_net_images(&o.r, rows, cols, frame, false));
+            add(
+                &mut out.residual.data[r_at.clone()],
+                &mirror_net_images(&o.residual, rows, cols, frame, false),
+            );
             add(&mut out.boundary.data[m_at.clone()], &o.boundary.flipped(rows, cols));
             add(&mut out.enhance.data[m_at.clone()], &o.enhance.flipped(rows, cols));
         }
@@ -312,7 +315,7 @@ pub fn run_nets(
 /// Steps 2–3 of [`upscale_images`] on [`run_nets`]'s output for consecutive frames: temporal
 /// smoothing (the window renormalised at `raw`'s ends), back to the sequence's domain, Eq 12
 /// and the strain limit.
-pub fn finish(mut out: NetOutputs, model: &AnisoCb, params: &UpscaleParams) -> Result<Upscaled> {
+pub fn finish(mut out: Predictions, model: &AnisoCb, params: &UpscaleParams) -> Result<Upscaled> {
     let px3 = out.interpolated.len() / out.interpolated.shape[0].max(1);
     // 2. Temporal smoothing of R where it is comparable across frames: in the cloth frame a
     //    wrinkle that stays on the cloth has the same residual whatever the cloth does. The
@@ -333,7 +336,7 @@ pub fn finish(mut out: NetOutputs, model: &AnisoCb, params: &UpscaleParams) -> R
             m.1.apply_image(&mut out.residual.data[at], false);
         }
     }
-    let NetOutputs { interpolated, residual, boundary, enhance, net_frames, lr_net, how } = out;
+    let Predictions { interpolated, residual, boundary, enhance, net_frames, lr_net, how } = out;
     let (_, _, hh, hw) = interpolated.dims4();
     let hr = Tensor::zeros(&[0, 3, hh, hw]);
     let mut out = Upscaled { hr, interpolated, residual, boundary, enhance, net_frames, lr_net, how };
