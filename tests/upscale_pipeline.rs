@@ -60,8 +60,8 @@ fn eta_zero_skips_enhance_net_without_changing_the_output() {
     let full = upscale_images(&Cpu, &model, &lr, &d, &UpscaleParams { enhance_map: true, ..p }, &mut |_| {})
         .unwrap();
     assert_eq!(skipped.hr.max_abs_diff(&full.hr), 0.0, "η = 0 must not depend on Γe");
-    assert!(skipped.enhance.data.iter().all(|&v| v == 0.0), "EnhanceNet ran at η = 0");
-    assert!(full.enhance.data.iter().any(|&v| v != 0.0));
+    assert!(skipped.enhance().data.iter().all(|&v| v == 0.0), "EnhanceNet ran at η = 0");
+    assert!(full.enhance().data.iter().any(|&v| v != 0.0));
     // Composing another η needs the map: refused, not silently wrong.
     assert!(skipped.with_eta(0.5).unwrap_err().to_string().contains("EnhanceNet"));
     assert!(full.with_eta(0.5).is_ok());
@@ -77,7 +77,7 @@ fn shipped_model_does_not_shrink_the_border_and_is_deterministic() {
     let (b, _) = upscale_meshes(&Cpu, &model, &frames, &d, &p, &mut |_| {}).unwrap();
     assert_eq!(a, b, "same input, same bits");
     let interp: Vec<GridMesh> = (0..frames.len())
-        .map(|k| anisocb::geom::geometry_image::image_to_mesh(&up.interpolated, k, &d))
+        .map(|k| anisocb::geom::geometry_image::image_to_mesh(&up.interpolated(), k, &d))
         .collect();
     let size = frames[0].longest_edge() * 11.0; // ≈ cloth width
     for (m, u) in a.iter().zip(&interp) {
@@ -114,12 +114,12 @@ fn temporal_smoothing_smooths_the_gating_maps_with_the_residual() {
         let (b, e) = (raw.boundary.clone(), raw.enhance.clone());
         let up = finish(raw, &model, &p).unwrap();
         assert!(b.max_abs_diff(&e) > 0.0, "the two maps must differ for the test to tell them apart");
-        for (name, got, want) in [("Γb", &up.boundary, &b), ("Γe", &up.enhance, &e)] {
+        for (name, got, want) in [("Γb", up.boundary(), &b), ("Γe", up.enhance(), &e)] {
             let want = if k == 0 { want.clone() } else { smooth_in_time(want, k) };
             assert_eq!(got.data, want.data, "{name} at radius {k}");
         }
         if k > 0 {
-            assert!(up.boundary.max_abs_diff(&b) > 1e-6, "Γb must change at radius {k} on a moving drape");
+            assert!(up.boundary().max_abs_diff(&b) > 1e-6, "Γb must change at radius {k} on a moving drape");
         }
     }
 }
@@ -687,7 +687,7 @@ fn wrinkle_model_adds_fold_detail_the_shipped_model_averages_away() {
     let (ew, ec) = (mean(&wr), mean(&cr));
     assert!(ew < 1.1 * ec, "wrinkle model RMSE {ew} vs Catmull-Rom {ec}");
     for (m, k) in wr.iter().zip(0..) {
-        let u = anisocb::geom::geometry_image::image_to_mesh(&up.interpolated, k, &d);
+        let u = anisocb::geom::geometry_image::image_to_mesh(&up.interpolated(), k, &d);
         let ratio = border_length(m) / border_length(&u);
         assert!((ratio - 1.0).abs() < 0.01, "frame {k}: border length ratio {ratio}");
     }

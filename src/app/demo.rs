@@ -182,7 +182,7 @@ pub fn run(a: Args) -> Result<()> {
 
     // 5. Pictures.
     let frames = pick_frames(spec.frames, 3);
-    write_pictures(&a.out, &frames, &lr, &bicubic, &ours, &hr, &up.boundary, &up.enhance, &ours_img)?;
+    write_pictures(&a.out, &frames, &lr, &bicubic, &ours, &hr, up.boundary(), up.enhance(), &ours_img)?;
     let shown: Vec<(usize, closeup::Frame)> = frames
         .iter()
         .map(|&k| (k, closeup::Frame { lr: &lr[k], catmull_rom: &cr[k], ours: &ours[k], truth: &hr[k] }))

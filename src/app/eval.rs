@@ -177,8 +177,7 @@ fn methods_for_run(
         });
     }
     // Without BoundaryNet's gate (the outline floor as in the full pipeline).
-    let mut no_b = compose(&up.interpolated, &up.residual, None, Some(&up.enhance), DEFAULT_ETA)?;
-    up.keep_outline_all(&mut no_b);
+    let no_b = up.without_boundary(DEFAULT_ETA)?;
     out.push(Method {
         name: format!("anisocb -boundary, eta={DEFAULT_ETA}"),
         meshes: images_to_sequence(&no_b, domain),

@@ -93,8 +93,8 @@ impl HrSink for Outputs {
             g.append(&up.hr.slice_batch(a, n))?;
         }
         if let Some((b, e)) = &mut self.maps {
-            b.append(&up.boundary.slice_batch(a, n))?;
-            e.append(&up.enhance.slice_batch(a, n))?;
+            b.append(&up.boundary().slice_batch(a, n))?;
+            e.append(&up.enhance().slice_batch(a, n))?;
         }
         Ok(())
     }

@@ -54,23 +54,18 @@ pub struct Predictions {
     how: Composition,
 }
 
-/// What the pipeline produces for a sequence ([`finish`]): the composed HR frames and the
-/// outputs they were composed from, all in the sequence's domain.
+/// What the pipeline produces for a sequence ([`finish`]): the composed HR frames, in the
+/// sequence's domain, and the nets' outputs they were composed from, kept in the nets' frame.
+/// Eq 12, the outline floor and the strain limit all run in the nets' frame, and the result
+/// is mapped back to the domain once.
 #[derive(Clone, Debug)]
 pub struct Upscaled {
-    /// Γfinal, the HR geometry images (T, 3, rH, rW).
+    /// Γfinal, the HR geometry images (T, 3, rH, rW), in the domain.
     pub hr: Tensor,
-    /// Catmull-Rom interpolation U (T, 3, rH, rW): the baseline.
-    pub interpolated: Tensor,
-    /// GeometryNet's residual R (T, 3, rH, rW), before composition.
-    pub residual: Tensor,
-    /// Γb (T, 1, rH, rW).
-    pub boundary: Tensor,
-    /// Γe (T, 1, rH, rW); all 0 where EnhanceNet was not run.
-    pub enhance: Tensor,
-    net_frames: Vec<(Affine, Affine)>,
-    lr_net: Tensor,
-    how: Composition,
+    /// What `hr` was composed from (after temporal smoothing).
+    nets: Predictions,
+    /// Whether the nets' frame is the domain itself (a model in the sequence's frame).
+    in_domain: bool,
 }
 
 impl Predictions {
@@ -119,90 +114,127 @@ impl Predictions {
 }
 
 impl Upscaled {
+    /// Frames in it.
+    pub fn frames(&self) -> usize {
+        self.nets.frames()
+    }
+
+    /// Γb (T, 1, rH, rW).
+    pub fn boundary(&self) -> &Tensor {
+        &self.nets.boundary
+    }
+
+    /// Γe (T, 1, rH, rW); all 0 where EnhanceNet was not run.
+    pub fn enhance(&self) -> &Tensor {
+        &self.nets.enhance
+    }
+
+    /// The interpolation U (T, 3, rH, rW) in the domain: the baseline.
+    pub fn interpolated(&self) -> Tensor {
+        self.to_domain(self.nets.interpolated.clone(), true)
+    }
+
+    /// GeometryNet's residual R (T, 3, rH, rW) in the domain, before composition.
+    pub fn residual(&self) -> Tensor {
+        self.to_domain(self.nets.residual.clone(), false)
+    }
+
     /// Whether [`Upscaled::with_eta`] applies the outline floor ([`UpscaleParams::keep_outline`]).
     pub fn keeps_outline(&self) -> bool {
-        self.how.keep_outline
+        self.nets.how.keep_outline
     }
 
     /// Compose with or without the outline floor from now on (`eval`'s comparison).
     pub fn set_keep_outline(&mut self, on: bool) {
-        self.how.keep_outline = on;
+        self.nets.how.keep_outline = on;
     }
 
     /// Γfinal for another enhancement factor `eta`, from the same network outputs (Eq 12, the
-    /// same outline floor and strain limit as [`Upscaled::hr`]).
+    /// same outline floor and strain limit as [`Upscaled::hr`]), in the domain.
     pub fn with_eta(&self, eta: f32) -> Result<Tensor> {
-        if eta != 0.0 && !self.how.enhance_ran {
+        if eta != 0.0 && !self.nets.how.enhance_ran {
             return Err(Error::config(format!(
                 "η = {eta} needs EnhanceNet's map, which was not computed (upscaled with η = 0)"
             )));
         }
-        let mut g = if self.how.gate_coarse_only {
+        let n = &self.nets;
+        let mut g = if n.how.gate_coarse_only {
             // U + (1 − Γb)·S(R) + (1 + ηΓe)·(R − S(R)): BoundaryNet gates the coarse part,
             // η deepens the fine part (the folds) where EnhanceNet expects them.
-            let (_, _, h, w) = self.lr_net.dims4();
-            let (_, _, hh, hw) = self.residual.dims4();
-            let coarse =
-                resize(&resize(&self.residual, h, w, Interp::CatmullRom), hh, hw, Interp::CatmullRom);
-            let mut fine = self.residual.clone();
+            let (_, _, h, w) = n.lr_net.dims4();
+            let (_, _, hh, hw) = n.residual.dims4();
+            let coarse = resize(&resize(&n.residual, h, w, Interp::CatmullRom), hh, hw, Interp::CatmullRom);
+            let mut fine = n.residual.clone();
             for (f, c) in fine.data.iter_mut().zip(&coarse.data) {
                 *f -= c;
             }
-            let base = compose(&self.interpolated, &coarse, Some(&self.boundary), None, 0.0)?;
-            compose(&base, &fine, None, Some(&self.enhance), eta)?
+            let base = compose(&n.interpolated, &coarse, Some(&n.boundary), None, 0.0)?;
+            compose(&base, &fine, None, Some(&n.enhance), eta)?
         } else {
-            compose(&self.interpolated, &self.residual, Some(&self.boundary), Some(&self.enhance), eta)?
+            compose(&n.interpolated, &n.residual, Some(&n.boundary), Some(&n.enhance), eta)?
         };
-        self.keep_outline_all(&mut g);
-        self.limit_strain_all(&mut g);
-        Ok(g)
+        self.keep_outline_net(&mut g);
+        self.limit_strain_net(&mut g);
+        Ok(self.to_domain(g, true))
+    }
+
+    /// Eq 12 without BoundaryNet's gate (Γb = 0), with the outline floor, in the domain:
+    /// `eval`'s ablation.
+    pub fn without_boundary(&self, eta: f32) -> Result<Tensor> {
+        let n = &self.nets;
+        let mut g = compose(&n.interpolated, &n.residual, None, Some(&n.enhance), eta)?;
+        self.keep_outline_net(&mut g);
+        Ok(self.to_domain(g, true))
+    }
+
+    /// Images in the nets' frame (T, 3, ·, ·) into the domain: `points` (positions) or vectors.
+    fn to_domain(&self, mut x: Tensor, points: bool) -> Tensor {
+        if !self.in_domain {
+            let px3 = x.len() / x.shape[0].max(1);
+            for (img, m) in x.data.chunks_exact_mut(px3).zip(&self.nets.net_frames) {
+                m.1.apply_image(img, points);
+            }
+        }
+        x
     }
 
     /// The outline floor ([`UpscaleParams::keep_outline`]) on every frame of `hr` (T, 3, rH,
-    /// rW, in the domain, composed over [`Upscaled::interpolated`]): normals and lengths in
-    /// each frame's cloth frame, the blend ([`blend_outer_rings`]) in the domain (a blend
-    /// commutes with the affine map between them).
-    pub(crate) fn keep_outline_all(&self, hr: &mut Tensor) {
-        if !self.how.keep_outline {
+    /// rW, composed over U, in the nets' frame).
+    fn keep_outline_net(&self, hr: &mut Tensor) {
+        let n = &self.nets;
+        if !n.how.keep_outline {
             return;
         }
-        let (_, _, h, w) = self.lr_net.dims4();
+        let (_, _, h, w) = n.lr_net.dims4();
         let (_, _, hh, hw) = hr.dims4();
         let (lr_ring, hr_ring, px3) = (border_loop(w, h), border_loop(hw, hh), 3 * hh * hw);
         for (k, img) in hr.data.chunks_exact_mut(px3).enumerate() {
-            let floor = loop_length(&self.lr_net.data[k * 3 * h * w..(k + 1) * 3 * h * w], &lr_ring);
-            let mut hr_net = img.to_vec();
-            self.net_frames[k].0.apply_image(&mut hr_net, true);
+            let floor = loop_length(&n.lr_net.data[k * 3 * h * w..(k + 1) * 3 * h * w], &lr_ring);
             // Long enough already (α = 1): nothing to scale, no normals to compute.
-            if loop_length(&hr_net, &hr_ring) >= floor {
+            if loop_length(img, &hr_ring) >= floor {
                 continue;
             }
-            let mut u_net = self.interpolated.data[k * px3..(k + 1) * px3].to_vec();
-            self.net_frames[k].0.apply_image(&mut u_net, true);
-            let base_net = outline_base(&hr_net, &u_net, hh, hw);
-            let a = outline_weight(&hr_net, &base_net, &hr_ring, floor);
+            let base = outline_base(img, &n.interpolated.data[k * px3..(k + 1) * px3], hh, hw);
+            let a = outline_weight(img, &base, &hr_ring, floor);
             if a < 1.0 {
-                let mut base = base_net;
-                self.net_frames[k].1.apply_image(&mut base, true);
                 blend_outer_rings(img, &base, hh, hw, a);
             }
         }
     }
 
-    /// [`limit_strain`] on every frame of `hr` (T, 3, rH, rW, in the domain), in each frame's
-    /// cloth frame, toward the HR edge lengths implied by the LR frame's own edges.
-    fn limit_strain_all(&self, hr: &mut Tensor) {
-        if self.how.strain_iters == 0 {
+    /// [`limit_strain`] on every frame of `hr` (T, 3, rH, rW, in the nets' frame), toward the
+    /// HR edge lengths implied by the LR frame's own edges.
+    fn limit_strain_net(&self, hr: &mut Tensor) {
+        let n = &self.nets;
+        if n.how.strain_iters == 0 {
             return;
         }
-        let (_, _, h, w) = self.lr_net.dims4();
+        let (_, _, h, w) = n.lr_net.dims4();
         let (_, _, hh, hw) = hr.dims4();
         for (k, img) in hr.data.chunks_exact_mut(3 * hh * hw).enumerate() {
-            let lr = &self.lr_net.data[k * 3 * h * w..(k + 1) * 3 * h * w];
+            let lr = &n.lr_net.data[k * 3 * h * w..(k + 1) * 3 * h * w];
             let (lx, ly) = hr_edge_targets(lr, h, w, hh, hw);
-            self.net_frames[k].0.apply_image(img, true);
-            limit_strain(img, hh, hw, &lx, &ly, self.how.strain_iters);
-            self.net_frames[k].1.apply_image(img, true);
+            limit_strain(img, hh, hw, &lx, &ly, n.how.strain_iters);
         }
     }
 }
@@ -328,18 +360,11 @@ pub fn finish(mut out: Predictions, model: &AnisoCb, params: &UpscaleParams) -> 
             out.enhance = smooth_in_time(&out.enhance, params.temporal);
         }
     }
-    // 3. Back to the sequence's domain, then Eq 12 and the strain limit (`with_eta`).
-    if model.input_frame() != InputFrame::Domain {
-        for (k, m) in out.net_frames.iter().enumerate() {
-            let at = k * px3..(k + 1) * px3;
-            m.1.apply_image(&mut out.interpolated.data[at.clone()], true);
-            m.1.apply_image(&mut out.residual.data[at], false);
-        }
-    }
-    let Predictions { interpolated, residual, boundary, enhance, net_frames, lr_net, how } = out;
-    let (_, _, hh, hw) = interpolated.dims4();
-    let hr = Tensor::zeros(&[0, 3, hh, hw]);
-    let mut out = Upscaled { hr, interpolated, residual, boundary, enhance, net_frames, lr_net, how };
+    // 3. Eq 12, the outline floor and the strain limit in the nets' frame, then back to the
+    //    sequence's domain (`with_eta`).
+    let (_, _, hh, hw) = out.interpolated.dims4();
+    let in_domain = model.input_frame() == InputFrame::Domain;
+    let mut out = Upscaled { hr: Tensor::zeros(&[0, 3, hh, hw]), nets: out, in_domain };
     out.hr = out.with_eta(params.eta)?;
     if let Some((i, v)) = out.hr.first_non_finite() {
         return Err(Error::numeric(format!(
@@ -347,7 +372,7 @@ pub fn finish(mut out: Predictions, model: &AnisoCb, params: &UpscaleParams) -> 
             i / px3
         )));
     }
-    check_detail_size(&out.hr, &out.interpolated)?;
+    check_detail_size(&out.hr, &out.interpolated())?;
     Ok(out)
 }
 
