@@ -8,8 +8,10 @@ mod tempdir;
 use anisocb::cloth::scenarios::{run_single, Scenario, ScenarioSpec};
 use anisocb::geom::obj::{read_obj_grid, write_obj_grid};
 use anisocb::geom::GridMesh;
+use anisocb::ops::{AdamParams, Cpu, Interp, Ops, Padding};
 use anisocb::pipeline::{upscale_files, Quiet, UpscaleJob, Upscaler};
 use anisocb::sr::upscale::{embedded_model, UpscaleParams};
+use anisocb::Tensor;
 use std::path::Path;
 use std::process::Command;
 use tempdir::TempDir;
@@ -100,4 +102,103 @@ fn upscaler_refuses_a_frame_of_another_grid_and_names_a_non_finite_frame() {
     bad.pos[5][1] = f32::NAN;
     let e = up.push(&bad).unwrap_err().to_string();
     assert!(e.contains("non-finite") && e.contains("frame 1"), "{e}");
+}
+
+/// The CPU table, except that it reports a device failure once `fail_after` convolutions ran
+/// and returns NaN convolutions from then on: what the CUDA table does on a driver failure
+/// (out of memory, a lost device), which cannot be caused on purpose without a GPU.
+struct FailingDevice {
+    convs: std::sync::atomic::AtomicUsize,
+    fail_after: usize,
+}
+
+impl FailingDevice {
+    fn failed(&self) -> bool {
+        self.convs.load(std::sync::atomic::Ordering::SeqCst) > self.fail_after
+    }
+}
+
+impl Ops for FailingDevice {
+    fn name(&self) -> &'static str {
+        "failing"
+    }
+    fn conv2d(&self, x: &Tensor, w: &Tensor, b: Option<&Tensor>, pad: Padding) -> Tensor {
+        self.convs.fetch_add(1, std::sync::atomic::Ordering::SeqCst);
+        if self.failed() {
+            return Tensor::full(&[x.shape[0], w.shape[0], x.shape[2], x.shape[3]], f32::NAN);
+        }
+        Cpu.conv2d(x, w, b, pad)
+    }
+    #[allow(clippy::too_many_arguments)]
+    fn conv2d_backward(
+        &self,
+        x: &Tensor,
+        w: &Tensor,
+        dy: &Tensor,
+        pad: Padding,
+        dx: Option<&mut Tensor>,
+        dw: &mut Tensor,
+        db: Option<&mut Tensor>,
+    ) {
+        Cpu.conv2d_backward(x, w, dy, pad, dx, dw, db)
+    }
+    fn relu(&self, x: &Tensor) -> Tensor {
+        Cpu.relu(x)
+    }
+    fn relu_backward(&self, x: &Tensor, dy: &Tensor, dx: &mut Tensor) {
+        Cpu.relu_backward(x, dy, dx)
+    }
+    fn add_assign(&self, a: &mut Tensor, b: &Tensor) {
+        Cpu.add_assign(a, b)
+    }
+    fn pixel_shuffle(&self, x: &Tensor, r: usize) -> Tensor {
+        Cpu.pixel_shuffle(x, r)
+    }
+    fn pixel_unshuffle(&self, x: &Tensor, r: usize) -> Tensor {
+        Cpu.pixel_unshuffle(x, r)
+    }
+    fn resize(&self, x: &Tensor, h: usize, w: usize, mode: Interp) -> Tensor {
+        Cpu.resize(x, h, w, mode)
+    }
+    fn resize_backward(&self, dy: &Tensor, mode: Interp, dx: &mut Tensor) {
+        Cpu.resize_backward(dy, mode, dx)
+    }
+    fn sigmoid(&self, x: &Tensor) -> Tensor {
+        Cpu.sigmoid(x)
+    }
+    fn mse(&self, pred: &Tensor, target: &Tensor) -> (f32, Tensor) {
+        Cpu.mse(pred, target)
+    }
+    fn bce_with_logits(&self, logits: &Tensor, target: &Tensor, pos_weight: f32) -> (f32, Tensor) {
+        Cpu.bce_with_logits(logits, target, pos_weight)
+    }
+    fn adam_update(
+        &self,
+        p: &mut [f32],
+        g: &[f32],
+        m: &mut [f32],
+        v: &mut [f32],
+        step: u64,
+        hp: &AdamParams,
+    ) {
+        Cpu.adam_update(p, g, m, v, step, hp)
+    }
+    fn take_error(&self) -> Option<anisocb::Error> {
+        self.failed().then(|| anisocb::Error::device("CUDA conv2d failed: out of memory (simulated)"))
+    }
+}
+
+#[test]
+fn a_device_failure_mid_shot_is_an_error_naming_the_device_not_nan_frames() {
+    let d = TempDir::new("lib-device");
+    drape_frames(&d.join("in"), 4);
+    let job = UpscaleJob::new(vec![d.join("in")], d.join("out"));
+    let model = embedded_model().unwrap();
+    let dev = FailingDevice { convs: 0.into(), fail_after: 40 };
+    let e = upscale_files(&dev, &model, &job, &mut Quiet).unwrap_err();
+    assert!(matches!(e, anisocb::Error::Device(_)), "{e}");
+    assert!(e.to_string().contains("out of memory"), "{e}");
+    // The same job on a table that does not fail runs.
+    let ok = FailingDevice { convs: 0.into(), fail_after: usize::MAX };
+    assert_eq!(upscale_files(&ok, &model, &job, &mut Quiet).unwrap().frames, 4);
 }

@@ -10,8 +10,12 @@
 //! reduction runs in a fixed order that depends only on the shapes.
 //!
 //! Errors: construction returns [`Error::Device`]. Once constructed, a driver failure inside an
-//! op (out of memory, a lost device) panics with the driver's message, because the
-//! [`Ops`](crate::ops::Ops) methods, like the CPU ones, have no error channel; shape mismatches panic like the CPU path.
+//! op (out of memory, a lost device) is recorded with the driver's message, that op and every
+//! later one return NaN results without touching the device, and
+//! [`Ops::take_error`](crate::ops::Ops::take_error) hands the failure to the caller, which
+//! checks it at batch boundaries and returns [`Error::Device`]: the [`Ops`](crate::ops::Ops)
+//! methods, like the CPU ones, have no error channel of their own. Shape mismatches panic like
+//! the CPU path (a bug, not a device failure).
 
 use std::sync::{Arc, Mutex, MutexGuard};
 
@@ -74,7 +78,8 @@ pub struct Cuda {
     pub(super) stream: Arc<CudaStream>,
     pub(super) k: Kernels,
     device_name: String,
-    lock: Mutex<()>,
+    /// Serialises the ops; holds the first driver failure (sticky until taken).
+    lock: Mutex<Option<String>>,
 }
 
 impl std::fmt::Debug for Cuda {
@@ -95,11 +100,6 @@ fn panic_text(p: Box<dyn std::any::Any + Send>) -> String {
 
 fn driver_err(what: &str, e: DriverError) -> Error {
     Error::device(format!("{what}: {e:?}"))
-}
-
-/// Abort an op on a driver failure (the [`Ops`] methods have no error channel).
-fn fail(op: &str, e: DriverError) -> ! {
-    panic!("CUDA {op} failed: {e:?}")
 }
 
 /// Grid for a 1-D grid-stride kernel over `n` (> 0) items.
@@ -207,7 +207,7 @@ impl Cuda {
             bce_logits_loss: f("bce_logits_loss")?,
             adam_step: f("adam_step")?,
         };
-        Ok(Cuda { ctx, stream, k, device_name, lock: Mutex::new(()) })
+        Ok(Cuda { ctx, stream, k, device_name, lock: Mutex::new(None) })
     }
 
     /// The GPU's name as the driver reports it.
@@ -215,7 +215,7 @@ impl Cuda {
         &self.device_name
     }
 
-    fn guard(&self) -> MutexGuard<'_, ()> {
+    fn guard(&self) -> MutexGuard<'_, Option<String>> {
         self.lock.lock().unwrap_or_else(|p| p.into_inner())
     }
 
@@ -264,10 +264,22 @@ impl Cuda {
         Ok(DevBuf { shape: shape.to_vec(), buf: self.stream.alloc_zeros::<f32>(n.max(1))? })
     }
 
-    /// Run `f` under the lock; a driver failure aborts the op with the driver's message.
-    pub(super) fn run<T>(&self, op: &str, f: impl FnOnce() -> DResult<T>) -> T {
-        let _g = self.guard();
-        f().unwrap_or_else(|e| fail(op, e))
+    /// Run `f` under the lock. A driver failure is recorded (the first one is kept) and the op
+    /// returns `failed()` (NaN results); after a failure no op touches the device again.
+    pub(super) fn run<T>(&self, op: &str, failed: impl FnOnce() -> T, f: impl FnOnce() -> DResult<T>) -> T {
+        let mut g = self.guard();
+        if g.is_some() {
+            return failed();
+        }
+        f().unwrap_or_else(|e| {
+            *g = Some(format!("CUDA {op} failed: {e:?}"));
+            failed()
+        })
+    }
+
+    /// The recorded driver failure, if any (see the module docs).
+    pub(super) fn take_failure(&self) -> Option<Error> {
+        self.guard().take().map(Error::device)
     }
 }
 

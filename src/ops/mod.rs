@@ -129,6 +129,18 @@ pub trait Ops: Sync {
     fn enter(&self, f: &mut (dyn FnMut() + Send)) {
         f()
     }
+    /// The first failure of a device behind this table since the last call, if any (the
+    /// methods have no error channel: a GPU table records a driver failure, returns NaN
+    /// results from then on, and reports it here). Callers check it at batch boundaries
+    /// ([`check_device`]). Default: none (the CPU cannot fail this way).
+    fn take_error(&self) -> Option<crate::Error> {
+        None
+    }
+}
+
+/// `Err` with the device's failure if `ops` recorded one ([`Ops::take_error`]).
+pub fn check_device(ops: &dyn Ops) -> crate::Result<()> {
+    ops.take_error().map_or(Ok(()), Err)
 }
 
 /// `f()` through [`Ops::enter`], with its result.

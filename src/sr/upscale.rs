@@ -338,6 +338,8 @@ pub fn run_nets(
             set_border(&mut b, 1.0);
             out.boundary.data[m_at].copy_from_slice(&b.data);
         }
+        // A GPU table's driver failure surfaces here, not as NaN frames.
+        crate::ops::check_device(ops)?;
         done += n;
         on_frames(done);
     }

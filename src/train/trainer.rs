@@ -431,6 +431,8 @@ pub fn train(
         let loss = crate::ops::entered(ops, || {
             batch_loss(ops, &st.trunk, &b.lr, &b.u, &b.target, opts, Some(&mut grads))
         })?;
+        // A device failure makes the loss NaN: say what failed, not "try a lower --lr".
+        crate::ops::check_device(ops)?;
         let bad_grad =
             grads.params().into_iter().find_map(|(n, g)| g.first_non_finite().map(|(_, v)| (n, v)));
         if !loss.is_finite() || bad_grad.is_some() {
@@ -453,6 +455,8 @@ pub fn train(
         let mut ps: Vec<&mut [f32]> =
             st.trunk.params_mut().into_iter().map(|p| p.data.as_mut_slice()).collect();
         st.adam.step(ops, &mut ps, &gs);
+        // A GPU table's driver failure (its results are NaN from then on) stops the run here.
+        crate::ops::check_device(ops)?;
         st.step += 1;
         on_event(Event::Step { net, step: st.step, loss });
         let last_step = st.step == opts.steps;
