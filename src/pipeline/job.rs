@@ -3,7 +3,7 @@
 //! the outputs, and write the run's summary (`upscale.json`). The command line is a thin layer
 //! over [`upscale_files`]; a Rust program calls it the same way and gets the same bytes.
 
-use super::input::{open_input, shot_bounds, FrameAttrs, Input, MeshOut, Shot};
+use super::input::{open_input, shot_bounds, CacheIn, FrameAttrs, Input, MeshOut, Shot};
 use super::output::{refuse_duplicate_outputs, refuse_out_over_input, CacheSink, ObjSink, Outputs};
 use crate::cloth::run_io::DOMAIN_MARGIN;
 use crate::error::{Error, Result};
@@ -145,81 +145,26 @@ pub fn upscale_files(
     job: &UpscaleJob,
     report: &mut dyn Report,
 ) -> Result<Summary> {
-    let (a, params) = (job, &job.params);
+    let params = &job.params;
     params.validate()?;
-    check_margin(a.margin)?;
-    if a.chunk == 0 {
+    check_margin(job.margin)?;
+    if job.chunk == 0 {
         return Err(Error::config("--chunk must be ≥ 1 frame (frames read, upscaled and written at a time)"));
     }
     let r = model.scale();
     let mut messages = Vec::new();
-    let opened = open_input(&a.inputs, a.rest.as_deref(), r, &mut messages);
+    let opened = open_input(&job.inputs, job.rest.as_deref(), r, &mut messages);
     for m in &messages {
         report.message(m);
     }
     let Input { mut shot, npy_domain, mesh_out, cache_in, files } = opened?;
-    let fmt = match (a.format, &mesh_out, &cache_in) {
-        (OutputFormat::Auto, _, Some(c)) => c.header.format.name().to_lowercase(),
-        (OutputFormat::Auto, Some(_), None) | (OutputFormat::Obj, ..) => "obj".to_string(),
-        _ => "npy".to_string(),
-    };
-    let fmt = fmt.as_str();
     let (t, w, h) = shot.size();
-    let range = parse_frames(a.frames.as_deref(), t)?;
-    let sliced = range.len() != t;
-    // Outputs of a slice carry its range in their names (OBJ frames keep their own names).
-    let suffix = if sliced { format!(".{}-{}", range.start, range.end) } else { String::new() };
-    let npy_name = |stem: &str| format!("{stem}{suffix}.npy");
+    let mesh_given = mesh_out.is_some();
     let mesh_out = mesh_out.unwrap_or_else(|| MeshOut::plain(t));
-    let cache_name = cache_in.as_ref().map(|c| {
-        let stem = c.path.file_stem().unwrap_or_default().to_string_lossy().into_owned();
-        format!("{stem}{suffix}.{}", c.header.format.name().to_lowercase())
-    });
-    // Every file this run may write.
-    let mut outputs: Vec<PathBuf> = ["geometry", "domain", "boundary", "enhance"]
-        .iter()
-        .map(|n| a.out.join(npy_name(n)))
-        .chain([a.out.join(format!("upscale{suffix}.json"))])
-        .collect();
-    outputs.extend(mesh_out.names[range.clone()].iter().map(|n| a.out.join(n)));
-    outputs.extend(cache_name.iter().map(|n| a.out.join(n)));
-    outputs.extend(cache_in.iter().filter_map(|c| c.rest.file_name()).map(|n| a.out.join(n)));
-    refuse_out_over_input(&a.out, &files, &outputs)?;
-    // What this run writes, each once.
-    let mut writes = vec![a.out.join(format!("upscale{suffix}.json"))];
-    match (fmt, &cache_name) {
-        ("obj", _) => writes.extend(mesh_out.names[range.clone()].iter().map(|n| a.out.join(n))),
-        ("npy", _) => writes.extend(["geometry", "domain"].map(|n| a.out.join(npy_name(n)))),
-        (_, name) => writes.extend(name.iter().map(|n| a.out.join(n))),
-    }
-    if a.maps {
-        writes.extend(["boundary", "enhance"].map(|n| a.out.join(npy_name(n))));
-    }
-    writes.extend(cache_in.iter().filter_map(|c| c.rest.file_name()).map(|n| a.out.join(n)));
-    refuse_duplicate_outputs(&writes)?;
-    // The domain: the file's for .npy input; none needed for a model in the cloth frame writing
-    // meshes (each frame then depends on itself alone); otherwise the whole shot's bounding
-    // box (not a --frames slice's, so slices agree).
-    let (domain, domain_note) = match npy_domain {
-        Some(d) => (d, "domain from domain.npy beside the input".to_string()),
-        None if model.input_frame() == InputFrame::Cloth && fmt != "npy" => {
-            (Domain::UNIT, "no domain needed: the model works in each frame's cloth frame".to_string())
-        }
-        None => {
-            report.start("bounds", t);
-            let d = shot_bounds(&mut shot, a.margin, a.chunk, &mut |k| report.progress(k))?;
-            report.end();
-            shot.set_domain(d);
-            let note = format!(
-                "domain = bounding box of all frames + {:.0}% margin: bmin {:?}, bmax {:?} (m)",
-                a.margin * 100.0,
-                d.bmin,
-                d.bmax
-            );
-            (d, note)
-        }
-    };
-    ensure_dir(&a.out)?;
+    let plan = Plan::new(job, t, mesh_given, &mesh_out, cache_in.as_ref(), &files)?;
+    let (domain, domain_note) = settle_domain(model, job, &plan, npy_domain, &mut shot, report)?;
+    ensure_dir(&job.out)?;
+    let range = plan.range.clone();
     report.message(&format!(
         "upscaling frames {}..{} of {t}, {w}x{h} -> {}x{} ({}), η = {}",
         range.start,
@@ -232,70 +177,23 @@ pub fn upscale_files(
     report.message(&domain_note);
     // A rerun after a kill: clear the temp files the killed run left (every file is written
     // atomically, so the outputs themselves are either complete or absent).
-    for p in &outputs {
+    for p in &plan.outputs {
         remove_stale_temps(p)?;
     }
     // Until the final summary replaces it, the folder says it is unfinished: whatever stops the
     // run (a kill, a bad frame) leaves this marker, never an earlier run's summary.
-    let summary_path = a.out.join(format!("upscale{suffix}.json"));
     let started = Object::new()
         .val("complete", Value::Bool(false))
         .num("frames", range.len())
         .val("range", vec![Value::num(range.start), Value::num(range.end)])
         .num("eta", params.eta)
         .str("note", "unfinished: this run was stopped part-way or failed; rerun the same command");
-    write_json(&summary_path, &started.into(), Layout::Compact)?;
+    write_json(&plan.summary_path, &started.into(), Layout::Compact)?;
     let start = Instant::now();
-    // A point cache plays on an HR rest mesh: the rest OBJ upscaled on its own.
     if let Some(c) = &cache_in {
-        let rest = &c.rest_grid.mesh;
-        let d = if domain == Domain::UNIT {
-            domain
-        } else {
-            Domain::enclosing(std::slice::from_ref(rest), a.margin)
-        };
-        let (hr, _) = upscale_meshes(ops, model, std::slice::from_ref(rest), &d, params, &mut |_| {})?;
-        let name = c.rest.file_name().unwrap_or_default();
-        write_atomic_bytes(&a.out.join(name), mesh_out.obj_text(&hr[0], &mesh_out.attrs).as_bytes())?;
+        write_hr_rest_mesh(ops, model, job, c, &mesh_out, &domain)?;
     }
-    let maps = if a.maps {
-        let shape = [range.len(), 1, r * h, r * w];
-        Some((
-            NpyWriter::create(&a.out.join(npy_name("boundary")), &shape)?,
-            NpyWriter::create(&a.out.join(npy_name("enhance")), &shape)?,
-        ))
-    } else {
-        None
-    };
-    let mut out = Outputs { obj: None, cache: None, geometry: None, maps };
-    match (fmt, &cache_in) {
-        ("obj", _) => {
-            let attrs = match &shot {
-                Shot::Obj { attrs, .. } => attrs.clone(),
-                _ => FrameAttrs::default(),
-            };
-            out.obj = Some(ObjSink { dir: a.out.clone(), domain, mesh: mesh_out, attrs });
-        }
-        ("npy", _) => {
-            let shape = [range.len(), 3, r * h, r * w];
-            out.geometry = Some(NpyWriter::create(&a.out.join(npy_name("geometry")), &shape)?);
-        }
-        (_, Some(c)) => {
-            let path = a.out.join(cache_name.as_deref().unwrap_or("cache"));
-            let mut header = CacheHeader::new(c.header.format, r * r * w * h, range.len(), 1.0);
-            // The slice's timing: PC2 start frame and sampling, MDD per-frame times.
-            header.sample_rate = c.header.sample_rate;
-            header.start_frame = c.header.start_frame + range.start as f32 * c.header.sample_rate;
-            if !c.header.times.is_empty() {
-                header.times = c.header.times[range.clone()].to_vec();
-            }
-            let mut file = AtomicFile::create(&path)?;
-            write_header(file.writer(), &header).map_err(|e| Error::io(&path, e))?;
-            out.cache =
-                Some(CacheSink { file, format: header.format, domain, frames: range.len(), written: 0 });
-        }
-        _ => unreachable!("fmt is obj, npy, or a cache format for cache input"),
-    }
+    let mut out = open_outputs(job, &plan, &shot, mesh_out, cache_in.as_ref(), domain, (r * w, r * h))?;
     let notes = match &shot {
         Shot::Obj { notes, .. } => notes.clone(),
         _ => Default::default(),
@@ -307,10 +205,20 @@ pub fn upscale_files(
         }
         report.progress(k);
     };
-    upscale_stream(ops, model, &mut shot, &domain, range.clone(), params, a.chunk, &mut out, &mut on_frames)?;
+    upscale_stream(
+        ops,
+        model,
+        &mut shot,
+        &domain,
+        range.clone(),
+        params,
+        job.chunk,
+        &mut out,
+        &mut on_frames,
+    )?;
     out.finish()?;
-    if fmt == "npy" {
-        write_npy(&a.out.join(npy_name("domain")), &domain.to_tensor())?;
+    if plan.fmt == "npy" {
+        write_npy(&plan.npy("domain"), &domain.to_tensor())?;
     }
     let secs = start.elapsed().as_secs_f64();
     report.end();
@@ -330,6 +238,184 @@ pub fn upscale_files(
             "domain",
             Object::new().val("bmin", Value::reals(&domain.bmin)).val("bmax", Value::reals(&domain.bmax)),
         );
-    write_json(&summary_path, &summary.into(), Layout::Compact)?;
-    Ok(Summary { frames: n, lr: (w, h), hr: (r * w, r * h), seconds: secs, format: fmt.to_string() })
+    write_json(&plan.summary_path, &summary.into(), Layout::Compact)?;
+    Ok(Summary { frames: n, lr: (w, h), hr: (r * w, r * h), seconds: secs, format: plan.fmt })
+}
+
+/// What a job writes where, settled and checked before anything is written.
+struct Plan {
+    /// `obj`, `npy`, `pc2` or `mdd`.
+    fmt: String,
+    /// The frames upscaled.
+    range: Range<usize>,
+    /// `.A-B` for a `--frames` slice, else empty: in the `.npy`, cache and summary names.
+    suffix: String,
+    out: PathBuf,
+    /// The HR point cache's name (point-cache input).
+    cache_name: Option<String>,
+    summary_path: PathBuf,
+    /// Every file this run may write (their stale temps are cleared before it starts).
+    outputs: Vec<PathBuf>,
+}
+
+impl Plan {
+    /// The plan for `job` on a shot of `t` frames read from `files`; refuses an `--out` that
+    /// would overwrite the input and two outputs of one name.
+    fn new(
+        job: &UpscaleJob,
+        t: usize,
+        mesh_given: bool,
+        mesh_out: &MeshOut,
+        cache_in: Option<&CacheIn>,
+        files: &[PathBuf],
+    ) -> Result<Plan> {
+        let fmt = match (job.format, mesh_given, cache_in) {
+            (OutputFormat::Auto, _, Some(c)) => c.header.format.name().to_lowercase(),
+            (OutputFormat::Auto, true, None) | (OutputFormat::Obj, ..) => "obj".to_string(),
+            _ => "npy".to_string(),
+        };
+        let range = parse_frames(job.frames.as_deref(), t)?;
+        // Outputs of a slice carry its range in their names (OBJ frames keep their own names).
+        let suffix = if range.len() != t { format!(".{}-{}", range.start, range.end) } else { String::new() };
+        let cache_name = cache_in.map(|c| {
+            let stem = c.path.file_stem().unwrap_or_default().to_string_lossy().into_owned();
+            format!("{stem}{suffix}.{}", c.header.format.name().to_lowercase())
+        });
+        let out = job.out.clone();
+        let summary_path = out.join(format!("upscale{suffix}.json"));
+        let mut plan = Plan { fmt, range, suffix, out, cache_name, summary_path, outputs: Vec::new() };
+        let (out, range) = (&plan.out, plan.range.clone());
+        let frames = || mesh_out.names[range.clone()].iter().map(|n| out.join(n));
+        let rest = || cache_in.and_then(|c| c.rest.file_name()).map(|n| out.join(n));
+        // Every file this run may write.
+        let mut outputs: Vec<PathBuf> =
+            ["geometry", "domain", "boundary", "enhance"].map(|n| plan.npy(n)).into();
+        outputs.push(plan.summary_path.clone());
+        outputs.extend(frames());
+        outputs.extend(plan.cache_name.iter().map(|n| out.join(n)));
+        outputs.extend(rest());
+        refuse_out_over_input(out, files, &outputs)?;
+        // What this run writes, each once.
+        let mut writes = vec![plan.summary_path.clone()];
+        match plan.fmt.as_str() {
+            "obj" => writes.extend(frames()),
+            "npy" => writes.extend(["geometry", "domain"].map(|n| plan.npy(n))),
+            _ => writes.extend(plan.cache_name.iter().map(|n| out.join(n))),
+        }
+        if job.maps {
+            writes.extend(["boundary", "enhance"].map(|n| plan.npy(n)));
+        }
+        writes.extend(rest());
+        refuse_duplicate_outputs(&writes)?;
+        plan.outputs = outputs;
+        Ok(plan)
+    }
+
+    /// `OUT/stem[.A-B].npy`.
+    fn npy(&self, stem: &str) -> PathBuf {
+        self.out.join(format!("{stem}{}.npy", self.suffix))
+    }
+}
+
+/// The domain and a note on where it came from: the file's for `.npy` input; none needed for
+/// a model in the cloth frame writing meshes (each frame then depends on itself alone);
+/// otherwise the whole shot's bounding box (not a `--frames` slice's, so slices agree), which
+/// `shot` then encodes its frames with.
+fn settle_domain(
+    model: &AnisoCb,
+    job: &UpscaleJob,
+    plan: &Plan,
+    npy_domain: Option<Domain>,
+    shot: &mut Shot,
+    report: &mut dyn Report,
+) -> Result<(Domain, String)> {
+    Ok(match npy_domain {
+        Some(d) => (d, "domain from domain.npy beside the input".to_string()),
+        None if model.input_frame() == InputFrame::Cloth && plan.fmt != "npy" => {
+            (Domain::UNIT, "no domain needed: the model works in each frame's cloth frame".to_string())
+        }
+        None => {
+            report.start("bounds", shot.size().0);
+            let d = shot_bounds(shot, job.margin, job.chunk, &mut |k| report.progress(k))?;
+            report.end();
+            shot.set_domain(d);
+            let note = format!(
+                "domain = bounding box of all frames + {:.0}% margin: bmin {:?}, bmax {:?} (m)",
+                job.margin * 100.0,
+                d.bmin,
+                d.bmax
+            );
+            (d, note)
+        }
+    })
+}
+
+/// A point cache plays on an HR rest mesh: the rest OBJ upscaled on its own, written beside
+/// the HR cache under its own name.
+fn write_hr_rest_mesh(
+    ops: &dyn Ops,
+    model: &AnisoCb,
+    job: &UpscaleJob,
+    c: &CacheIn,
+    mesh_out: &MeshOut,
+    domain: &Domain,
+) -> Result<()> {
+    let rest = &c.rest_grid.mesh;
+    let d = if *domain == Domain::UNIT {
+        *domain
+    } else {
+        Domain::enclosing(std::slice::from_ref(rest), job.margin)
+    };
+    let (hr, _) = upscale_meshes(ops, model, std::slice::from_ref(rest), &d, &job.params, &mut |_| {})?;
+    let name = c.rest.file_name().unwrap_or_default();
+    write_atomic_bytes(&job.out.join(name), mesh_out.obj_text(&hr[0], &mesh_out.attrs).as_bytes())
+}
+
+/// The sinks of `plan` for HR frames of `hr` = (columns, rows): OBJ frames, geometry.npy or
+/// the HR point cache, and the maps with `--maps`.
+fn open_outputs(
+    job: &UpscaleJob,
+    plan: &Plan,
+    shot: &Shot,
+    mesh_out: MeshOut,
+    cache_in: Option<&CacheIn>,
+    domain: Domain,
+    (hw, hh): (usize, usize),
+) -> Result<Outputs> {
+    let n = plan.range.len();
+    let maps = if job.maps {
+        let shape = [n, 1, hh, hw];
+        Some((
+            NpyWriter::create(&plan.npy("boundary"), &shape)?,
+            NpyWriter::create(&plan.npy("enhance"), &shape)?,
+        ))
+    } else {
+        None
+    };
+    let mut out = Outputs { obj: None, cache: None, geometry: None, maps };
+    match (plan.fmt.as_str(), cache_in) {
+        ("obj", _) => {
+            let attrs = match shot {
+                Shot::Obj { attrs, .. } => attrs.clone(),
+                _ => FrameAttrs::default(),
+            };
+            out.obj = Some(ObjSink { dir: job.out.clone(), domain, mesh: mesh_out, attrs });
+        }
+        ("npy", _) => out.geometry = Some(NpyWriter::create(&plan.npy("geometry"), &[n, 3, hh, hw])?),
+        (_, Some(c)) => {
+            let path = job.out.join(plan.cache_name.as_deref().unwrap_or("cache"));
+            let mut header = CacheHeader::new(c.header.format, hw * hh, n, 1.0);
+            // The slice's timing: PC2 start frame and sampling, MDD per-frame times.
+            header.sample_rate = c.header.sample_rate;
+            header.start_frame = c.header.start_frame + plan.range.start as f32 * c.header.sample_rate;
+            if !c.header.times.is_empty() {
+                header.times = c.header.times[plan.range.clone()].to_vec();
+            }
+            let mut file = AtomicFile::create(&path)?;
+            write_header(file.writer(), &header).map_err(|e| Error::io(&path, e))?;
+            out.cache = Some(CacheSink { file, format: header.format, domain, frames: n, written: 0 });
+        }
+        _ => unreachable!("fmt is obj, npy, or a cache format for cache input"),
+    }
+    Ok(out)
 }
