@@ -22,7 +22,10 @@
 //! - [`geom`]: grid meshes, OBJ, geometry images, the cloth frame the nets see, Laplacian,
 //!   anisotropic boundary maps, 3-vectors.
 //! - [`imgproc`]: Gaussian, Sobel, Canny.
-//! - [`sr`]: composition (Eq 12) and the upscale pipeline.
+//! - [`sr`]: the nets on a shot's frames, composition (Eq 12), outline floor, strain limit,
+//!   temporal smoothing, streaming.
+//! - [`pipeline`]: the upscale job on files (OBJ sequences, point caches, `.npy`) and the
+//!   frame-by-frame [`pipeline::Upscaler`]: the library the CLI and the C ABI sit on.
 //! - [`eval`]: metrics (incl. STED), the interpolation and learned-linear baselines, tables.
 //! - `viz` (feature `viz`, on with `cli`): every picture (raster image, font, renderer, plots,
 //!   heat tiles, sheets).
@@ -30,7 +33,10 @@
 //! - [`rng`]: the seeded random number generator everything shares.
 //! - [`perf`]: speed measurement for benchmarks (FMA peak, timers, the conv table).
 //! - [`cuda`]: the GPU backend (feature `cuda`); a stub with the same API otherwise.
+//! - `capi` (feature `capi`): the C ABI, `include/anisocb.h`.
 //! - `app` (feature `cli`): the command-line front end.
+//!
+//! The pipeline, one frame's path and our reading of each equation: `docs/architecture.md`.
 
 #[cfg(feature = "capi")]
 pub mod capi;

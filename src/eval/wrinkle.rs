@@ -27,7 +27,7 @@ pub fn lr_round_trip(frame: &GridMesh, lr_w: usize, lr_h: usize) -> GridMesh {
 /// Unit normals of a grid from its grid derivatives, `n = ∂p/∂i × ∂p/∂j` normalised (i the
 /// column, j the row; central differences inside, one-sided at the border). This sign points
 /// to −z for [`GridMesh::flat`] (rows going down in y), the opposite of
-/// [`vertex_normals`]; where the cross product vanishes the normal is 0. In f64, stored f32.
+/// [`crate::geom::mesh::vertex_normals`]; where the cross product vanishes the normal is 0. In f64, stored f32.
 pub fn grid_normals(mesh: &GridMesh) -> Vec<[f32; 3]> {
     let (w, h) = (mesh.w, mesh.h);
     let p = |i: usize, j: usize| mesh.pos[j * w + i].map(f64::from);

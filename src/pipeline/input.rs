@@ -324,7 +324,7 @@ pub struct Input {
     /// What OBJ-based input gives the output.
     pub mesh_out: Option<MeshOut>,
     pub cache_in: Option<CacheIn>,
-    /// Every file the input is read from (kept safe from the output, [`refuse_out_over_input`]).
+    /// Every file the input is read from (kept safe from the output, [`super::output::refuse_out_over_input`]).
     pub files: Vec<PathBuf>,
 }
 

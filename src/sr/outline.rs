@@ -1,4 +1,4 @@
-//! The outline floor ([`super::UpscaleParams::keep_outline`]): the HR border never shorter
+//! The outline floor ([`super::params::UpscaleParams::keep_outline`]): the HR border never shorter
 //! than the LR frame's own border polyline, in the nets' (cloth) frame.
 
 use crate::geom::mesh::{closed_loop_length, ring_loop};
@@ -51,7 +51,7 @@ pub fn outline_base(hr: &[f32], u: &[f32], hh: usize, hw: usize) -> Vec<f32> {
 }
 
 /// The outline floor's weight for one frame: the largest α ∈ [0, 1] (to 2⁻²⁰, by bisection)
-/// whose border loop `ring` ([`border_loop`] of the rW × rH grid) of `base + α (hr − base)`
+/// whose border loop `ring` ([`crate::geom::mesh::border_loop`] of the rW × rH grid) of `base + α (hr − base)`
 /// (planar 3 × rH × rW images; `base` from [`outline_base`]) is at least `floor` long; 1 if `hr`'s already is, 0 if not even `base`'s.
 pub fn outline_weight(hr: &[f32], base: &[f32], ring: &[usize], floor: f32) -> f32 {
     let len = |a: f32| loop_length_blend(hr, base, a, ring);

@@ -100,7 +100,7 @@ pub struct UpscaleParams {
     /// At η = 0 EnhanceNet is not run (Γe = 0) unless `enhance_map`.
     pub eta: f32,
     /// Run EnhanceNet even at η = 0: for its map Γe, or to compose other η later
-    /// ([`Upscaled::with_eta`]).
+    /// ([`super::upscale::Upscaled::with_eta`]).
     pub enhance_map: bool,
     /// Frames per network forward (memory ≈ batch · 2·C·r²·H·W floats at the widest layer).
     pub batch: usize,
@@ -119,7 +119,7 @@ pub struct UpscaleParams {
     /// with mirror averaging it is off by default ([`DEFAULT_TEMPORAL`]).
     pub temporal: usize,
     /// Strain limit: Jacobi iterations pulling the HR grid's edge lengths toward those implied
-    /// by the LR frame's own edges ([`hr_edge_targets`], [`limit_strain`]), in the cloth frame;
+    /// by the LR frame's own edges ([`super::strain::hr_edge_targets`], [`super::strain::limit_strain`]), in the cloth frame;
     /// 0 = off ([`DEFAULT_STRAIN_ITERS`]). Border vertices stay put.
     pub strain_iters: usize,
     /// Average the nets' outputs over the grid's four mirror images (the LR grid as given,
@@ -133,9 +133,9 @@ pub struct UpscaleParams {
     /// Outline floor: each frame's HR border loop is never shorter than the LR frame's own
     /// border polyline (a curve through the LR border vertices is not shorter than the
     /// polyline through them). Where the composed result's would be, the part of its
-    /// correction Γfinal − U along U's surface normal ([`outline_base`]: what flattens a
+    /// correction Γfinal − U along U's surface normal ([`super::outline::outline_base`]: what flattens a
     /// hem's folds) is scaled down near the border, by α on the border ring and (1 + α)/2 on
-    /// the ring inside it, α ∈ [0, 1] the largest that keeps the length ([`outline_weight`];
+    /// the ring inside it, α ∈ [0, 1] the largest that keeps the length ([`super::outline::outline_weight`];
     /// α = 0 if even that is not enough). Measured in each frame's cloth frame, so the
     /// invariances hold; off for models in the paper's domain frame and with `pin_border`
     /// ([`DEFAULT_KEEP_OUTLINE`]).

@@ -1,4 +1,4 @@
-//! The strain limit ([`super::UpscaleParams::strain_iters`]): the HR surface's edges pulled
+//! The strain limit ([`super::params::UpscaleParams::strain_iters`]): the HR surface's edges pulled
 //! toward the lengths the LR frame's own edges imply, in the nets' (cloth) frame.
 
 /// Target lengths of the HR grid's row edges (rH × (rW − 1)) and column edges ((rH − 1) × rW):

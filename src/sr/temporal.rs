@@ -1,11 +1,11 @@
-//! Temporal smoothing ([`super::UpscaleParams::temporal`]) of the nets' outputs along frames.
+//! Temporal smoothing ([`super::params::UpscaleParams::temporal`]) of the nets' outputs along frames.
 
 use crate::tensor::Tensor;
 
 /// `x` (T, C, H, W) averaged over time per pixel with binomial weights of radius `k` (row 2k of
 /// Pascal's triangle), the weights renormalised where the window leaves the sequence. Each
 /// row is halved as it is built (row n sums to 1), so no radius overflows; callers bound `k`
-/// ([`MAX_TEMPORAL`]) because the cost is O(k²) + O(k) per frame.
+/// ([`super::params::MAX_TEMPORAL`]) because the cost is O(k²) + O(k) per frame.
 pub fn smooth_in_time(x: &Tensor, k: usize) -> Tensor {
     let t = x.shape[0];
     let per = x.len() / t.max(1);
