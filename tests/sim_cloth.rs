@@ -207,6 +207,42 @@ fn geometry_images_of_a_run_round_trip() {
     }
 }
 
+/// The HR-twin studies of docs/wrinkles.md (`simulate --hr-jitter / --hr-restart / --hr-blind`)
+/// change the HR run only, and only where they say: the LR run stays bit for bit, a restart at
+/// frame F leaves frames 0..=F alone, a blind run starts from the LR surface.
+#[test]
+fn hr_twin_studies_change_only_the_hr_run_and_only_where_they_say() {
+    let sp = spec(Scenario::Drape, 8, 8, 12);
+    let (lr, hr) = paired_run(&sp).unwrap();
+    let twin = |f: &dyn Fn(&mut ScenarioSpec)| {
+        let mut s = sp.clone();
+        f(&mut s);
+        let (l, h) = paired_run(&s).unwrap();
+        assert_eq!(bits(&l), bits(&lr), "the LR run must not change");
+        h
+    };
+    let frame_bits = |h: &[GridMesh], k: usize| bits(&h[k..k + 1]);
+    let jittered = twin(&|s| s.hr_jitter = 1e-4);
+    assert_ne!(frame_bits(&jittered, 0), frame_bits(&hr, 0), "the jitter moves the rest state");
+    let max_jitter = hr[0].pos.iter().zip(&jittered[0].pos).map(|(a, b)| dist(*a, *b)).fold(0.0, f32::max);
+    assert!(max_jitter <= 1e-4 * 3f32.sqrt() * 1.01, "jitter {max_jitter} m beyond ±0.1 mm per coordinate");
+    let restarted = twin(&|s| s.hr_restart = 5);
+    for k in 0..=5 {
+        assert_eq!(frame_bits(&restarted, k), frame_bits(&hr, k), "frame {k} is before the restart");
+    }
+    assert_ne!(frame_bits(&restarted, 6), frame_bits(&hr, 6), "the restart changes what follows it");
+    let blind = twin(&|s| s.hr_blind = true);
+    assert_eq!(frame_bits(&blind, 0), frame_bits(&hr, 0));
+    assert_ne!(
+        frame_bits(&blind, 2),
+        frame_bits(&hr, 2),
+        "a blind run has no sphere and starts on the LR surface"
+    );
+    let mut bad = sp.clone();
+    bad.hr_jitter = f32::NAN;
+    assert!(paired_run(&bad).is_err(), "a NaN jitter must be refused");
+}
+
 /// Mean distance (m) between HR vertices and the LR run sampled at their rest (u, v).
 fn lr_hr_gap(lr: &[GridMesh], hr: &[GridMesh]) -> f32 {
     let mut s = 0.0;

@@ -47,6 +47,21 @@ pub struct Args {
     /// vertex pulled to the LR surface (flattens those folds; the truth of older models).
     #[arg(long, default_value = "coarse")]
     pub track: String,
+    /// Add up to this many metres of seeded noise to the tracked HR run's rest positions
+    /// (--pair): a twin of the HR truth under the same LR run, to measure how much of its
+    /// fine detail the LR run fixes (docs/wrinkles.md). 0 = none.
+    #[arg(long, default_value_t = 0.0)]
+    pub hr_jitter: f32,
+    /// At this frame, put the tracked HR run (--pair) back on the LR run's surface and let its
+    /// folds form again: how long a window of LR frames fixes the HR detail (docs/wrinkles.md).
+    /// 0 = never.
+    #[arg(long, default_value_t = 0)]
+    pub hr_restart: usize,
+    /// Let the tracked HR run (--pair) know only its LR run: no colliders, no wind, started on
+    /// the LR surface; gravity, material and pins as the scenario's. What a physics upscaler of
+    /// someone else's cloth could reach (docs/wrinkles.md).
+    #[arg(long)]
+    pub hr_blind: bool,
     /// XPBD substeps per frame.
     #[arg(long)]
     pub substeps: Option<usize>,
@@ -85,6 +100,9 @@ pub fn spec_from_args(a: &Args) -> Result<ScenarioSpec> {
     spec.material = Material::from_name(&a.material)?;
     spec.scale = a.scale;
     spec.tracking = a.tracking;
+    spec.hr_jitter = a.hr_jitter;
+    spec.hr_restart = a.hr_restart;
+    spec.hr_blind = a.hr_blind;
     spec.tracking_mode = crate::cloth::tracking::TrackingMode::from_name(&a.track)?;
     if let Some(s) = a.substeps {
         spec.params.substeps = s;

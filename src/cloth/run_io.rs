@@ -244,6 +244,9 @@ pub fn meta_json(spec: &ScenarioSpec, role: &str, w: usize, h: usize, domain: &D
         .str("bending", "isometric (Bergou et al. 2006)")
         .val("tracking_per_s2", Value::real(tracking))
         .str("tracking_mode", if tracking > 0.0 { spec.tracking_mode.name() } else { "none" })
+        .val("hr_jitter_m", Value::real(if role == "hr" { spec.hr_jitter } else { 0.0 }))
+        .num("hr_restart_frame", if role == "hr" { spec.hr_restart } else { 0 })
+        .val("hr_blind", Value::Bool(role == "hr" && spec.hr_blind))
         .val(
             "domain",
             Object::new().val("bmin", Value::reals(&domain.bmin)).val("bmax", Value::reals(&domain.bmax)),

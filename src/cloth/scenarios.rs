@@ -127,6 +127,21 @@ pub struct ScenarioSpec {
     pub scale: usize,
     /// Seed of a randomised variant of the scene ([`Variation`]); 0 = the scenario as given.
     pub vary: u64,
+    /// Metres of seeded noise (uniform in ±`hr_jitter` per coordinate, seed `seed`) added to
+    /// the tracked HR run's free vertices at rest; 0 = none. Two runs that differ only in it
+    /// are twins of one HR truth under the same LR run: how far their detail agrees is how much
+    /// of it the LR run fixes (docs/wrinkles.md, "How much of the detail the LR run fixes").
+    pub hr_jitter: f32,
+    /// Frame at which the tracked HR run forgets its own history: its free vertices are put on
+    /// the LR run's bilinear surface, moving with the LR run's velocity, and the folds form
+    /// again from there; 0 = never. Compared with the run that kept its history, it says how
+    /// long a window of LR frames fixes the HR detail (docs/wrinkles.md).
+    pub hr_restart: usize,
+    /// The tracked HR run knows only its LR run, as a physics upscaler of someone else's cloth
+    /// would: no colliders, no wind, started on the LR run's surface (a restart at frame 1);
+    /// gravity, material and pins stay the scenario's. A study of what such an upscaler could
+    /// reach (docs/wrinkles.md), not training data.
+    pub hr_blind: bool,
     pub params: SimParams,
 }
 
@@ -215,6 +230,9 @@ impl ScenarioSpec {
             tracking_mode: TrackingMode::Coarse,
             scale: 2,
             vary: 0,
+            hr_jitter: 0.0,
+            hr_restart: 0,
+            hr_blind: false,
             params,
         }
     }
@@ -232,6 +250,12 @@ impl ScenarioSpec {
         }
         if self.scale == 0 || self.scale > 8 {
             return Err(Error::config(format!("scale must be in 1..=8, got {}", self.scale)));
+        }
+        if !(self.hr_jitter.is_finite() && (0.0..=0.01).contains(&self.hr_jitter)) {
+            return Err(Error::config(format!(
+                "hr jitter must be between 0 and 0.01 m, got {}",
+                self.hr_jitter
+            )));
         }
         if !(self.tracking.is_finite() && self.tracking >= 0.0) {
             return Err(Error::config(format!(
@@ -401,7 +425,25 @@ pub fn run_at(
             return Err(Error::shape(format!("tracking needs {} LR frames, got {}", spec.frames, lr.len())));
         }
     }
-    let (mut cloth, scene) = spec.setup(w, h);
+    let (mut cloth, mut scene) = spec.setup(w, h);
+    let restart = match track {
+        Some(_) if spec.hr_blind => {
+            scene.colliders = Default::default();
+            scene.wind = crate::cloth::wind::Wind::none();
+            1
+        }
+        Some(_) => spec.hr_restart,
+        None => 0,
+    };
+    if track.is_some() && spec.hr_jitter > 0.0 {
+        let mut rng = crate::rng::Rng::new(crate::rng::mix_seed(&[spec.seed, 0x6a17]));
+        let j = spec.hr_jitter;
+        for (x, &im) in cloth.x.iter_mut().zip(&cloth.inv_mass) {
+            if im > 0.0 {
+                x.iter_mut().for_each(|c| *c += rng.uniform_in(-j, j));
+            }
+        }
+    }
     let coarse = match (track, spec.tracking_mode) {
         (Some(lr), TrackingMode::Coarse) => {
             Some(CoarseTrack::new(Restriction::new(lr[0].w, lr[0].h, w, h), &cloth.inv_mass))
@@ -417,6 +459,17 @@ pub fn run_at(
     progress(0);
     let mut from = track.map(|lr| targets_of(&lr[0]));
     for k in 1..spec.frames {
+        if let Some(lr) = track.filter(|_| restart > 0 && restart + 1 == k) {
+            let (now, before) =
+                (bilinear_targets(&lr[k - 1], w, h), bilinear_targets(&lr[k.max(2) - 2], w, h));
+            let inv_dt = 1.0 / spec.params.dt;
+            for v in 0..cloth.x.len() {
+                if cloth.inv_mass[v] > 0.0 {
+                    cloth.x[v] = now[v];
+                    cloth.v[v] = std::array::from_fn(|c| (now[v][c] - before[v][c]) * inv_dt);
+                }
+            }
+        }
         match (track, &from) {
             (Some(lr), Some(f)) => {
                 let to = targets_of(&lr[k]);
