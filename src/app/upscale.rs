@@ -5,7 +5,10 @@
 
 use super::setup::{load_model, parse_threads, set_threads};
 use super::ui::progress;
+use crate::cloth::follow::{FollowOutput, FollowParams};
 use crate::cloth::run_io::DOMAIN_MARGIN;
+use crate::cloth::Material;
+use crate::error::Error;
 use crate::error::Result;
 use crate::pipeline::{upscale_files, OutputFormat, Report, UpscaleJob};
 use crate::sr::compose::DEFAULT_ETA;
@@ -21,6 +24,7 @@ use std::path::PathBuf;
   anisocb upscale run/lr --out hr/                   # a simulator run dir (geometry.npy + domain.npy)
   anisocb upscale run/lr/geometry.npy --out hr/ --eta 1.0 --maps
   anisocb upscale frames/ --out hr/ --frames 0:100   # one slice of a shot (a render-farm task)
+  anisocb upscale frames/ --out hr/ --physics --gravity 0,0,-9.81 --fps 24   # folds by simulation
 
 From Blender and back (OBJ sequence):
   1. File > Export > Wavefront (.obj): Animation on, Apply Modifiers on, UV Coordinates and
@@ -131,6 +135,36 @@ pub struct Args {
     /// shot's length.
     #[arg(long, default_value_t = DEFAULT_CHUNK)]
     pub chunk: usize,
+    /// Physics pass (opt-in): an HR cloth simulated alongside the shot, held to the nets' frames
+    /// at the LR grid's scale only, so folds finer than the LR grid form where an HR simulation
+    /// forms them (docs/wrinkles.md, "The physics pass"). Reads the shot as metres; set
+    /// --gravity, --fps and --material to match it. Needs the whole shot from frame 0.
+    #[arg(long)]
+    pub physics: bool,
+    /// With --physics: gravity in the shot's axes, m/s² (y-up OBJ: 0,-9.81,0; a z-up scene:
+    /// 0,0,-9.81).
+    #[arg(long, value_name = "X,Y,Z", default_value = "0,-9.81,0", allow_hyphen_values = true)]
+    pub gravity: String,
+    /// With --physics: the shot's frame rate (frames per second).
+    #[arg(long, default_value_t = 30.0)]
+    pub fps: f32,
+    /// With --physics: the cloth's material (silk, cotton, denim, rubber); its bending
+    /// stiffness sets how fine the folds are.
+    #[arg(long, default_value = "cotton")]
+    pub material: String,
+    /// With --physics: what the pass hands on: `detail` = the nets' frame plus the simulated
+    /// cloth's folds finer than the LR grid (the default), `cloth` = the simulated cloth itself
+    /// (it sags and lags behind the shot by about a centimetre).
+    #[arg(long, default_value = "detail", value_parser = ["detail", "cloth"])]
+    pub physics_output: String,
+    /// With --physics: how hard the simulated cloth is held to the shot at the LR grid's scale
+    /// (1/s², the square of the attachment's angular frequency; higher = closer to the shot,
+    /// folds finer than the LR grid stay free either way).
+    #[arg(long, default_value_t = crate::cloth::follow::FollowParams::default().strength)]
+    pub physics_strength: f32,
+    /// With --physics: damping of that attachment as a fraction of critical (0 = none).
+    #[arg(long, default_value_t = crate::cloth::follow::FollowParams::default().damping)]
+    pub physics_damping: f32,
 }
 
 /// Progress bars and messages on stderr.
@@ -186,9 +220,25 @@ pub fn run(a: Args) -> Result<()> {
             keep_outline: a.keep_outline,
             gate_coarse_only: a.gate_coarse_only,
         },
+        physics: if a.physics {
+            Some(FollowParams {
+                gravity: parse_gravity(&a.gravity)?,
+                fps: a.fps,
+                material: Material::from_name(&a.material)?,
+                strength: a.physics_strength,
+                damping: a.physics_damping,
+                output: if a.physics_output == "cloth" { FollowOutput::Cloth } else { FollowOutput::Detail },
+                ..FollowParams::default()
+            })
+        } else {
+            None
+        },
     };
     // Every option checked before a file is read or a net runs.
     job.params.validate()?;
+    if let Some(p) = &job.physics {
+        p.validate()?;
+    }
     crate::pipeline::job::check_margin(job.margin)?;
     set_threads(a.threads)?;
     let ops = crate::cuda::ops_for_device(&a.device)?;
@@ -206,4 +256,15 @@ pub fn run(a: Args) -> Result<()> {
         done.format
     );
     Ok(())
+}
+
+/// `--gravity X,Y,Z` (m/s²).
+fn parse_gravity(s: &str) -> Result<[f32; 3]> {
+    let v: Vec<f32> = s.split(',').filter_map(|c| c.trim().parse().ok()).collect();
+    match v[..] {
+        [x, y, z] if s.split(',').count() == 3 => Ok([x, y, z]),
+        _ => Err(Error::config(format!(
+            "--gravity {s}: expected three numbers X,Y,Z in m/s² (y-up: 0,-9.81,0; z-up: 0,0,-9.81)"
+        ))),
+    }
 }

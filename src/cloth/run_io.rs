@@ -198,7 +198,8 @@ pub fn read_pair(dir: &Path) -> Result<RunPair> {
 /// Human-readable metadata of one run (`role`: "single", "lr" or "hr") at `w × h`.
 pub fn meta_json(spec: &ScenarioSpec, role: &str, w: usize, h: usize, domain: &Domain) -> Value {
     let p = &spec.params;
-    let m = &spec.material;
+    // A varied run (`--vary`) may simulate another material than the spec's.
+    let m = &super::scenarios::Variation::from_seed(spec.vary).material.unwrap_or(spec.material);
     let (sx, sy) = spec.size();
     let material: Value = if spec.scenario == super::Scenario::TwistMaterials {
         "bands along u: silk | rubber | denim".into()

@@ -473,7 +473,13 @@ pub fn run_at(
         match (track, &from) {
             (Some(lr), Some(f)) => {
                 let to = targets_of(&lr[k]);
-                let tt = TrackTargets { from: f, to: &to, strength: spec.tracking, coarse: coarse.as_ref() };
+                let tt = TrackTargets {
+                    from: f,
+                    to: &to,
+                    strength: spec.tracking,
+                    damping: 0.0,
+                    coarse: coarse.as_ref(),
+                };
                 cloth.step(&spec.params, &scene, Some(&tt));
                 from = Some(to);
             }

@@ -209,15 +209,9 @@ impl Cloth {
                 let blend = (s + 1) as f32 / p.substeps as f32;
                 match (track_frac, track) {
                     (Some(_), Some(tt @ TrackTargets { coarse: Some(ct), .. })) => {
-                        solve_coarse_track(
-                            &mut self.x,
-                            &self.inv_mass,
-                            ct,
-                            tt,
-                            blend,
-                            &mut self.lambda_t,
-                            inv_h2,
-                        );
+                        let blends = (s as f32 / p.substeps as f32, blend);
+                        let (x, prev) = (&mut self.x, &self.prev);
+                        solve_coarse_track(x, prev, &self.inv_mass, ct, tt, blends, &mut self.lambda_t, h);
                     }
                     (Some(frac), Some(tt)) => {
                         for v in 0..n {
@@ -374,33 +368,56 @@ fn solve_bend(x: &mut [[f32; 3]], cs: &Coloured<BendW>, lambda: &mut [[f32; 3]],
 }
 
 /// Gauss–Seidel XPBD projection of the coarse tracking constraints
-/// `C_I = Σ_k w_Ik x_k − t_I` (3 components, `t_I` blended between the frame's targets), each a
-/// zero-length spring of stiffness `m_I · strength` (compliance `1/(m_I · strength)`):
-/// `Δλ = (−C − α̃ λ) / (Σ_k w_k²/m_k + α̃)`, `x_k += w_k/m_k · Δλ`. Serial, in node order.
+/// `C_I = Σ_k w_Ik x_k − t_I` (3 components, `t_I` blended between the frame's targets at
+/// `blends.1` of the frame, `blends.0` at the substep's start), each a zero-length spring of
+/// stiffness `m_I · strength` (compliance `α = 1/(m_I · strength)`, `α̃ = α/h²`), damped with
+/// `β = 2·damping/√strength` (critical at `damping` = 1; `γ = α β / h`) on the change of C over
+/// the substep, `δC = Σ_k w_Ik (x_k − x_prev,k) − (t_I(end) − t_I(start))`:
+/// `Δλ = (−C − α̃ λ − γ δC) / ((1 + γ) Σ_k w_k²/m_k + α̃)`, `x_k += w_k/m_k · Δλ`
+/// (Macklin et al. 2016, Eq 26). Serial, in node order.
+#[allow(clippy::too_many_arguments)]
 fn solve_coarse_track(
     x: &mut [[f32; 3]],
+    prev: &[[f32; 3]],
     inv_mass: &[f32],
     ct: &CoarseTrack,
     tt: &TrackTargets,
-    blend: f32,
+    blends: (f32, f32),
     lambda: &mut [[f32; 3]],
-    inv_h2: f32,
+    h: f32,
 ) {
+    let inv_h2 = 1.0 / (h * h);
+    let target = |n: usize, b: f32| -> [f32; 3] {
+        std::array::from_fn(|k| tt.from[n][k] + b * (tt.to[n][k] - tt.from[n][k]))
+    };
     for (n, l) in lambda.iter_mut().enumerate() {
         let (ws, m) = (ct.w2_inv_mass[n], ct.node_mass[n]);
         if ws == 0.0 || m == 0.0 {
             continue;
         }
         let at = inv_h2 / (m * tt.strength);
-        let mut c: [f32; 3] =
-            std::array::from_fn(|k| -(tt.from[n][k] + blend * (tt.to[n][k] - tt.from[n][k])));
+        let t1 = target(n, blends.1);
+        let mut c: [f32; 3] = std::array::from_fn(|k| -t1[k]);
         for (v, wv) in ct.restriction.node(n) {
             for k in 0..3 {
                 c[k] += wv * x[v][k];
             }
         }
-        let denom = 1.0 / (ws + at);
-        let dl: [f32; 3] = std::array::from_fn(|k| (-c[k] - at * l[k]) * denom);
+        let dl: [f32; 3] = if tt.damping > 0.0 {
+            let gamma = 2.0 * tt.damping / tt.strength.sqrt() / (m * tt.strength * h);
+            let t0 = target(n, blends.0);
+            let mut dc: [f32; 3] = std::array::from_fn(|k| t0[k] - t1[k]);
+            for (v, wv) in ct.restriction.node(n) {
+                for k in 0..3 {
+                    dc[k] += wv * (x[v][k] - prev[v][k]);
+                }
+            }
+            let denom = 1.0 / ((1.0 + gamma) * ws + at);
+            std::array::from_fn(|k| (-c[k] - at * l[k] - gamma * dc[k]) * denom)
+        } else {
+            let denom = 1.0 / (ws + at);
+            std::array::from_fn(|k| (-c[k] - at * l[k]) * denom)
+        };
         for k in 0..3 {
             l[k] += dl[k];
         }

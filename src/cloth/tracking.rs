@@ -54,6 +54,10 @@ pub struct TrackTargets<'a> {
     pub to: &'a [[f32; 3]],
     /// Attachment strength (1/s²); 0 = off.
     pub strength: f32,
+    /// Damping of the coarse constraints as a fraction of critical (1 = critically damped
+    /// attachment; 0 = none, the training runs'): XPBD constraint damping (Macklin et al. 2016,
+    /// Eq 26) on the constraint's velocity relative to its moving target.
+    pub damping: f32,
     pub coarse: Option<&'a CoarseTrack>,
 }
 

@@ -5,6 +5,8 @@
 
 use super::input::{open_input, shot_bounds, CacheIn, FrameAttrs, Input, MeshOut, Shot};
 use super::output::{refuse_duplicate_outputs, refuse_out_over_input, CacheSink, ObjSink, Outputs};
+use super::physics::PhysicsSink;
+use crate::cloth::follow::FollowParams;
 use crate::cloth::run_io::DOMAIN_MARGIN;
 use crate::error::{Error, Result};
 use crate::geom::cloth_frame::InputFrame;
@@ -56,6 +58,9 @@ pub struct UpscaleJob {
     /// Also write the boundary and wrinkle-edge maps (boundary.npy, enhance.npy).
     pub maps: bool,
     pub params: UpscaleParams,
+    /// The physics pass (`--physics`): the nets' frames pass through an HR cloth
+    /// coarse-tracked to them ([`crate::cloth::follow`]); `None` = off (the default).
+    pub physics: Option<FollowParams>,
 }
 
 impl UpscaleJob {
@@ -71,6 +76,7 @@ impl UpscaleJob {
             chunk: DEFAULT_CHUNK,
             maps: false,
             params: UpscaleParams::default(),
+            physics: None,
         }
     }
 }
@@ -148,6 +154,9 @@ pub fn upscale_files(
     let params = &job.params;
     params.validate()?;
     check_margin(job.margin)?;
+    if let Some(p) = &job.physics {
+        p.validate()?;
+    }
     if job.chunk == 0 {
         return Err(Error::config("--chunk must be ≥ 1 frame (frames read, upscaled and written at a time)"));
     }
@@ -165,6 +174,13 @@ pub fn upscale_files(
     let (domain, domain_note) = settle_domain(model, job, &plan, npy_domain, &mut shot, report)?;
     ensure_dir(&job.out)?;
     let range = plan.range.clone();
+    if job.physics.is_some() && range.start > 0 {
+        return Err(Error::config(format!(
+            "--physics simulates the cloth from the shot's first frame: a --frames slice must start \
+             at 0 (got {}:{}); upscale 0:{} instead",
+            range.start, range.end, range.end
+        )));
+    }
     report.message(&format!(
         "upscaling frames {}..{} of {t}, {w}x{h} -> {}x{} ({}), η = {}",
         range.start,
@@ -205,17 +221,15 @@ pub fn upscale_files(
         }
         report.progress(k);
     };
-    upscale_stream(
-        ops,
-        model,
-        &mut shot,
-        &domain,
-        range.clone(),
-        params,
-        job.chunk,
-        &mut out,
-        &mut on_frames,
-    )?;
+    let mut physics;
+    let sink: &mut dyn crate::sr::stream::HrSink = match &job.physics {
+        Some(p) => {
+            physics = PhysicsSink::new(&mut out, domain, p.clone(), (w, h));
+            &mut physics
+        }
+        None => &mut out,
+    };
+    upscale_stream(ops, model, &mut shot, &domain, range.clone(), params, job.chunk, sink, &mut on_frames)?;
     out.finish()?;
     if plan.fmt == "npy" {
         write_npy(&plan.npy("domain"), &domain.to_tensor())?;

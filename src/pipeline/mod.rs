@@ -21,6 +21,7 @@
 pub mod input;
 pub mod job;
 pub mod output;
+pub mod physics;
 pub mod upscaler;
 
 pub use job::{upscale_files, OutputFormat, Quiet, Report, Summary, UpscaleJob};

@@ -1,0 +1,226 @@
+//! The physics pass of `anisocb upscale --physics` (docs/wrinkles.md, "The physics pass"): an
+//! HR cloth simulated alongside a shot it did not make, coarse-tracked to the nets' HR frames,
+//! so the folds finer than the LR grid form as they would in an HR run of the same cloth.
+//!
+//! Why a simulation: the LR run does fix where the HR run's folds go — one frame after the HR
+//! run is put back on the bare LR surface its folds are back (correlation 0.53–0.66 with the
+//! original's, docs/wrinkles.md, "How much of the detail the LR run fixes") — but the nets do
+//! not learn that map, even on their training runs (≤ 0.13). An HR cloth held to the LR
+//! surface's coarse shape buckles where the real one did.
+//!
+//! What it knows: only the frames. The coarse constraint ([`super::tracking::Restriction`],
+//! one XPBD constraint per LR node on the average of the HR vertices under its tent) holds
+//! the shape the LR grid carries, frame by frame, blending linearly over the substeps; gravity,
+//! the material and the frame rate come from [`FollowParams`]; nothing is pinned and there are
+//! no colliders or wind (the shot's colliders are unknown: the tracking keeps the cloth where
+//! the shot's cloth is, folds may dip a few mm into a collider).
+
+use super::kinematics::Kinematics;
+use super::params::{Material, SimParams};
+use super::solver::{Cloth, Scene};
+use super::tracking::{CoarseTrack, Restriction, TrackTargets};
+use super::wind::Wind;
+use crate::error::{Error, Result};
+use crate::geom::geometry_image::lr_round_trip;
+use crate::geom::GridMesh;
+
+/// What the physics pass simulates with; units are the shot's, taken as metres.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FollowParams {
+    /// Gravity in the shot's axes (m/s²): y-up OBJ `0,-9.81,0` (the default), a z-up scene
+    /// `0,0,-9.81`.
+    pub gravity: [f32; 3],
+    /// Frames per second of the shot (the time between frames is `1/fps` s).
+    pub fps: f32,
+    /// The cloth's material: its bending stiffness sets the fold wavelength.
+    pub material: Material,
+    /// Coarse tracking strength (1/s²): the square of the attachment's angular frequency.
+    pub strength: f32,
+    /// XPBD substeps per second of shot time (at least 1 per frame).
+    pub substeps_per_second: f32,
+    /// Damping of the tracking as a fraction of critical: with nothing pinned and no
+    /// colliders, an undamped attachment rings at its own frequency (√strength rad/s, 5 Hz)
+    /// after every jolt of the shot.
+    pub damping: f32,
+    /// What the pass hands on.
+    pub output: FollowOutput,
+}
+
+/// What [`Follower::step`] returns.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FollowOutput {
+    /// The shot's frame plus the simulated cloth's detail finer than the LR grid,
+    /// `target + (x − S(x))` with `S` the Catmull-Rom round trip through the LR grid
+    /// ([`lr_round_trip`]): the shape stays the nets', the folds are the simulation's. The
+    /// default: the simulated cloth's own coarse shape sags and lags behind the shot by
+    /// `(a − g)/strength` (≈ 1 cm at rest), which this leaves out.
+    Detail,
+    /// The simulated cloth itself.
+    Cloth,
+}
+
+impl Default for FollowParams {
+    fn default() -> Self {
+        FollowParams {
+            gravity: [0.0, -9.81, 0.0],
+            fps: 30.0,
+            material: Material::COTTON,
+            strength: super::scenarios::DEFAULT_TRACKING,
+            substeps_per_second: 300.0,
+            damping: 1.0,
+            output: FollowOutput::Detail,
+        }
+    }
+}
+
+impl FollowParams {
+    pub fn validate(&self) -> Result<()> {
+        if !self.gravity.iter().all(|g| g.is_finite() && g.abs() <= 1000.0) {
+            return Err(Error::config(format!(
+                "--gravity must be three finite numbers of at most 1000 m/s² each, got {:?}",
+                self.gravity
+            )));
+        }
+        if !(self.fps.is_finite() && (1.0..=1000.0).contains(&self.fps)) {
+            return Err(Error::config(format!(
+                "--fps must be 1 to 1000 frames per second, got {}",
+                self.fps
+            )));
+        }
+        if !(self.strength.is_finite() && (1.0..=1e6).contains(&self.strength)) {
+            return Err(Error::config(format!(
+                "the physics pass's tracking strength must be 1 to 1e6 1/s², got {}",
+                self.strength
+            )));
+        }
+        if !(self.damping.is_finite() && (0.0..=100.0).contains(&self.damping)) {
+            return Err(Error::config(format!(
+                "the physics pass's damping must be 0 to 100 (× critical), got {}",
+                self.damping
+            )));
+        }
+        if !(self.substeps_per_second.is_finite() && (1.0..=1e5).contains(&self.substeps_per_second)) {
+            return Err(Error::config(format!(
+                "substeps per second must be 1 to 1e5, got {}",
+                self.substeps_per_second
+            )));
+        }
+        Ok(())
+    }
+
+    /// The solver's parameters: one frame of the shot per step, tethers off (nothing pinned).
+    pub fn sim_params(&self) -> SimParams {
+        let substeps = ((self.substeps_per_second / self.fps).ceil() as usize).clamp(1, 1000);
+        SimParams {
+            dt: 1.0 / self.fps,
+            substeps,
+            gravity: self.gravity,
+            tethers: false,
+            ..SimParams::default()
+        }
+    }
+}
+
+/// The physics pass's state over one shot: the HR cloth and the last frame's coarse targets.
+pub struct Follower {
+    cloth: Cloth,
+    scene: Scene,
+    sim: SimParams,
+    strength: f32,
+    damping: f32,
+    track: CoarseTrack,
+    /// Coarse targets (one per LR node, m) of the last frame given.
+    from: Vec<[f32; 3]>,
+    /// The LR grid (columns, rows).
+    lr: (usize, usize),
+    output: FollowOutput,
+}
+
+impl Follower {
+    /// A cloth whose rest shape is `first` (the shot's first HR frame: flat or relaxed cloth,
+    /// `scale·w × scale·h` vertices for an LR grid of `lr` = (w, h)), at rest there.
+    pub fn new(first: &GridMesh, lr: (usize, usize), p: &FollowParams) -> Result<Follower> {
+        p.validate()?;
+        if lr.0 < 2 || lr.1 < 2 || first.w < lr.0 || first.h < lr.1 {
+            return Err(Error::shape(format!(
+                "the physics pass needs an HR grid at least as large as the LR grid (≥ 2×2), got HR \
+                 {}×{} for LR {}×{}",
+                first.w, first.h, lr.0, lr.1
+            )));
+        }
+        check_frame(first, 0)?;
+        let material = p.material;
+        let cloth = Cloth::new(first, &|_| material, Vec::new());
+        let track = CoarseTrack::new(Restriction::new(lr.0, lr.1, first.w, first.h), &cloth.inv_mass);
+        let scene =
+            Scene { kinematics: Kinematics::Static, wind: Wind::none(), colliders: Default::default() };
+        let mut f = Follower {
+            cloth,
+            scene,
+            sim: p.sim_params(),
+            strength: p.strength,
+            damping: p.damping,
+            track,
+            from: Vec::new(),
+            lr,
+            output: p.output,
+        };
+        f.from = f.targets(first);
+        Ok(f)
+    }
+
+    /// The coarse targets of an HR frame, raised against gravity by `g / strength`: the
+    /// constraints carry the cloth's whole weight (there are no colliders), and that is how
+    /// far a zero-length spring of that strength stretches under it.
+    fn targets(&self, frame: &GridMesh) -> Vec<[f32; 3]> {
+        let lift = self.sim.gravity.map(|g| -g / self.strength);
+        let mut t = self.track.restriction.apply(&frame.pos);
+        t.iter_mut().for_each(|p| (0..3).for_each(|c| p[c] += lift[c]));
+        t
+    }
+
+    /// Simulate one frame toward `target` (the next HR frame of the shot, same grid as the
+    /// first) and return the cloth there; `k` is the frame's number, for errors.
+    pub fn step(&mut self, target: &GridMesh, k: usize) -> Result<GridMesh> {
+        if (target.w, target.h) != (self.cloth.w, self.cloth.h) {
+            return Err(Error::shape(format!(
+                "frame {k} is a {}×{} grid, the physics pass's cloth {}×{}",
+                target.w, target.h, self.cloth.w, self.cloth.h
+            )));
+        }
+        check_frame(target, k)?;
+        let to = self.targets(target);
+        let tt = TrackTargets {
+            from: &self.from,
+            to: &to,
+            strength: self.strength,
+            damping: self.damping,
+            coarse: Some(&self.track),
+        };
+        self.cloth.step(&self.sim, &self.scene, Some(&tt));
+        self.from = to;
+        let mut out = self.cloth.mesh();
+        if self.output == FollowOutput::Detail {
+            let s = lr_round_trip(&out, self.lr.0, self.lr.1);
+            for ((o, t), s) in out.pos.iter_mut().zip(&target.pos).zip(&s.pos) {
+                *o = std::array::from_fn(|c| t[c] + o[c] - s[c]);
+            }
+        }
+        if out.pos.iter().flatten().any(|c| !c.is_finite()) {
+            return Err(Error::numeric(format!(
+                "the physics pass blew up at frame {k} (non-finite position): is the shot in metres \
+                 and --fps its frame rate?"
+            )));
+        }
+        Ok(out)
+    }
+}
+
+fn check_frame(m: &GridMesh, k: usize) -> Result<()> {
+    if m.pos.iter().flatten().any(|c| !c.is_finite()) {
+        return Err(Error::numeric(format!(
+            "frame {k} has a non-finite position; the physics pass needs finite frames"
+        )));
+    }
+    Ok(())
+}
