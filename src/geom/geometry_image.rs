@@ -43,7 +43,7 @@ impl Domain {
     pub fn to_tensor(&self) -> Tensor {
         let mut d = self.bmin.to_vec();
         d.extend_from_slice(&self.bmax);
-        Tensor { shape: vec![2, 3], data: d }
+        Tensor { shape: [2, 3].into(), data: d }
     }
 
     pub fn from_tensor(t: &Tensor) -> Result<Domain> {
@@ -138,7 +138,7 @@ pub fn sequence_to_images(frames: &[GridMesh], domain: &Domain) -> Tensor {
     for f in frames {
         data.extend_from_slice(&mesh_to_image(f, domain).data);
     }
-    Tensor { shape: vec![frames.len(), 3, h, w], data }
+    Tensor { shape: [frames.len(), 3, h, w].into(), data }
 }
 
 #[cfg(test)]

@@ -326,7 +326,7 @@ mod tests {
     fn catmull_rom_keeps_an_evenly_spaced_row_even_and_keys_does_not() {
         // A ramp 0..11 (12 evenly spaced vertices) to 24: away from the border (where the
         // clamped taps read a repeated sample) every output must be d·11/23.
-        let x = Tensor { shape: vec![1, 1, 1, 12], data: (0..12).map(|i| i as f32).collect() };
+        let x = Tensor { shape: [1, 1, 1, 12].into(), data: (0..12).map(|i| i as f32).collect() };
         let err = |mode| {
             let y = resize(&x, 1, 24, mode);
             (3..21).map(|d| (y.data[d] - d as f32 * 11.0 / 23.0).abs()).fold(0.0f32, f32::max)

@@ -43,7 +43,7 @@ mod tests {
         // Frame f holds the value c + (−1)^f·a in every pixel.
         let (t, per) = (7, 5);
         let x = Tensor {
-            shape: vec![t, 1, 1, per],
+            shape: [t, 1, 1, per].into(),
             data: (0..t * per).map(|i| 2.0 + if (i / per) % 2 == 0 { 0.5 } else { -0.5 }).collect(),
         };
         let y = smooth_in_time(&x, 1);
@@ -55,7 +55,7 @@ mod tests {
         // Ends renormalised: frame 0 = (½·2.5 + ¼·1.5)/¾.
         assert!((y.data[0] - (0.5 * 2.5 + 0.25 * 1.5) / 0.75).abs() < 1e-6);
         // A constant sequence is unchanged, and radius 0 is the identity.
-        let c = Tensor { shape: vec![4, 1, 1, 3], data: vec![0.3; 12] };
+        let c = Tensor { shape: [4, 1, 1, 3].into(), data: vec![0.3; 12] };
         assert!(smooth_in_time(&c, 2).max_abs_diff(&c) < 1e-7);
         assert_eq!(smooth_in_time(&x, 0).data, x.data);
     }
