@@ -196,13 +196,37 @@ impl Tensor {
 
     /// Samples `n0..n0+count` of the leading axis, as a new tensor.
     pub fn slice_batch(&self, n0: usize, count: usize) -> Tensor {
-        let per: usize = self.shape[1..].iter().product();
-        let mut shape = self.shape;
-        shape[0] = count;
-        let mut data = pool::take(count * per);
-        data.clear();
-        data.extend_from_slice(&self.data[n0 * per..(n0 + count) * per]);
-        Tensor { shape, data }
+        let mut t = Tensor { shape: self.shape, data: Vec::new() };
+        t.assign_batch(self, n0, count);
+        t
+    }
+
+    /// Make this tensor samples `n0..n0+count` of `src`'s leading axis ([`Tensor::slice_batch`]
+    /// in place): its own buffer if that has room, else a pooled one.
+    pub fn assign_batch(&mut self, src: &Tensor, n0: usize, count: usize) {
+        let per: usize = src.shape[1..].iter().product();
+        self.make_room(count * per);
+        self.data.clear();
+        self.data.extend_from_slice(&src.data[n0 * per..(n0 + count) * per]);
+        self.shape = src.shape;
+        self.shape[0] = count;
+    }
+
+    /// Make this tensor `shape` zeros ([`Tensor::zeros`] in place): its own buffer if that has
+    /// room, else a pooled one.
+    pub fn reset_zeros(&mut self, shape: &[usize]) {
+        let s = Shape::new(shape);
+        self.make_room(s.numel());
+        self.data.clear();
+        self.data.resize(s.numel(), 0.0);
+        self.shape = s;
+    }
+
+    /// A buffer with room for `len` floats: this one, or a pooled one in its place.
+    fn make_room(&mut self, len: usize) {
+        if self.data.capacity() < len {
+            pool::give(std::mem::replace(&mut self.data, pool::take(len)));
+        }
     }
 
     /// A (N, C, H, W) tensor mirrored along its rows (`flip_rows`: row i ↔ H − 1 − i) and/or

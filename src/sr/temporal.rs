@@ -1,5 +1,6 @@
 //! Temporal smoothing ([`super::params::UpscaleParams::temporal`]) of the nets' outputs along frames.
 
+use super::params::MAX_TEMPORAL;
 use crate::tensor::Tensor;
 
 /// `x` (T, C, H, W) averaged over time per pixel with binomial weights of radius `k` (row 2k of
@@ -9,15 +10,25 @@ use crate::tensor::Tensor;
 pub fn smooth_in_time(x: &Tensor, k: usize) -> Tensor {
     let t = x.shape[0];
     let per = x.len() / t.max(1);
-    let mut w = vec![1.0f64];
-    for _ in 0..2 * k {
-        let mut next = vec![0.0f64; w.len() + 1];
-        for (i, wi) in w.iter().enumerate() {
-            next[i] += 0.5 * wi;
-            next[i + 1] += 0.5 * wi;
+    // Row 2k, built in place (on the stack up to the largest radius the callers allow): entry
+    // i of row n + 1 is ½·row[i − 1] + ½·row[i], the same sums as adding both halves of each
+    // entry of row n into a fresh row.
+    let (mut stack, mut heap) = ([0.0f64; 2 * MAX_TEMPORAL + 1], Vec::new());
+    let w: &mut [f64] = if k <= MAX_TEMPORAL {
+        &mut stack[..2 * k + 1]
+    } else {
+        heap.resize(2 * k + 1, 0.0);
+        &mut heap
+    };
+    w[0] = 1.0;
+    for n in 1..=2 * k {
+        w[n] = 0.5 * w[n - 1];
+        for i in (1..n).rev() {
+            w[i] = 0.5 * w[i - 1] + 0.5 * w[i];
         }
-        w = next;
+        w[0] *= 0.5;
     }
+    let w = &*w;
     let mut out = Tensor::zeros(&x.shape);
     for f in 0..t {
         let lo = f.saturating_sub(k);
