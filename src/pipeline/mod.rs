@@ -22,6 +22,7 @@ pub mod input;
 pub mod job;
 pub mod output;
 pub mod upscaler;
+mod worker;
 
 pub use job::{upscale_files, OutputFormat, Quiet, Report, Summary, UpscaleJob};
 pub use upscaler::Upscaler;

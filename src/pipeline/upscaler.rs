@@ -5,6 +5,7 @@
 //! [`Upscaler::flush`] hands out the last k at the end of the shot. Each frame gives the same
 //! bits as `anisocb upscale` gives it in the whole shot ([`crate::sr::stream`]).
 
+use super::worker::Worker;
 use crate::error::{Error, Result};
 use crate::geom::cloth_frame::InputFrame;
 use crate::geom::geometry_image::{grid_to_image, image_to_grid, image_to_mesh};
@@ -27,7 +28,7 @@ pub struct Upscaler {
     params: UpscaleParams,
     ops: Box<dyn Ops>,
     /// Worker threads of its own (`None`: the global pool).
-    pool: Option<rayon::ThreadPool>,
+    pool: Option<Worker>,
     /// The box geometry images are encoded with (Eq 1): the unit box for a cloth-frame model,
     /// for which each frame depends on itself alone.
     domain: Domain,
@@ -81,9 +82,7 @@ impl Upscaler {
         if !(1..=1024).contains(&threads) {
             return Err(Error::config(format!("threads must be 1 to 1024, got {threads}")));
         }
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
+        let pool = Worker::new(threads)
             .map_err(|e| Error::config(format!("cannot start {threads} worker threads: {e}")))?;
         self.pool = Some(pool);
         Ok(self)
@@ -252,9 +251,9 @@ impl Upscaler {
 }
 
 /// Run `f` on `pool` if there is one.
-fn in_pool<T: Send>(pool: &Option<rayon::ThreadPool>, f: impl FnOnce() -> T + Send) -> T {
+fn in_pool<T: Send>(pool: &Option<Worker>, f: impl FnOnce() -> T + Send) -> T {
     match pool {
-        Some(p) => p.install(f),
+        Some(p) => p.run(f),
         None => f(),
     }
 }
