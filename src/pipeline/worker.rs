@@ -2,22 +2,23 @@
 //! closures. `ThreadPool::install` from a thread outside the pool queues each closure on
 //! rayon's injector (crossbeam-deque's `Injector`), which allocates a block every 63 jobs: with
 //! two closures per frame that was the last heap allocation of an [`super::Upscaler`] frame
-//! (tests/upscaler_allocations.rs). Handing a closure to the resident job over a bounded
-//! channel allocates nothing once the channels have been used.
+//! (tests/upscaler_allocations.rs). The resident job takes closures through a mutex-guarded
+//! slot and a condition variable, which never allocate (`std::sync::mpsc` channels did, the
+//! first time a thread blocked on one: at a frame that depended on timing).
 
 use std::any::Any;
 use std::panic::{catch_unwind, resume_unwind, AssertUnwindSafe};
-use std::sync::mpsc::{sync_channel, Receiver, SyncSender};
-use std::sync::Mutex;
+use std::sync::{Arc, Condvar, Mutex, MutexGuard};
 
 /// A thread pool whose resident job runs [`Worker::run`]'s closures (see the module docs).
 pub(crate) struct Worker {
-    /// The threads (only the resident job queues work on them). Dropped first: rayon then
-    /// ends each thread once the resident job has returned.
+    /// The threads (only the resident job queues work on them). Dropped after `Drop::drop`
+    /// has closed the slot: rayon then ends each thread once the resident job has returned.
     _pool: rayon::ThreadPool,
-    /// Closures to the resident job, and what became of each (a panic's payload) back. Behind
-    /// a lock so that `run` takes `&self` and the owner stays `Sync`.
-    jobs: Mutex<(SyncSender<Job>, Receiver<Outcome>)>,
+    /// The slot the resident job waits on.
+    shared: Arc<Shared>,
+    /// Held for a whole [`Worker::run`]: one closure in the slot at a time.
+    calls: Mutex<()>,
 }
 
 /// A closure on the stack of a thread blocked in [`Worker::run`] until it has run.
@@ -29,24 +30,56 @@ unsafe impl Send for Job {}
 /// `None`: the closure returned; `Some`: it panicked with this payload.
 type Outcome = Option<Box<dyn Any + Send>>;
 
+#[derive(Default)]
+struct Slot {
+    job: Option<Job>,
+    outcome: Option<Outcome>,
+    /// The Worker is gone: the resident job returns.
+    closed: bool,
+}
+
+#[derive(Default)]
+struct Shared {
+    slot: Mutex<Slot>,
+    changed: Condvar,
+}
+
+impl Shared {
+    fn lock(&self) -> MutexGuard<'_, Slot> {
+        // Nothing panics while holding it (closures run unlocked): a poisoned lock is still valid.
+        self.slot.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    /// Wait until `ready(slot)`.
+    fn wait_for<'a>(
+        &self,
+        mut s: MutexGuard<'a, Slot>,
+        ready: impl Fn(&Slot) -> bool,
+    ) -> MutexGuard<'a, Slot> {
+        while !ready(&s) {
+            s = self.changed.wait(s).unwrap_or_else(|e| e.into_inner());
+        }
+        s
+    }
+}
+
 impl Worker {
     /// A pool of `threads` threads (≥ 1) with the resident job started on it.
     pub(crate) fn new(threads: usize) -> Result<Worker, rayon::ThreadPoolBuildError> {
         let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build()?;
-        let (job_tx, job_rx) = sync_channel::<Job>(1);
-        let (done_tx, done_rx) = sync_channel::<Outcome>(1);
-        // Ends when the Worker, and with it the job sender, is dropped.
-        pool.spawn(move || {
-            while let Ok(Job(f)) = job_rx.recv() {
-                // SAFETY: `run` holds the closure alive, borrowed by nothing else, until it has
-                // the outcome sent below.
-                let outcome = catch_unwind(AssertUnwindSafe(|| unsafe { (*f)() }));
-                if done_tx.send(outcome.err()).is_err() {
-                    break;
-                }
-            }
+        let shared = Arc::new(Shared::default());
+        let sh = Arc::clone(&shared);
+        pool.spawn(move || loop {
+            let mut s = sh.wait_for(sh.lock(), |s| s.job.is_some() || s.closed);
+            let Some(Job(f)) = s.job.take() else { return };
+            drop(s);
+            // SAFETY: `run` holds the closure alive, borrowed by nothing else, until it has
+            // the outcome set below.
+            let outcome = catch_unwind(AssertUnwindSafe(|| unsafe { (*f)() }));
+            sh.lock().outcome = Some(outcome.err());
+            sh.changed.notify_all();
         });
-        Ok(Worker { _pool: pool, jobs: Mutex::new((job_tx, done_rx)) })
+        Ok(Worker { _pool: pool, shared, calls: Mutex::new(()) })
     }
 
     /// `f()` on the pool, as `ThreadPool::install` runs it (a panic in it is raised again
@@ -57,19 +90,29 @@ impl Worker {
         let mut call = || out = f.take().map(|f| f());
         let call: *mut (dyn FnMut() + Send + '_) = &mut call;
         // SAFETY: only the lifetime is erased; the resident job calls the closure before it
-        // sends the outcome, and this frame does not return (nor touch `out`) before that.
+        // sets the outcome, and this frame does not return (nor touch `out`) before that.
         let job = Job(unsafe {
             std::mem::transmute::<*mut (dyn FnMut() + Send + '_), *mut (dyn FnMut() + Send + 'static)>(call)
         });
         let outcome = {
-            let jobs = self.jobs.lock().unwrap_or_else(|e| e.into_inner());
-            jobs.0.send(job).expect("the resident job runs as long as its Worker");
-            jobs.1.recv().expect("the resident job answers every closure")
+            let _one = self.calls.lock().unwrap_or_else(|e| e.into_inner());
+            let mut s = self.shared.lock();
+            s.job = Some(job);
+            self.shared.changed.notify_all();
+            let mut s = self.shared.wait_for(s, |s| s.outcome.is_some());
+            s.outcome.take().expect("waited for it")
         };
         if let Some(payload) = outcome {
             resume_unwind(payload);
         }
         out.expect("the resident job ran the closure")
+    }
+}
+
+impl Drop for Worker {
+    fn drop(&mut self) {
+        self.shared.lock().closed = true;
+        self.shared.changed.notify_all();
     }
 }
 
