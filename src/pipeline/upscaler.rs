@@ -19,8 +19,10 @@ use crate::tensor::Tensor;
 /// A model ready to upscale a shot frame by frame (see the module docs).
 ///
 /// After the first few frames of a shot (the pools and its buffers warmed up), a frame through
-/// [`Upscaler::push_into`] (the C ABI's `anisocb_push`) allocates nothing on the heap;
-/// [`Upscaler::push`] allocates the mesh it returns (tests/upscaler_allocations.rs).
+/// [`Upscaler::push_into`] (the C ABI's `anisocb_push`) on its own threads
+/// ([`Upscaler::with_threads`]) allocates nothing on the heap; [`Upscaler::push`] allocates the
+/// mesh it returns (tests/upscaler_allocations.rs). On rayon's global pool, handing the frame's
+/// work to the pool allocates about once every 16 frames (rayon's job queue).
 pub struct Upscaler {
     model: AnisoCb,
     /// Every conv's weights packed once ([`AnisoCb::pack_all`] of `model`, which never changes).
