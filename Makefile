@@ -28,7 +28,9 @@ rust-example:
 
 ## The C ABI (include/anisocb.h) as a static and a shared library; examples/c/upscale_frames.c
 ## compiled against each with the system C compiler, run on 24 frames of a simulated drape and
-## checked bit for bit against `anisocb upscale` (plain, and with --temporal 2). ≈ 1 min.
+## checked bit for bit against `anisocb upscale` (plain, and with --temporal 2); then
+## anisocb_push called from Rust, checked to allocate nothing per frame after warm-up
+## (tests/upscaler_allocations.rs with --features capi). ≈ 2 min.
 CC ?= cc
 C_OUT = target/c-example
 c-example:
@@ -44,6 +46,7 @@ c-example:
 	target/release/anisocb upscale $(C_OUT)/sim/obj --out $(C_OUT)/cli-t2 --temporal 2 >/dev/null 2>&1
 	$(C_OUT)/upscale_static $(C_OUT)/sim/obj $(C_OUT)/cli 24
 	$(C_OUT)/upscale_shared $(C_OUT)/sim/obj $(C_OUT)/cli-t2 24 2
+	$(CARGO) test --release --features capi --test upscaler_allocations
 
 c-example-if-cc:
 	@if command -v $(CC) >/dev/null 2>&1; then $(MAKE) c-example; \

@@ -66,7 +66,9 @@ uint32_t anisocb_scale(const anisocb_upscaler *up);
 uint32_t anisocb_latency(const anisocb_upscaler *up);
 
 /* Give the next LR frame (3*w*h floats). Writes the next HR frame into hr (hr_cap floats, at
- * least 3*r*w*r*h) and returns ANISOCB_OK, or returns ANISOCB_PENDING. */
+ * least 3*r*w*r*h) and returns ANISOCB_OK, or returns ANISOCB_PENDING. With threads >= 1 it
+ * allocates no heap memory after a shot's first few frames (with threads = 0, rayon's global
+ * pool allocates about once per 16 frames). */
 int anisocb_push(anisocb_upscaler *up, uint32_t w, uint32_t h, const float *lr, float *hr,
                  size_t hr_cap);
 /* At the end of a shot: writes the next held-back HR frame and returns ANISOCB_OK, or returns

@@ -8,7 +8,6 @@
 //! field order and every signature are the contract.
 
 use crate::error::Error;
-use crate::geom::GridMesh;
 use crate::nn::bundle::AnisoCb;
 use crate::pipeline::Upscaler;
 use crate::sr::upscale::{embedded_model, UpscaleParams};
@@ -209,16 +208,14 @@ pub unsafe extern "C" fn anisocb_latency(up: *const Upscaler) -> u32 {
     up.as_ref().map_or(0, |u| u.latency() as u32)
 }
 
-/// Write an HR grid's positions into the caller's buffer of `cap` floats.
-unsafe fn put(hr: &GridMesh, out: *mut f32, cap: usize) -> Result<(), Fail> {
-    let n = 3 * hr.pos.len();
+/// The caller's buffer `out` of `cap` floats as the `n` floats (3·rW·rH) of an HR frame.
+unsafe fn hr_buffer<'a>(out: *mut f32, cap: usize, n: usize) -> Result<&'a mut [[f32; 3]], Fail> {
     if out.is_null() || cap < n {
         return Err(argument(&format!(
             "the output buffer holds {cap} floats; the HR frame needs {n} (3·rW·rH)"
         )));
     }
-    std::slice::from_raw_parts_mut(out, n).copy_from_slice(bytemuck::cast_slice(&hr.pos));
-    Ok(())
+    Ok(bytemuck::cast_slice_mut(std::slice::from_raw_parts_mut(out, n)))
 }
 
 /// Give the next LR frame (`w`×`h` vertices, row-major, xyz interleaved: 3·w·h floats); the
@@ -249,11 +246,10 @@ pub unsafe extern "C" fn anisocb_push(
                 3 * r * r * w * h
             )));
         }
+        // Straight from the caller's buffers into the caller's buffer: no allocation per frame.
         let pos: &[[f32; 3]] = bytemuck::cast_slice(std::slice::from_raw_parts(lr, 3 * w * h));
-        match up.push(&GridMesh::new(w, h, pos.to_vec()))? {
-            Some(m) => put(&m, hr, hr_cap).map(|_| ANISOCB_OK),
-            None => Ok(ANISOCB_PENDING),
-        }
+        let out = hr_buffer(hr, hr_cap, 3 * r * r * w * h)?;
+        Ok(if up.push_into(w, h, pos, out)? { ANISOCB_OK } else { ANISOCB_PENDING })
     })
 }
 
@@ -266,9 +262,10 @@ pub unsafe extern "C" fn anisocb_push(
 pub unsafe extern "C" fn anisocb_flush(up: *mut Upscaler, hr: *mut f32, hr_cap: usize) -> c_int {
     guard(|| {
         let up = up.as_mut().ok_or_else(|| argument("anisocb_flush: null handle"))?;
-        match up.flush_one()? {
-            Some(m) => put(&m, hr, hr_cap).map(|_| ANISOCB_OK),
-            None => Ok(ANISOCB_DONE),
-        }
+        let out = match up.grid() {
+            Some((w, h)) if up.held_back() > 0 => hr_buffer(hr, hr_cap, 3 * up.scale().pow(2) * w * h)?,
+            _ => &mut [],
+        };
+        Ok(if up.flush_into(out)? { ANISOCB_OK } else { ANISOCB_DONE })
     })
 }

@@ -63,4 +63,4 @@ pub mod viz;
 pub mod app;
 
 pub use error::{Error, Result};
-pub use tensor::Tensor;
+pub use tensor::{Shape, Tensor};

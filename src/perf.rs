@@ -198,7 +198,7 @@ fn det_tensor(shape: &[usize], seed: u32) -> Tensor {
             (h >> 8) as f32 / (1u32 << 24) as f32 - 0.5
         })
         .collect();
-    Tensor { shape: shape.to_vec(), data }
+    Tensor { shape: shape.into(), data }
 }
 
 /// Time forward, input gradient and weight gradient of `case` (replicate padding) on the

@@ -139,7 +139,7 @@ pub(crate) mod testing {
         }
         pub(crate) fn tensor(&mut self, shape: &[usize], lo: f32, hi: f32) -> Tensor {
             let n = shape.iter().product();
-            Tensor { shape: shape.to_vec(), data: (0..n).map(|_| self.uniform(lo, hi)).collect() }
+            Tensor { shape: shape.into(), data: (0..n).map(|_| self.uniform(lo, hi)).collect() }
         }
     }
 }

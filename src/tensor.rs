@@ -3,12 +3,111 @@
 
 use crate::error::{Error, Result};
 use crate::pool;
+use std::fmt;
+use std::ops::{Deref, DerefMut};
 
-/// A dense f32 tensor. Its buffer comes from and goes back to the per-thread pool
+/// Most axes a tensor has (a `.npy` of more is refused when read).
+pub const MAX_RANK: usize = 6;
+
+/// A tensor's dimensions, held inline: a tensor is made for every layer of every frame, and
+/// its shape then costs no allocation. Derefs to `[usize]` (`shape[0]`, `shape.len()`,
+/// `&shape[1..]`, `shape.iter()`); compares with arrays, slices and vectors of dimensions.
+#[derive(Clone, Copy, PartialEq, Eq, Hash)]
+pub struct Shape {
+    /// The first `rank` entries; the rest are 0 (so the derived equality is the slices').
+    dims: [usize; MAX_RANK],
+    rank: usize,
+}
+
+impl Shape {
+    /// `dims` as a shape; panics beyond [`MAX_RANK`] axes (a programming error: data from
+    /// outside goes through [`Shape::try_new`]).
+    pub fn new(dims: &[usize]) -> Shape {
+        Shape::try_new(dims).unwrap_or_else(|e| panic!("{e}"))
+    }
+
+    /// `dims` as a shape, or an error beyond [`MAX_RANK`] axes.
+    pub fn try_new(dims: &[usize]) -> Result<Shape> {
+        if dims.len() > MAX_RANK {
+            return Err(Error::shape(format!("shape {dims:?} has {} axes; at most {MAX_RANK}", dims.len())));
+        }
+        let mut s = Shape { dims: [0; MAX_RANK], rank: dims.len() };
+        s.dims[..dims.len()].copy_from_slice(dims);
+        Ok(s)
+    }
+
+    /// Elements of a tensor of this shape.
+    pub fn numel(&self) -> usize {
+        self.iter().product()
+    }
+}
+
+impl Deref for Shape {
+    type Target = [usize];
+    fn deref(&self) -> &[usize] {
+        &self.dims[..self.rank]
+    }
+}
+
+impl DerefMut for Shape {
+    fn deref_mut(&mut self) -> &mut [usize] {
+        &mut self.dims[..self.rank]
+    }
+}
+
+impl fmt::Debug for Shape {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        fmt::Debug::fmt(&**self, f)
+    }
+}
+
+impl From<&[usize]> for Shape {
+    fn from(dims: &[usize]) -> Shape {
+        Shape::new(dims)
+    }
+}
+
+impl<const N: usize> From<[usize; N]> for Shape {
+    fn from(dims: [usize; N]) -> Shape {
+        Shape::new(&dims)
+    }
+}
+
+impl From<Vec<usize>> for Shape {
+    fn from(dims: Vec<usize>) -> Shape {
+        Shape::new(&dims)
+    }
+}
+
+impl<const N: usize> PartialEq<[usize; N]> for Shape {
+    fn eq(&self, other: &[usize; N]) -> bool {
+        **self == *other
+    }
+}
+
+impl PartialEq<[usize]> for Shape {
+    fn eq(&self, other: &[usize]) -> bool {
+        **self == *other
+    }
+}
+
+impl PartialEq<&[usize]> for Shape {
+    fn eq(&self, other: &&[usize]) -> bool {
+        **self == **other
+    }
+}
+
+impl PartialEq<Vec<usize>> for Shape {
+    fn eq(&self, other: &Vec<usize>) -> bool {
+        **self == **other
+    }
+}
+
+/// A dense f32 tensor. Its buffer comes from and goes back to the process-wide pool
 /// ([`crate::pool`]): activations of the same sizes are made and dropped at every layer.
 #[derive(Debug, PartialEq)]
 pub struct Tensor {
-    pub shape: Vec<usize>,
+    pub shape: Shape,
     pub data: Vec<f32>,
 }
 
@@ -17,7 +116,7 @@ impl Clone for Tensor {
         let mut data = pool::take(self.data.len());
         data.clear();
         data.extend_from_slice(&self.data);
-        Tensor { shape: self.shape.clone(), data }
+        Tensor { shape: self.shape, data }
     }
 }
 
@@ -29,25 +128,25 @@ impl Drop for Tensor {
 
 impl Tensor {
     pub fn zeros(shape: &[usize]) -> Self {
-        Tensor { shape: shape.to_vec(), data: pool::zeroed(shape.iter().product()) }
+        Tensor { shape: Shape::new(shape), data: pool::zeroed(shape.iter().product()) }
     }
 
     /// A tensor whose values are unspecified (stale ones from the pool): for kernels that write
     /// every element before anything reads it, and skip the zeroing pass.
     pub fn for_overwrite(shape: &[usize]) -> Self {
-        Tensor { shape: shape.to_vec(), data: pool::overwritten(shape.iter().product()) }
+        Tensor { shape: Shape::new(shape), data: pool::overwritten(shape.iter().product()) }
     }
 
     pub fn full(shape: &[usize], v: f32) -> Self {
-        Tensor { shape: shape.to_vec(), data: pool::filled(shape.iter().product(), v) }
+        Tensor { shape: Shape::new(shape), data: pool::filled(shape.iter().product(), v) }
     }
 
     pub fn from_vec(shape: &[usize], data: Vec<f32>) -> Result<Self> {
-        let n: usize = shape.iter().product();
+        let (s, n) = (Shape::try_new(shape)?, shape.iter().product::<usize>());
         if n != data.len() {
             return Err(Error::shape(format!("shape {:?} needs {} values, got {}", shape, n, data.len())));
         }
-        Ok(Tensor { shape: shape.to_vec(), data })
+        Ok(Tensor { shape: s, data })
     }
 
     /// The values, moved out (the buffer leaves the pool's care).
@@ -85,7 +184,7 @@ impl Tensor {
         if shape.iter().product::<usize>() != self.data.len() {
             return Err(Error::shape(format!("cannot reshape {:?} to {:?}", self.shape, shape)));
         }
-        self.shape = shape.to_vec();
+        self.shape = Shape::try_new(shape)?;
         Ok(self)
     }
 
@@ -97,10 +196,37 @@ impl Tensor {
 
     /// Samples `n0..n0+count` of the leading axis, as a new tensor.
     pub fn slice_batch(&self, n0: usize, count: usize) -> Tensor {
-        let per: usize = self.shape[1..].iter().product();
-        let mut shape = self.shape.clone();
-        shape[0] = count;
-        Tensor { shape, data: self.data[n0 * per..(n0 + count) * per].to_vec() }
+        let mut t = Tensor { shape: self.shape, data: Vec::new() };
+        t.assign_batch(self, n0, count);
+        t
+    }
+
+    /// Make this tensor samples `n0..n0+count` of `src`'s leading axis ([`Tensor::slice_batch`]
+    /// in place): its own buffer if that has room, else a pooled one.
+    pub fn assign_batch(&mut self, src: &Tensor, n0: usize, count: usize) {
+        let per: usize = src.shape[1..].iter().product();
+        self.make_room(count * per);
+        self.data.clear();
+        self.data.extend_from_slice(&src.data[n0 * per..(n0 + count) * per]);
+        self.shape = src.shape;
+        self.shape[0] = count;
+    }
+
+    /// Make this tensor `shape` zeros ([`Tensor::zeros`] in place): its own buffer if that has
+    /// room, else a pooled one.
+    pub fn reset_zeros(&mut self, shape: &[usize]) {
+        let s = Shape::new(shape);
+        self.make_room(s.numel());
+        self.data.clear();
+        self.data.resize(s.numel(), 0.0);
+        self.shape = s;
+    }
+
+    /// A buffer with room for `len` floats: this one, or a pooled one in its place.
+    fn make_room(&mut self, len: usize) {
+        if self.data.capacity() < len {
+            pool::give(std::mem::replace(&mut self.data, pool::take(len)));
+        }
     }
 
     /// A (N, C, H, W) tensor mirrored along its rows (`flip_rows`: row i ↔ H − 1 − i) and/or
@@ -150,6 +276,19 @@ impl Tensor {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn shapes_are_inline_slices_of_at_most_max_rank_axes() {
+        let mut s = Shape::new(&[2, 3, 4]);
+        s[0] = 5;
+        assert_eq!((s.len(), s.numel(), &s[1..]), (3, 60, &[3, 4][..]));
+        assert_eq!(s, [5, 3, 4]);
+        assert_eq!(s, vec![5, 3, 4]);
+        assert_eq!(format!("{s:?}"), "[5, 3, 4]");
+        assert_ne!(Shape::new(&[5, 3]), Shape::new(&[5, 3, 0]));
+        assert!(Shape::try_new(&[1; MAX_RANK + 1]).is_err());
+        assert!(Tensor::from_vec(&[1; MAX_RANK + 1], vec![0.0]).is_err());
+    }
 
     #[test]
     fn flipped_mirrors_rows_and_columns_and_is_its_own_inverse() {

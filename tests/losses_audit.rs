@@ -95,7 +95,7 @@ fn edge_length_loss_and_gradient_match_jax() {
     // A zero-length edge of pred has no direction: no gradient from it, and no NaN.
     let p = Tensor::zeros(&[1, 3, 1, 2]);
     let (l, g) =
-        loss::edge_length_mse(&p, &Tensor { shape: vec![1, 3, 1, 2], data: vec![0., 1., 0., 0., 0., 0.] });
+        loss::edge_length_mse(&p, &Tensor { shape: [1, 3, 1, 2].into(), data: vec![0., 1., 0., 0., 0., 0.] });
     assert_eq!((l, g.data.iter().all(|&v| v == 0.0)), (1.0, true));
 }
 

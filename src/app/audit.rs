@@ -27,7 +27,7 @@ pub fn run(a: Args) -> Result<()> {
     let w = load_any(&a.weights)?;
     let mut x = read_npy(&a.input)?;
     if x.rank() == 3 {
-        let s = x.shape.clone();
+        let s = x.shape;
         x = x.reshape(&[1, s[0], s[1], s[2]])?;
     }
     if x.rank() != 4 || x.shape[1] != 3 {

@@ -250,12 +250,12 @@ impl Cuda {
 
     /// Upload a tensor.
     pub fn upload(&self, t: &Tensor) -> DResult<DevBuf> {
-        Ok(DevBuf { shape: t.shape.clone(), buf: self.up(&t.data)? })
+        Ok(DevBuf { shape: t.shape.to_vec(), buf: self.up(&t.data)? })
     }
 
     /// Download a device buffer as a tensor.
     pub fn download(&self, d: &DevBuf) -> DResult<Tensor> {
-        Ok(Tensor { shape: d.shape.clone(), data: self.down(&d.buf, d.len())? })
+        Ok(Tensor { shape: d.shape.as_slice().into(), data: self.down(&d.buf, d.len())? })
     }
 
     /// A zero-filled device buffer of `shape`.

@@ -164,7 +164,7 @@ impl LinearUpsampler {
         let outs = 3 * self.scale * self.scale;
         e.push_array(
             "linear.weight",
-            Tensor { shape: vec![FEATURES, outs], data: self.weight.iter().map(|&v| v as f32).collect() },
+            Tensor { shape: [FEATURES, outs].into(), data: self.weight.iter().map(|&v| v as f32).collect() },
         );
         let cfg = Object::default()
             .str("format", "anisocb-linear")

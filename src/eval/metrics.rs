@@ -7,7 +7,7 @@ pub use super::wrinkle::{
     grid_normals, lr_round_trip, wrinkle_detail, wrinkle_stats, WrinkleStats, WRINKLE_RING,
 };
 use crate::error::{Error, Result};
-use crate::geom::mesh::{border_loop, closed_loop_length, vertex_normals};
+use crate::geom::mesh::{closed_loop_length, ring_vertices, vertex_normals};
 use crate::geom::vec3::{cross, dot, norm, sub};
 use crate::geom::GridMesh;
 use crate::io::json::{Object, Value};
@@ -187,9 +187,9 @@ pub fn hausdorff(pred: &GridMesh, gt: &GridMesh) -> Result<f32> {
     Ok(directed_hausdorff(&pred.pos, &gt.pos).max(directed_hausdorff(&gt.pos, &pred.pos)).sqrt() as f32)
 }
 
-/// Perimeter of the grid border: `Σ_k |b_{k+1} − b_k|` over the closed [`border_loop`].
+/// Perimeter of the grid border: `Σ_k |b_{k+1} − b_k|` over the closed border ([`crate::geom::mesh::border_loop`]).
 pub fn border_length(mesh: &GridMesh) -> f32 {
-    closed_loop_length(&border_loop(mesh.w, mesh.h), |v| mesh.pos[v].map(f64::from)) as f32
+    closed_loop_length(ring_vertices(mesh.w, mesh.h, 0), |v| mesh.pos[v].map(f64::from)) as f32
 }
 
 /// Surface area: `Σ_t ½ |(b − a) × (c − a)|` over the grid's triangles.

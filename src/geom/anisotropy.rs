@@ -75,7 +75,7 @@ pub struct BoundaryMap {
 impl BoundaryMap {
     /// The mask as a (1, H, W) image in {0, 1}.
     pub fn to_image(&self) -> Tensor {
-        Tensor { shape: vec![1, self.h, self.w], data: self.mask.iter().map(|&m| m as f32).collect() }
+        Tensor { shape: [1, self.h, self.w].into(), data: self.mask.iter().map(|&m| m as f32).collect() }
     }
 }
 

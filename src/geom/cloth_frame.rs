@@ -28,7 +28,7 @@
 //! itself so that `M` loses rank (`[e1 e2]` then falls back to Gram–Schmidt of the stronger
 //! column); the transform stays equivariant there, only less smooth in time.
 
-use super::geometry_image::{image_to_mesh, Domain};
+use super::geometry_image::{image_vertices, Domain};
 use super::mesh::GridMesh;
 use super::vec3::{add as add3, cross, dot, norm, normalize_or, scale, sub};
 use crate::error::{Error, Result};
@@ -59,7 +59,8 @@ impl InputFrame {
         match self {
             InputFrame::Domain => (Affine::IDENTITY, Affine::IDENTITY),
             InputFrame::Cloth => {
-                let cf = ClothFrame::of_mesh(&image_to_mesh(images, frame, domain));
+                let (w, h, at) = image_vertices(images, frame, domain);
+                let cf = ClothFrame::of_grid(w, h, at);
                 let ext: [f64; 3] = std::array::from_fn(|k| (domain.bmax[k] - domain.bmin[k]) as f64);
                 let diag = |d: [f64; 3]| {
                     std::array::from_fn(|r| std::array::from_fn(|c| if r == c { d[r] } else { 0.0 }))
@@ -144,11 +145,15 @@ impl ClothFrame {
     /// Estimate the frame of one LR mesh (positions in metres). A degenerate mesh (all
     /// vertices in one point, or not finite) gets the identity rotation and unit 1.
     pub fn of_mesh(mesh: &GridMesh) -> ClothFrame {
-        let (w, h) = (mesh.w, mesh.h);
-        let p = |i: usize, j: usize| mesh.pos[j * w + i].map(|v| v as f64);
+        ClothFrame::of_grid(mesh.w, mesh.h, |v| mesh.pos[v])
+    }
+
+    /// [`ClothFrame::of_mesh`] of the `w` × `h` grid whose vertex v (row-major) is at `at(v)`.
+    pub fn of_grid(w: usize, h: usize, at: impl Fn(usize) -> [f32; 3]) -> ClothFrame {
+        let p = |i: usize, j: usize| at(j * w + i).map(|v| v as f64);
         let n = (w * h) as f64;
         let mut o = [0.0f64; 3];
-        for q in &mesh.pos {
+        for q in (0..w * h).map(&at) {
             for k in 0..3 {
                 o[k] += q[k] as f64 / n;
             }

@@ -45,7 +45,7 @@ impl Domain {
     pub fn to_tensor(&self) -> Tensor {
         let mut d = self.bmin.to_vec();
         d.extend_from_slice(&self.bmax);
-        Tensor { shape: vec![2, 3], data: d }
+        Tensor { shape: [2, 3].into(), data: d }
     }
 
     pub fn from_tensor(t: &Tensor) -> Result<Domain> {
@@ -108,9 +108,14 @@ impl Bounds {
 
 /// Eq 1: mesh → (3, H, W) image.
 pub fn mesh_to_image(mesh: &GridMesh, domain: &Domain) -> Tensor {
-    let (w, h) = (mesh.w, mesh.h);
+    grid_to_image(mesh.w, mesh.h, &mesh.pos, domain)
+}
+
+/// Eq 1 for the `w` × `h` grid of positions `pos` (row-major) → (3, H, W) image.
+pub fn grid_to_image(w: usize, h: usize, pos: &[[f32; 3]], domain: &Domain) -> Tensor {
+    assert_eq!(pos.len(), w * h, "grid {w}x{h} needs {} vertices", w * h);
     let mut t = Tensor::zeros(&[3, h, w]);
-    for (v, p) in mesh.pos.iter().enumerate() {
+    for (v, p) in pos.iter().enumerate() {
         let c = domain.encode(*p);
         for (k, ck) in c.iter().enumerate() {
             t.data[k * h * w + v] = *ck;
@@ -121,11 +126,27 @@ pub fn mesh_to_image(mesh: &GridMesh, domain: &Domain) -> Tensor {
 
 /// Eq 2: (3, H, W) image (or one frame of a batch, `frame` of (T, 3, H, W)) → mesh.
 pub fn image_to_mesh(img: &Tensor, frame: usize, domain: &Domain) -> GridMesh {
+    let (w, h, at) = image_vertices(img, frame, domain);
+    GridMesh::new(w, h, (0..w * h).map(at).collect())
+}
+
+/// [`image_to_mesh`] into `out` (W·H positions, row-major), without allocating.
+pub fn image_to_grid(img: &Tensor, frame: usize, domain: &Domain, out: &mut [[f32; 3]]) {
+    let (w, h, at) = image_vertices(img, frame, domain);
+    assert_eq!(out.len(), w * h, "image_to_grid: {} positions for a {w}×{h} grid", out.len());
+    out.iter_mut().enumerate().for_each(|(v, p)| *p = at(v));
+}
+
+/// Eq 2 vertex by vertex: (W, H, vertex → position) of frame `frame` of `img` ((3, H, W) or
+/// (T, 3, H, W)).
+pub fn image_vertices<'a>(
+    img: &'a Tensor,
+    frame: usize,
+    domain: &'a Domain,
+) -> (usize, usize, impl Fn(usize) -> [f32; 3] + 'a) {
     let (h, w) = (img.shape[img.rank() - 2], img.shape[img.rank() - 1]);
     let base = frame * 3 * h * w;
-    let pos =
-        (0..h * w).map(|v| domain.decode(std::array::from_fn(|k| img.data[base + k * h * w + v]))).collect();
-    GridMesh::new(w, h, pos)
+    (w, h, move |v: usize| domain.decode(std::array::from_fn(|k| img.data[base + k * h * w + v])))
 }
 
 /// (T, 3, H, W) → one mesh per frame (Eq 2): the inverse of [`sequence_to_images`].
@@ -140,7 +161,7 @@ pub fn sequence_to_images(frames: &[GridMesh], domain: &Domain) -> Tensor {
     for f in frames {
         data.extend_from_slice(&mesh_to_image(f, domain).data);
     }
-    Tensor { shape: vec![frames.len(), 3, h, w], data }
+    Tensor { shape: [frames.len(), 3, h, w].into(), data }
 }
 
 #[cfg(test)]

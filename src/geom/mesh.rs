@@ -2,6 +2,7 @@
 //! row j — is stored at `j * w + i`; in a geometry image it is pixel (row j, col i).
 
 use super::vec3::{cross, norm, normalize_or, sub};
+use std::borrow::Borrow;
 
 /// Positions in metres.
 #[derive(Clone, Debug, PartialEq)]
@@ -186,27 +187,37 @@ pub fn border_loop(w: usize, h: usize) -> Vec<usize> {
 /// order, as a closed loop: the border loop of the sub-grid `r` vertices in from each side,
 /// [`border_loop`]'s order. Empty when the grid has no such ring.
 pub fn ring_loop(w: usize, h: usize, r: usize) -> Vec<usize> {
-    if w <= 2 * r || h <= 2 * r {
-        return Vec::new();
-    }
-    let (x0, y0, x1, y1) = (r, r, w - 1 - r, h - 1 - r);
-    let mut v = Vec::with_capacity(2 * (w + h));
-    v.extend((x0..=x1).map(|i| y0 * w + i));
-    v.extend((y0 + 1..=y1).map(|j| j * w + x1));
-    if y1 > y0 {
-        v.extend((x0..x1).rev().map(|i| y1 * w + i));
-    }
-    if x1 > x0 {
-        v.extend((y0 + 1..y1).rev().map(|j| j * w + x0));
-    }
-    v
+    ring_vertices(w, h, r).collect()
+}
+
+/// [`ring_loop`] as an iterator (no list is made: the pipeline walks rings on every frame).
+pub fn ring_vertices(w: usize, h: usize, r: usize) -> impl Iterator<Item = usize> + Clone {
+    let live = w > 2 * r && h > 2 * r;
+    // No ring: every range below is empty (the top row's is emptied by `live`).
+    let (x0, y0, x1, y1) = if live { (r, r, w - 1 - r, h - 1 - r) } else { (r, r, r, r) };
+    let top = (x0..=x1).filter(move |_| live).map(move |i| y0 * w + i);
+    let right = (y0 + 1..=y1).map(move |j| j * w + x1);
+    let bottom = (x0..x1).rev().filter(move |_| y1 > y0).map(move |i| y1 * w + i);
+    let left = (y0 + 1..y1).rev().filter(move |_| x1 > x0).map(move |j| j * w + x0);
+    top.chain(right).chain(bottom).chain(left)
 }
 
 /// Length of the closed polyline through `at(ring[0]), at(ring[1]), …` and back to the first
-/// (in f64; `ring` as from [`ring_loop`]).
-pub fn closed_loop_length(ring: &[usize], at: impl Fn(usize) -> [f64; 3]) -> f64 {
-    let n = ring.len();
-    (0..n).map(|k| norm(sub(at(ring[k]), at(ring[(k + 1) % n])))).sum()
+/// (in f64; `ring` as from [`ring_loop`] or [`ring_vertices`]).
+pub fn closed_loop_length<I>(ring: I, at: impl Fn(usize) -> [f64; 3]) -> f64
+where
+    I: IntoIterator,
+    I::Item: Borrow<usize>,
+{
+    let mut ring = ring.into_iter().map(|v| *v.borrow());
+    let Some(first) = ring.next() else { return 0.0 };
+    let (mut sum, mut prev) = (0.0f64, first);
+    // Σ_k |p_k − p_{k+1}| in the ring's order, the last edge back to the first vertex.
+    for v in ring.chain(std::iter::once(first)) {
+        sum += norm(sub(at(prev), at(v)));
+        prev = v;
+    }
+    sum
 }
 
 /// Area-weighted vertex normals of the grid's triangulation (unit length; (0,0,1) if isolated).

@@ -169,5 +169,5 @@ pub fn enhance_map(img: &Tensor, p: &CannyParams) -> Result<Tensor> {
             }
         }
     }
-    Ok(Tensor { shape: vec![1, h, w], data: out })
+    Ok(Tensor { shape: [1, h, w].into(), data: out })
 }

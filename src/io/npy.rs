@@ -4,7 +4,7 @@
 
 use super::atomic::AtomicFile;
 use crate::error::{Error, Result};
-use crate::tensor::Tensor;
+use crate::tensor::{Tensor, MAX_RANK};
 use npyz::WriterBuilder;
 use std::fs::File;
 use std::io::{Read, Seek, SeekFrom, Write};
@@ -83,6 +83,9 @@ fn parse_npy_header_str(bytes: &[u8], file_len: u64) -> std::result::Result<NpyH
     };
     if npy.order() != npyz::Order::C {
         return Err("Fortran-order array; save it C-contiguous (np.ascontiguousarray)".into());
+    }
+    if shape.len() > MAX_RANK {
+        return Err(format!("shape {shape:?} has {} axes; at most {MAX_RANK} are read", shape.len()));
     }
     let n = shape.iter().try_fold(1u64, |a, &d| a.checked_mul(d));
     let n = match n {

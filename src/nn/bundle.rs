@@ -127,10 +127,19 @@ impl AnisoCb {
 
     /// The bundle with every conv's weights packed once, for inference on many frames.
     pub fn packed(&self) -> PackedAnisoCb<'_> {
-        PackedAnisoCb {
-            model: self,
-            packed: self.named_trunks().into_iter().map(|(_, t)| t.pack()).collect(),
-        }
+        PackedAnisoCb { model: self, packed: Packing::Own(self.pack_all()) }
+    }
+
+    /// [`Trunk::pack`] of every net, in [`AnisoCb::named_trunks`] order: for an owner that
+    /// keeps the bundle unchanged and runs it with [`AnisoCb::packed_with`] on every frame.
+    pub(crate) fn pack_all(&self) -> Vec<Vec<PackedConv>> {
+        self.named_trunks().into_iter().map(|(_, t)| t.pack()).collect()
+    }
+
+    /// The bundle with `packed` = [`AnisoCb::pack_all`] of this very bundle, weights unchanged
+    /// since (the caller's promise; crate-only for that reason).
+    pub(crate) fn packed_with<'a>(&'a self, packed: &'a [Vec<PackedConv>]) -> PackedAnisoCb<'a> {
+        PackedAnisoCb { model: self, packed: Packing::Lent(packed) }
     }
 
     /// `packed`: [`Trunk::pack`] of every net, in [`AnisoCb::named_trunks`] order.
@@ -170,12 +179,28 @@ impl AnisoCb {
 pub struct PackedAnisoCb<'a> {
     model: &'a AnisoCb,
     /// [`Trunk::pack`] of every net, in [`AnisoCb::named_trunks`] order.
-    packed: Vec<Vec<PackedConv>>,
+    packed: Packing<'a>,
+}
+
+/// Packed weights made for one [`PackedAnisoCb`], or kept by an owner of the bundle that runs
+/// it on every frame ([`crate::pipeline::Upscaler`]: no packing, and no allocation, per frame).
+enum Packing<'a> {
+    Own(Vec<Vec<PackedConv>>),
+    Lent(&'a [Vec<PackedConv>]),
 }
 
 impl PackedAnisoCb<'_> {
     /// [`AnisoCb::forward_with`].
     pub fn forward_with(&self, ops: &dyn Ops, lr: &Tensor, enhance: bool) -> Result<NetsOutput> {
-        self.model.run(ops, lr, enhance, Some(&self.packed))
+        let packed = match &self.packed {
+            Packing::Own(p) => p,
+            Packing::Lent(p) => *p,
+        };
+        self.model.run(ops, lr, enhance, Some(packed))
+    }
+
+    /// The bundle.
+    pub fn model(&self) -> &AnisoCb {
+        self.model
     }
 }

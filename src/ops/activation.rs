@@ -48,7 +48,7 @@ fn sigmoid1(z: f32) -> f32 {
 
 /// y = max(x, 0); NaN stays NaN. Any shape.
 pub fn relu_ref(x: &Tensor) -> Tensor {
-    Tensor { shape: x.shape.clone(), data: x.data.iter().map(|&v| relu1(v)).collect() }
+    Tensor { shape: x.shape, data: x.data.iter().map(|&v| relu1(v)).collect() }
 }
 
 /// Fast [`relu_ref`].
@@ -111,7 +111,7 @@ pub fn add_assign(a: &mut Tensor, b: &Tensor) {
 
 /// y = 1 / (1 + e^(−x)), stable for large |x|. Any shape.
 pub fn sigmoid_ref(x: &Tensor) -> Tensor {
-    Tensor { shape: x.shape.clone(), data: x.data.iter().map(|&v| sigmoid1(v)).collect() }
+    Tensor { shape: x.shape, data: x.data.iter().map(|&v| sigmoid1(v)).collect() }
 }
 
 /// Fast [`sigmoid_ref`] (threads only: `exp` is libm's scalar, kept for bitwise agreement).
@@ -156,11 +156,11 @@ mod tests {
 
     #[test]
     fn relu_keeps_nan_and_sigmoid_saturates_without_nan() {
-        let x = Tensor { shape: vec![4], data: vec![f32::NAN, -1.0, 2.0, 0.0] };
+        let x = Tensor { shape: [4].into(), data: vec![f32::NAN, -1.0, 2.0, 0.0] };
         let y = relu(&x);
         assert!(y.data[0].is_nan());
         assert_eq!(&y.data[1..], &[0.0, 2.0, 0.0]);
-        let s = sigmoid(&Tensor { shape: vec![3], data: vec![-200.0, 0.0, 200.0] });
+        let s = sigmoid(&Tensor { shape: [3].into(), data: vec![-200.0, 0.0, 200.0] });
         assert_eq!(s.data, vec![0.0, 0.5, 1.0]);
     }
 }

@@ -32,11 +32,7 @@ impl Ops for Cpu {
         pad: Padding,
         epi: conv2d::Epilogue,
     ) -> Tensor {
-        assert_eq!(
-            packed.shape().as_slice(),
-            w.shape.as_slice(),
-            "conv2d: weights packed from another shape"
-        );
+        assert_eq!(packed.shape().as_slice(), &w.shape[..], "conv2d: weights packed from another shape");
         conv2d::conv2d_packed(x, packed, b, pad, epi)
     }
     fn conv2d_backward(

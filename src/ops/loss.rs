@@ -493,8 +493,8 @@ mod tests {
 
     #[test]
     fn bce_is_finite_and_exact_at_extreme_logits() {
-        let z = Tensor { shape: vec![4], data: vec![-100.0, 100.0, -100.0, 100.0] };
-        let t = Tensor { shape: vec![4], data: vec![1.0, 0.0, 0.0, 1.0] };
+        let z = Tensor { shape: [4].into(), data: vec![-100.0, 100.0, -100.0, 100.0] };
+        let t = Tensor { shape: [4].into(), data: vec![1.0, 0.0, 0.0, 1.0] };
         let (l, g) = bce_with_logits(&z, &t, 2.0);
         // two confidently wrong samples (w=2 for the positive one): (2·100 + 100)/4
         assert!((l - 75.0).abs() < 1e-4, "{l}");

@@ -149,11 +149,11 @@ mod tests {
     fn pixel_shuffle_uses_pytorch_channel_order() {
         // torch.nn.functional.pixel_shuffle(arange(8).reshape(1,8,1,1), 2) →
         // [[[[0,1],[2,3]],[[4,5],[6,7]]]]
-        let x = Tensor { shape: vec![1, 8, 1, 1], data: (0..8).map(|v| v as f32).collect() };
+        let x = Tensor { shape: [1, 8, 1, 1].into(), data: (0..8).map(|v| v as f32).collect() };
         let y = pixel_shuffle(&x, 2);
         assert_eq!(y.shape, vec![1, 2, 2, 2]);
         assert_eq!(y.data, (0..8).map(|v| v as f32).collect::<Vec<_>>());
-        let x = Tensor { shape: vec![1, 4, 1, 2], data: (0..8).map(|v| v as f32).collect() };
+        let x = Tensor { shape: [1, 4, 1, 2].into(), data: (0..8).map(|v| v as f32).collect() };
         // channel k at (0, w) goes to (k/2, 2w + k%2)
         assert_eq!(pixel_shuffle(&x, 2).data, vec![0., 2., 1., 3., 4., 6., 5., 7.]);
     }

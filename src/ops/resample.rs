@@ -13,8 +13,11 @@
 //! summation order than the reference's per-pixel scatter, so it agrees to rounding.
 
 use super::Interp;
+use crate::pool;
 use crate::tensor::Tensor;
 use rayon::prelude::*;
+use std::cell::RefCell;
+use std::rc::Rc;
 
 /// Keys' cubic-convolution parameter a of a cubic mode: −0.75 (PyTorch's and OpenCV's bicubic)
 /// or −0.5 (Catmull-Rom, the only a for which the kernel reproduces linear and quadratic
@@ -107,6 +110,29 @@ pub fn axis_taps(in_n: usize, out_n: usize, mode: Interp) -> AxisTaps {
     t
 }
 
+/// [`axis_taps`], remembered per thread for the last few axes: the pipeline resizes frames of
+/// one size over and over, and would otherwise build (allocate) the same taps for every frame.
+fn cached_taps(in_n: usize, out_n: usize, mode: Interp) -> Rc<AxisTaps> {
+    const KEEP: usize = 8;
+    type Cache = RefCell<Vec<((usize, usize, Interp), Rc<AxisTaps>)>>;
+    thread_local! {
+        static CACHE: Cache = const { RefCell::new(Vec::new()) };
+    }
+    CACHE.with(|c| {
+        let mut c = c.borrow_mut();
+        let key = (in_n, out_n, mode);
+        if let Some((_, t)) = c.iter().find(|(k, _)| *k == key) {
+            return t.clone();
+        }
+        let t = Rc::new(axis_taps(in_n, out_n, mode));
+        if c.len() == KEEP {
+            c.remove(0);
+        }
+        c.push((key, t.clone()));
+        t
+    })
+}
+
 /// Transpose forward taps over `in_n` source indices.
 pub fn transpose(t: &AxisTaps, in_n: usize) -> AxisCsr {
     let out_n = t.idx.len().checked_div(t.k).unwrap_or(0);
@@ -196,12 +222,13 @@ pub fn resize(x: &Tensor, out_h: usize, out_w: usize, mode: Interp) -> Tensor {
     if y.is_empty() {
         return y;
     }
-    let (th, tw) = (axis_taps(h, out_h, mode), axis_taps(w, out_w, mode));
+    let (th, tw) = (cached_taps(h, out_h, mode), cached_taps(w, out_w, mode));
+    let (th, tw): (&AxisTaps, &AxisTaps) = (&th, &tw);
     let body = |p: usize, out: &mut [f32]| {
         let src = &x.data[p * h * w..(p + 1) * h * w];
-        // tmp[iy][ox]: each source row interpolated along x. Rows no tap reads are skipped
-        // only implicitly (they cost little next to the output).
-        let mut tmp = vec![0.0f32; h * out_w];
+        // tmp[iy][ox]: each source row interpolated along x (every row written). Rows no tap
+        // reads are skipped only implicitly (they cost little next to the output).
+        let mut tmp = pool::overwritten(h * out_w);
         for (srow, trow) in src.chunks_exact(w).zip(tmp.chunks_exact_mut(out_w)) {
             for (ox, t) in trow.iter_mut().enumerate() {
                 let mut row = 0.0f32;
@@ -221,6 +248,7 @@ pub fn resize(x: &Tensor, out_h: usize, out_w: usize, mode: Interp) -> Tensor {
                 }
             }
         }
+        pool::give(tmp);
     };
     let plane = out_h * out_w;
     if y.len() < PAR_MIN {
@@ -326,7 +354,7 @@ mod tests {
     fn catmull_rom_keeps_an_evenly_spaced_row_even_and_keys_does_not() {
         // A ramp 0..11 (12 evenly spaced vertices) to 24: away from the border (where the
         // clamped taps read a repeated sample) every output must be d·11/23.
-        let x = Tensor { shape: vec![1, 1, 1, 12], data: (0..12).map(|i| i as f32).collect() };
+        let x = Tensor { shape: [1, 1, 1, 12].into(), data: (0..12).map(|i| i as f32).collect() };
         let err = |mode| {
             let y = resize(&x, 1, 24, mode);
             (3..21).map(|d| (y.data[d] - d as f32 * 11.0 / 23.0).abs()).fold(0.0f32, f32::max)

@@ -23,6 +23,7 @@ pub mod job;
 pub mod output;
 pub mod physics;
 pub mod upscaler;
+mod worker;
 
 pub use job::{upscale_files, OutputFormat, Quiet, Report, Summary, UpscaleJob};
 pub use upscaler::Upscaler;

@@ -5,21 +5,32 @@
 //! [`Upscaler::flush`] hands out the last k at the end of the shot. Each frame gives the same
 //! bits as `anisocb upscale` gives it in the whole shot ([`crate::sr::stream`]).
 
+use super::worker::Worker;
 use crate::error::{Error, Result};
 use crate::geom::cloth_frame::InputFrame;
-use crate::geom::geometry_image::{image_to_mesh, mesh_to_image};
+use crate::geom::geometry_image::{grid_to_image, image_to_grid, image_to_mesh};
 use crate::geom::{Domain, GridMesh};
 use crate::nn::bundle::AnisoCb;
+use crate::ops::conv2d::PackedConv;
 use crate::ops::{Cpu, Ops};
-use crate::sr::upscale::{embedded_model, finish, run_nets, Predictions, UpscaleParams};
+use crate::sr::upscale::{embedded_model, finish, run_nets_into, Predictions, UpscaleParams};
+use crate::tensor::Tensor;
 
 /// A model ready to upscale a shot frame by frame (see the module docs).
+///
+/// After the first few frames of a shot (the pools and its buffers warmed up), a frame through
+/// [`Upscaler::push_into`] (the C ABI's `anisocb_push`) on its own threads
+/// ([`Upscaler::with_threads`]) allocates nothing on the heap; [`Upscaler::push`] allocates the
+/// mesh it returns (tests/upscaler_allocations.rs). On rayon's global pool, handing the frame's
+/// work to the pool allocates about once every 16 frames (rayon's job queue).
 pub struct Upscaler {
     model: AnisoCb,
+    /// Every conv's weights packed once ([`AnisoCb::pack_all`] of `model`, which never changes).
+    packed: Vec<Vec<PackedConv>>,
     params: UpscaleParams,
     ops: Box<dyn Ops>,
     /// Worker threads of its own (`None`: the global pool).
-    pool: Option<rayon::ThreadPool>,
+    pool: Option<Worker>,
     /// The box geometry images are encoded with (Eq 1): the unit box for a cloth-frame model,
     /// for which each frame depends on itself alone.
     domain: Domain,
@@ -31,6 +42,16 @@ pub struct Upscaler {
     /// Frames given to [`Upscaler::push`] and handed out so far.
     pushed: usize,
     emitted: usize,
+    scratch: Scratch,
+}
+
+/// Buffers an [`Upscaler`] reuses from frame to frame, so that a frame allocates nothing.
+#[derive(Default)]
+struct Scratch {
+    /// The nets' outputs for the frame just pushed, before they join `raw`.
+    fresh: Option<Predictions>,
+    /// The frames [`finish`] reads for the frame handed out (they come back in its result).
+    window: Option<Predictions>,
 }
 
 impl Upscaler {
@@ -38,6 +59,7 @@ impl Upscaler {
     pub fn new(model: AnisoCb, params: UpscaleParams) -> Result<Upscaler> {
         params.validate()?;
         Ok(Upscaler {
+            packed: model.pack_all(),
             model,
             params,
             ops: Box::new(Cpu),
@@ -48,6 +70,7 @@ impl Upscaler {
             raw_lo: 0,
             pushed: 0,
             emitted: 0,
+            scratch: Scratch::default(),
         })
     }
 
@@ -61,9 +84,7 @@ impl Upscaler {
         if !(1..=1024).contains(&threads) {
             return Err(Error::config(format!("threads must be 1 to 1024, got {threads}")));
         }
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
+        let pool = Worker::new(threads)
             .map_err(|e| Error::config(format!("cannot start {threads} worker threads: {e}")))?;
         self.pool = Some(pool);
         Ok(self)
@@ -89,6 +110,16 @@ impl Upscaler {
         self.model.scale()
     }
 
+    /// The shot's LR grid (columns, rows), fixed by its first frame; `None` before it.
+    pub fn grid(&self) -> Option<(usize, usize)> {
+        self.grid
+    }
+
+    /// Frames pushed whose results are not handed out yet (what [`Upscaler::flush`] gives).
+    pub fn held_back(&self) -> usize {
+        self.pushed - self.emitted
+    }
+
     /// Frames a result comes out after its input went in.
     pub fn latency(&self) -> usize {
         if self.model.input_frame() == InputFrame::Cloth {
@@ -102,34 +133,70 @@ impl Upscaler {
     /// is in (at once when [`Upscaler::latency`] is 0). Every frame of a shot must have the
     /// first frame's grid size.
     pub fn push(&mut self, lr: &GridMesh) -> Result<Option<GridMesh>> {
-        let (w, h) = *self.grid.get_or_insert((lr.w, lr.h));
-        if (lr.w, lr.h) != (w, h) {
+        if !self.take_frame(lr.w, lr.h, &lr.pos)? {
+            return Ok(None);
+        }
+        self.emit(image_to_mesh).map(Some)
+    }
+
+    /// [`Upscaler::push`] of the `w` × `h` grid of positions `lr` (row-major) that writes the
+    /// HR frame into `hr` (at least rW·rH positions; the first rW·rH are written) and returns
+    /// whether it did: without allocating, after the first frames of a shot.
+    pub fn push_into(&mut self, w: usize, h: usize, lr: &[[f32; 3]], hr: &mut [[f32; 3]]) -> Result<bool> {
+        let n = self.hr_vertices(w, h, hr.len())?;
+        if lr.len() != w * h {
+            return Err(Error::shape(format!("a {w}×{h} grid has {} vertices, got {}", w * h, lr.len())));
+        }
+        if !self.take_frame(w, h, lr)? {
+            return Ok(false);
+        }
+        self.emit(|img, k, d| image_to_grid(img, k, d, &mut hr[..n])).map(|_| true)
+    }
+
+    /// The HR vertices of a `w` × `h` frame, or an error if `room` (positions) cannot hold them.
+    fn hr_vertices(&self, w: usize, h: usize, room: usize) -> Result<usize> {
+        let r = self.scale();
+        let n = (r * w).saturating_mul(r * h);
+        if room < n {
             return Err(Error::shape(format!(
-                "frame {} is a {}×{} grid, the shot's first frame {w}×{h}: every frame of a shot \
+                "room for {room} HR positions; a {w}×{h} frame upscales to {} × {} = {n}",
+                r * w,
+                r * h
+            )));
+        }
+        Ok(n)
+    }
+
+    /// Run the nets on the next LR frame (`w` × `h` positions `lr`) and keep their outputs;
+    /// whether a frame is then ready to hand out.
+    fn take_frame(&mut self, w0: usize, h0: usize, lr: &[[f32; 3]]) -> Result<bool> {
+        let (w, h) = *self.grid.get_or_insert((w0, h0));
+        if (w0, h0) != (w, h) {
+            return Err(Error::shape(format!(
+                "frame {} is a {w0}×{h0} grid, the shot's first frame {w}×{h}: every frame of a shot \
                  must have the same grid (call flush to start a new shot)",
-                self.pushed, lr.w, lr.h
+                self.pushed
             )));
         }
         if w < 2 || h < 2 {
             return Err(Error::shape(format!("a grid of {w}×{h} vertices is too small: at least 2×2")));
         }
-        let img = mesh_to_image(lr, &self.domain).reshape(&[1, 3, h, w])?;
-        let (ops, model, domain, params) = (self.ops.as_ref(), &self.model, &self.domain, &self.params);
+        let img = grid_to_image(w, h, lr, &self.domain).reshape(&[1, 3, h, w])?;
+        let (ops, domain, params) = (self.ops.as_ref(), &self.domain, &self.params);
+        let nets = self.model.packed_with(&self.packed);
+        let new = self.scratch.fresh.get_or_insert_with(Predictions::none);
         let frame = self.pushed;
-        let new = in_pool(&self.pool, || run_nets(ops, model, &img, domain, params, &mut |_| {}))
+        in_pool(&self.pool, || run_nets_into(ops, &nets, &img, domain, params, &mut |_| {}, new))
             .map_err(|e| at_frame(e, frame))?;
         match self.raw.as_mut() {
-            Some(r) => r.append(&new),
+            Some(r) => r.append(new),
             None => {
-                self.raw = Some(new);
+                self.raw = Some(new.slice_frames(0..1));
                 self.raw_lo = self.pushed;
             }
         }
         self.pushed += 1;
-        if self.pushed - self.emitted > self.latency() {
-            return self.emit().map(Some);
-        }
-        Ok(None)
+        Ok(self.pushed - self.emitted > self.latency())
     }
 
     /// The HR frames still held back at the end of the shot (the last [`Upscaler::latency`]);
@@ -146,7 +213,7 @@ impl Upscaler {
     /// next push starts a new shot).
     pub fn flush_one(&mut self) -> Result<Option<GridMesh>> {
         if self.emitted < self.pushed {
-            return self.emit().map(Some);
+            return self.emit(image_to_mesh).map(Some);
         }
         self.grid = None;
         self.raw = None;
@@ -154,16 +221,29 @@ impl Upscaler {
         Ok(None)
     }
 
-    /// Finish frame `emitted` over its window `emitted − k … pushed` and drop what no later
-    /// frame reads.
-    fn emit(&mut self) -> Result<GridMesh> {
+    /// [`Upscaler::flush_one`] into `hr` (as [`Upscaler::push_into`]): whether a frame was
+    /// left to write.
+    pub fn flush_into(&mut self, hr: &mut [[f32; 3]]) -> Result<bool> {
+        if self.emitted < self.pushed {
+            let (w, h) = self.grid.expect("frames were pushed");
+            let n = self.hr_vertices(w, h, hr.len())?;
+            return self.emit(|img, k, d| image_to_grid(img, k, d, &mut hr[..n])).map(|_| true);
+        }
+        self.flush_one().map(|_| false)
+    }
+
+    /// Finish frame `emitted` over its window `emitted − k … pushed`, hand it to `out` (the
+    /// HR images, the frame's index in them, the domain) and drop what no later frame reads.
+    fn emit<T>(&mut self, out: impl FnOnce(&Tensor, usize, &Domain) -> T) -> Result<T> {
         let (e, k) = (self.emitted, self.latency());
         let lo = e.saturating_sub(k);
         let raw = self.raw.as_mut().expect("frames were pushed");
-        let window = raw.slice_frames(lo - self.raw_lo..self.pushed - self.raw_lo);
+        let mut window = self.scratch.window.take().unwrap_or_else(Predictions::none);
+        raw.copy_frames_into(lo - self.raw_lo..self.pushed - self.raw_lo, &mut window);
         let (model, params) = (&self.model, &self.params);
         let up = in_pool(&self.pool, || finish(window, model, params)).map_err(|err| at_frame(err, lo))?;
-        let mesh = image_to_mesh(&up.hr, e - lo, &self.domain);
+        let mesh = out(&up.hr, e - lo, &self.domain);
+        self.scratch.window = Some(up.into_nets());
         let keep_from = (e + 1).saturating_sub(k);
         raw.drop_front(keep_from - self.raw_lo);
         self.raw_lo = keep_from;
@@ -173,9 +253,9 @@ impl Upscaler {
 }
 
 /// Run `f` on `pool` if there is one.
-fn in_pool<T: Send>(pool: &Option<rayon::ThreadPool>, f: impl FnOnce() -> T + Send) -> T {
+fn in_pool<T: Send>(pool: &Option<Worker>, f: impl FnOnce() -> T + Send) -> T {
     match pool {
-        Some(p) => p.install(f),
+        Some(p) => p.run(f),
         None => f(),
     }
 }

@@ -1,18 +1,21 @@
 //! The outline floor ([`super::params::UpscaleParams::keep_outline`]): the HR border never shorter
 //! than the LR frame's own border polyline, in the nets' (cloth) frame.
 
-use crate::geom::mesh::{closed_loop_length, ring_loop};
+use crate::geom::mesh::{closed_loop_length, ring_vertices};
 use crate::geom::vec3::{cross, dot, norm, sub};
+use crate::pool;
 use crate::tensor::Tensor;
+use std::borrow::Borrow;
 
 /// Length of the closed loop through pixels `ring` of one planar image `img` (3 × px):
-/// `Σ_k |p_{k+1} − p_k|`, the last back to the first.
-pub fn loop_length(img: &[f32], ring: &[usize]) -> f32 {
+/// `Σ_k |p_{k+1} − p_k|`, the last back to the first. `ring`: a list of pixels or
+/// [`ring_vertices`].
+pub fn loop_length<I: IntoIterator<Item: Borrow<usize>>>(img: &[f32], ring: I) -> f32 {
     loop_length_blend(img, img, 1.0, ring)
 }
 
 /// [`loop_length`] of `base + a (hr − base)` (planar 3 × px images), accumulated in f64.
-fn loop_length_blend(hr: &[f32], base: &[f32], a: f32, ring: &[usize]) -> f32 {
+fn loop_length_blend<I: IntoIterator<Item: Borrow<usize>>>(hr: &[f32], base: &[f32], a: f32, ring: I) -> f32 {
     let px = hr.len() / 3;
     let at = |v: usize| -> [f64; 3] {
         std::array::from_fn(|c| (base[c * px + v] + a * (hr[c * px + v] - base[c * px + v])) as f64)
@@ -25,13 +28,16 @@ fn loop_length_blend(hr: &[f32], base: &[f32], a: f32, ring: &[usize]) -> f32 {
 /// hr − u along U's surface normal removed. U's normal at a pixel is the cross product of its
 /// grid derivatives (central differences, one-sided at the border); where it is degenerate
 /// nothing is removed. The normal component is what flattens a hem's folds; the in-plane
-/// part of the correction, which places the border, is kept.
+/// part of the correction, which places the border, is kept. A pooled buffer ([`pool::give`] it
+/// back).
 pub fn outline_base(hr: &[f32], u: &[f32], hh: usize, hw: usize) -> Vec<f32> {
     let px = hh * hw;
     let at = |img: &[f32], v: usize| -> [f32; 3] { std::array::from_fn(|c| img[c * px + v]) };
-    let mut base = hr.to_vec();
+    let mut base = pool::take(hr.len());
+    base.clear();
+    base.extend_from_slice(hr);
     for r in 0..2 {
-        for v in ring_loop(hw, hh, r) {
+        for v in ring_vertices(hw, hh, r) {
             let (x, y) = (v % hw, v / hw);
             let (x0, x1) = (y * hw + x.saturating_sub(1), y * hw + (x + 1).min(hw - 1));
             let (y0, y1) = (y.saturating_sub(1) * hw + x, (y + 1).min(hh - 1) * hw + x);
@@ -53,8 +59,11 @@ pub fn outline_base(hr: &[f32], u: &[f32], hh: usize, hw: usize) -> Vec<f32> {
 /// The outline floor's weight for one frame: the largest α ∈ [0, 1] (to 2⁻²⁰, by bisection)
 /// whose border loop `ring` ([`crate::geom::mesh::border_loop`] of the rW × rH grid) of `base + α (hr − base)`
 /// (planar 3 × rH × rW images; `base` from [`outline_base`]) is at least `floor` long; 1 if `hr`'s already is, 0 if not even `base`'s.
-pub fn outline_weight(hr: &[f32], base: &[f32], ring: &[usize], floor: f32) -> f32 {
-    let len = |a: f32| loop_length_blend(hr, base, a, ring);
+pub fn outline_weight<I>(hr: &[f32], base: &[f32], ring: I, floor: f32) -> f32
+where
+    I: IntoIterator<Item: Borrow<usize>> + Clone,
+{
+    let len = |a: f32| loop_length_blend(hr, base, a, ring.clone());
     if len(1.0) >= floor {
         return 1.0;
     }
@@ -80,7 +89,7 @@ pub fn outline_weight(hr: &[f32], base: &[f32], ring: &[usize], floor: f32) -> f
 pub fn blend_outer_rings(hr: &mut [f32], base: &[f32], hh: usize, hw: usize, a: f32) {
     let px = hh * hw;
     for (r, w) in [(0, a), (1, 0.5 * (1.0 + a))] {
-        for v in ring_loop(hw, hh, r) {
+        for v in ring_vertices(hw, hh, r) {
             for c in 0..3 {
                 let i = c * px + v;
                 hr[i] = base[i] + w * (hr[i] - base[i]);

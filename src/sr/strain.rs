@@ -1,6 +1,8 @@
 //! The strain limit ([`super::params::UpscaleParams::strain_iters`]): the HR surface's edges pulled
 //! toward the lengths the LR frame's own edges imply, in the nets' (cloth) frame.
 
+use crate::pool;
+
 /// Target lengths of the HR grid's row edges (rH × (rW − 1)) and column edges ((rH − 1) × rW):
 /// the nearest LR edge's length (LR image `lr`, 3 × H × W) times the spacing ratio
 /// (W − 1)/(rW − 1) (resp. rows): the HR surface keeps the LR frame's local stretch, so
@@ -11,7 +13,9 @@ pub fn hr_edge_targets(lr: &[f32], h: usize, w: usize, hh: usize, hw: usize) -> 
         |a: usize, b: usize| (0..3).map(|c| (lr[c * px + b] - lr[c * px + a]).powi(2)).sum::<f32>().sqrt();
     let (sx, sy) = ((w - 1) as f32 / (hw - 1).max(1) as f32, (h - 1) as f32 / (hh - 1).max(1) as f32);
     let near = |v: f32, n: usize| (v.round().max(0.0) as usize).min(n.saturating_sub(1));
-    let mut lx = Vec::with_capacity(hh * hw);
+    // Pooled buffers (callers give them back: this runs on every frame).
+    let mut lx = pool::take(hh * hw);
+    lx.clear();
     for y in 0..hh {
         let j = near(y as f32 * sy, h);
         for x in 0..hw.saturating_sub(1) {
@@ -19,7 +23,8 @@ pub fn hr_edge_targets(lr: &[f32], h: usize, w: usize, hh: usize, hw: usize) -> 
             lx.push(len(j * w + i, j * w + i + 1) * sx);
         }
     }
-    let mut ly = Vec::with_capacity(hh * hw);
+    let mut ly = pool::take(hh * hw);
+    ly.clear();
     for y in 0..hh.saturating_sub(1) {
         let j = near((y as f32 + 0.5) * sy - 0.5, h - 1);
         for x in 0..hw {
@@ -36,11 +41,12 @@ pub fn hr_edge_targets(lr: &[f32], h: usize, w: usize, hh: usize, hw: usize) -> 
 /// edges); the border does not move, so the outline stays the interpolated input's.
 pub fn limit_strain(img: &mut [f32], h: usize, w: usize, lx: &[f32], ly: &[f32], iters: usize) {
     let px = h * w;
-    let mut delta = vec![0.0f32; 3 * px];
-    let mut count = vec![0u32; px];
+    // delta (3 × px) and each vertex's edge count (px; small integers, exact in f32).
+    let mut scratch = pool::zeroed(4 * px);
+    let (delta, count) = scratch.split_at_mut(3 * px);
     for _ in 0..iters {
         delta.iter_mut().for_each(|d| *d = 0.0);
-        count.iter_mut().for_each(|c| *c = 0);
+        count.iter_mut().for_each(|c| *c = 0.0);
         for y in 0..h {
             for x in 0..w {
                 let a = y * w + x;
@@ -57,22 +63,23 @@ pub fn limit_strain(img: &mut [f32], h: usize, w: usize, lx: &[f32], ly: &[f32],
                         delta[c * px + a] += k * d[c];
                         delta[c * px + b] -= k * d[c];
                     }
-                    count[a] += 1;
-                    count[b] += 1;
+                    count[a] += 1.0;
+                    count[b] += 1.0;
                 }
             }
         }
         for y in 1..h.saturating_sub(1) {
             for x in 1..w.saturating_sub(1) {
                 let a = y * w + x;
-                if count[a] > 0 {
+                if count[a] > 0.0 {
                     for c in 0..3 {
-                        img[c * px + a] += delta[c * px + a] / count[a] as f32;
+                        img[c * px + a] += delta[c * px + a] / count[a];
                     }
                 }
             }
         }
     }
+    pool::give(scratch);
 }
 
 #[cfg(test)]

@@ -17,15 +17,16 @@ pub use super::uv::upscale_uv;
 use crate::error::{Error, Result};
 use crate::geom::cloth_frame::{mirror_net_images, Affine, InputFrame, GRID_MIRRORS};
 use crate::geom::geometry_image::{images_to_sequence, sequence_to_images};
-use crate::geom::mesh::border_loop;
+use crate::geom::mesh::ring_vertices;
 use crate::geom::{Domain, GridMesh};
-use crate::nn::bundle::AnisoCb;
+use crate::nn::bundle::{AnisoCb, PackedAnisoCb};
 use crate::ops::resample::resize;
 use crate::ops::{Interp, Ops};
+use crate::pool;
 use crate::tensor::Tensor;
 
 /// How the nets were run, for the composition: fixed for a shot.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
 struct Composition {
     /// Whether EnhanceNet ran (it does not at η = 0, where Eq 12 ignores Γe).
     enhance_ran: bool,
@@ -76,16 +77,38 @@ impl Predictions {
 
     /// A copy of frames `r`.
     pub fn slice_frames(&self, r: std::ops::Range<usize>) -> Predictions {
-        let cut = |t: &Tensor| t.slice_batch(r.start, r.len());
+        let mut out = Predictions::none();
+        self.copy_frames_into(r, &mut out);
+        out
+    }
+
+    /// No frames, no buffers: what [`run_nets_into`] and [`Predictions::copy_frames_into`]
+    /// fill.
+    pub(crate) fn none() -> Predictions {
+        let empty = || Tensor::zeros(&[0]);
         Predictions {
-            interpolated: cut(&self.interpolated),
-            residual: cut(&self.residual),
-            boundary: cut(&self.boundary),
-            enhance: cut(&self.enhance),
-            net_frames: self.net_frames[r.clone()].to_vec(),
-            lr_net: cut(&self.lr_net),
-            how: self.how,
+            interpolated: empty(),
+            residual: empty(),
+            boundary: empty(),
+            enhance: empty(),
+            net_frames: Vec::new(),
+            lr_net: empty(),
+            how: Composition::default(),
         }
+    }
+
+    /// [`Predictions::slice_frames`] into `out`, replacing its frames and reusing its buffers
+    /// where they have room (a frame-by-frame caller then allocates nothing).
+    pub(crate) fn copy_frames_into(&self, r: std::ops::Range<usize>, out: &mut Predictions) {
+        let (n0, n) = (r.start, r.len());
+        out.interpolated.assign_batch(&self.interpolated, n0, n);
+        out.residual.assign_batch(&self.residual, n0, n);
+        out.boundary.assign_batch(&self.boundary, n0, n);
+        out.enhance.assign_batch(&self.enhance, n0, n);
+        out.lr_net.assign_batch(&self.lr_net, n0, n);
+        out.net_frames.clear();
+        out.net_frames.extend_from_slice(&self.net_frames[r]);
+        out.how = self.how;
     }
 
     /// Drop the first `n` frames.
@@ -137,6 +160,11 @@ impl Upscaled {
     /// GeometryNet's residual R (T, 3, rH, rW) in the domain, before composition.
     pub fn residual(&self) -> Tensor {
         self.to_domain(self.nets.residual.clone(), false)
+    }
+
+    /// The nets' outputs it was composed from (for a caller that reuses their buffers).
+    pub(crate) fn into_nets(self) -> Predictions {
+        self.nets
     }
 
     /// Whether [`Upscaled::with_eta`] applies the outline floor ([`UpscaleParams::keep_outline`]).
@@ -207,18 +235,19 @@ impl Upscaled {
         }
         let (_, _, h, w) = n.lr_net.dims4();
         let (_, _, hh, hw) = hr.dims4();
-        let (lr_ring, hr_ring, px3) = (border_loop(w, h), border_loop(hw, hh), 3 * hh * hw);
+        let (lr_ring, hr_ring, px3) = (ring_vertices(w, h, 0), ring_vertices(hw, hh, 0), 3 * hh * hw);
         for (k, img) in hr.data.chunks_exact_mut(px3).enumerate() {
-            let floor = loop_length(&n.lr_net.data[k * 3 * h * w..(k + 1) * 3 * h * w], &lr_ring);
+            let floor = loop_length(&n.lr_net.data[k * 3 * h * w..(k + 1) * 3 * h * w], lr_ring.clone());
             // Long enough already (α = 1): nothing to scale, no normals to compute.
-            if loop_length(img, &hr_ring) >= floor {
+            if loop_length(img, hr_ring.clone()) >= floor {
                 continue;
             }
             let base = outline_base(img, &n.interpolated.data[k * px3..(k + 1) * px3], hh, hw);
-            let a = outline_weight(img, &base, &hr_ring, floor);
+            let a = outline_weight(img, &base, hr_ring.clone(), floor);
             if a < 1.0 {
                 blend_outer_rings(img, &base, hh, hw, a);
             }
+            pool::give(base);
         }
     }
 
@@ -235,6 +264,8 @@ impl Upscaled {
             let lr = &n.lr_net.data[k * 3 * h * w..(k + 1) * 3 * h * w];
             let (lx, ly) = hr_edge_targets(lr, h, w, hh, hw);
             limit_strain(img, hh, hw, &lx, &ly, n.how.strain_iters);
+            pool::give(lx);
+            pool::give(ly);
         }
     }
 }
@@ -265,6 +296,25 @@ pub fn run_nets(
     params: &UpscaleParams,
     on_frames: &mut dyn FnMut(usize),
 ) -> Result<Predictions> {
+    // Every conv's weights packed once for all batches and mirror views.
+    let mut out = Predictions::none();
+    run_nets_into(ops, &model.packed(), lr, domain, params, on_frames, &mut out)?;
+    Ok(out)
+}
+
+/// [`run_nets`] with the weights packed in advance, into `out`: its frames are replaced, its
+/// buffers reused where they have room (a caller that keeps `out` from frame to frame
+/// allocates nothing). On an error `out` holds no meaningful frames.
+pub(crate) fn run_nets_into(
+    ops: &dyn Ops,
+    nets: &PackedAnisoCb,
+    lr: &Tensor,
+    domain: &Domain,
+    params: &UpscaleParams,
+    on_frames: &mut dyn FnMut(usize),
+    out: &mut Predictions,
+) -> Result<()> {
+    let model = nets.model();
     let (t, c, h, w) = lr.expect_rank4("upscale input")?;
     if c != 3 {
         return Err(Error::shape(format!("upscale input must have 3 channels (xyz), got {c}")));
@@ -281,23 +331,19 @@ pub fn run_nets(
     let r = model.scale();
     let (hh, hw) = (r * h, r * w);
     let cloth = model.input_frame() == InputFrame::Cloth;
-    let mut out = Predictions {
-        interpolated: Tensor::zeros(&[t, 3, hh, hw]),
-        residual: Tensor::zeros(&[t, 3, hh, hw]),
-        boundary: Tensor::zeros(&[t, 1, hh, hw]),
-        enhance: Tensor::zeros(&[t, 1, hh, hw]),
-        net_frames: Vec::with_capacity(t),
-        lr_net: Tensor::zeros(&[t, 3, h, w]),
-        how: Composition {
-            enhance_ran: params.eta != 0.0 || params.enhance_map,
-            strain_iters: if cloth { params.strain_iters } else { 0 },
-            keep_outline: params.keep_outline && !params.pin_border && cloth,
-            gate_coarse_only: params.gate_coarse_only,
-        },
+    out.interpolated.reset_zeros(&[t, 3, hh, hw]);
+    out.residual.reset_zeros(&[t, 3, hh, hw]);
+    out.boundary.reset_zeros(&[t, 1, hh, hw]);
+    out.enhance.reset_zeros(&[t, 1, hh, hw]);
+    out.net_frames.clear();
+    out.lr_net.reset_zeros(&[t, 3, h, w]);
+    out.how = Composition {
+        enhance_ran: params.eta != 0.0 || params.enhance_map,
+        strain_iters: if cloth { params.strain_iters } else { 0 },
+        keep_outline: params.keep_outline && !params.pin_border && cloth,
+        gate_coarse_only: params.gate_coarse_only,
     };
     let (px3, px1) = (3 * hh * hw, hh * hw);
-    // Every conv's weights packed once for all batches and mirror views.
-    let nets = model.packed();
     let mut done = 0;
     while done < t {
         let n = params.batch.min(t - done);
@@ -343,7 +389,7 @@ pub fn run_nets(
         done += n;
         on_frames(done);
     }
-    Ok(out)
+    Ok(())
 }
 
 /// Steps 2–3 of [`upscale_images`] on [`run_nets`]'s output for consecutive frames: temporal

@@ -67,13 +67,13 @@ impl Adam {
     /// Append this optimizer's state to a checkpoint under `prefix`.
     pub fn save(&self, prefix: &str, out: &mut NpzEntries) {
         for (i, (m, v)) in self.m.iter().zip(&self.v).enumerate() {
-            out.push_array(format!("{prefix}m.{i}"), Tensor { shape: vec![m.len()], data: m.clone() });
-            out.push_array(format!("{prefix}v.{i}"), Tensor { shape: vec![v.len()], data: v.clone() });
+            out.push_array(format!("{prefix}m.{i}"), Tensor { shape: [m.len()].into(), data: m.clone() });
+            out.push_array(format!("{prefix}v.{i}"), Tensor { shape: [v.len()].into(), data: v.clone() });
         }
         let h = &self.params;
         out.push_array(
             format!("{prefix}hparams"),
-            Tensor { shape: vec![4], data: vec![h.lr, h.beta1, h.beta2, h.eps] },
+            Tensor { shape: [4].into(), data: vec![h.lr, h.beta1, h.beta2, h.eps] },
         );
         out.push_file(format!("{prefix}step"), format!("{}\n", self.step).into_bytes());
     }

@@ -88,7 +88,7 @@ pub fn frame_maps(
     let (_, c, h, w) = hr.dims4();
     let mesh = image_to_mesh(hr, f, domain);
     let boundary = boundary_map(&mesh, rest_edge, &p.boundary)?.to_image();
-    let img = Tensor { shape: vec![c, h, w], data: net_img.to_vec() };
+    let img = Tensor { shape: [c, h, w].into(), data: net_img.to_vec() };
     let edges = enhance_map(&img, &p.canny)?;
     Ok(FrameMaps { boundary, edges })
 }
@@ -366,7 +366,7 @@ mod tests {
     fn dataset_with_hr(net: &GeometryNet, sign: f32) -> Dataset {
         let (n, h, w) = (2, 5, 6);
         let lr = Tensor {
-            shape: vec![n, 3, h, w],
+            shape: [n, 3, h, w].into(),
             data: (0..n * 3 * h * w).map(|i| (i as f32 * 0.37).sin()).collect(),
         };
         let (u, r) = net.forward(&Cpu, &lr).unwrap();

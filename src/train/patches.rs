@@ -277,13 +277,13 @@ pub fn interpolate_all(ops: &dyn Ops, data: &TrainingData, mode: Interp) -> Tens
         let cnt = 64.min(n - n0);
         parts.extend_from_slice(&interpolate(ops, &data.lr.slice_batch(n0, cnt), data.scale, mode).data);
     }
-    Tensor { shape: data.hr.shape.clone(), data: parts }
+    Tensor { shape: data.hr.shape, data: parts }
 }
 
 /// Frames `idx` of `src` as one batch (N', C, H, W).
 pub fn gather(src: &Tensor, idx: &[usize]) -> Tensor {
     let per: usize = src.shape[1..].iter().product();
-    let mut shape = src.shape.clone();
+    let mut shape = src.shape;
     shape[0] = idx.len();
     let mut data = Vec::with_capacity(idx.len() * per);
     for &i in idx {

@@ -294,7 +294,7 @@ fn write_checkpoint(path: &Path, net: NetKind, o: &TrainOptions, fp: u64, s: &St
     for r in &s.history {
         h.extend_from_slice(&[r.step as f32, r.train, r.val]);
     }
-    e.push_array("history", Tensor { shape: vec![s.history.len(), 3], data: h });
+    e.push_array("history", Tensor { shape: [s.history.len(), 3].into(), data: h });
     e.push_file("trainer.json", options_json(net, o, fp, s.step).into_bytes());
     write_npz(path, &e)
 }

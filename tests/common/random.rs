@@ -21,7 +21,7 @@ pub trait TestData {
 impl TestData for Rng {
     fn tensor(&mut self, shape: &[usize], lo: f32, hi: f32) -> Tensor {
         let n = shape.iter().product();
-        Tensor { shape: shape.to_vec(), data: (0..n).map(|_| self.uniform_in(lo, hi)).collect() }
+        Tensor { shape: shape.into(), data: (0..n).map(|_| self.uniform_in(lo, hi)).collect() }
     }
     fn range(&mut self, lo: usize, hi: usize) -> usize {
         lo + self.below(hi - lo + 1)

@@ -212,19 +212,20 @@ pub(super) fn correlate_rows(
     init: Option<&[f32]>,
     out_h: usize,
     out_w: usize,
-    groups: &[(usize, usize)],
+    groups: RowGroups,
     sink: &(dyn Fn(usize, usize, &[f32]) + Sync),
 ) {
     assert!(out_h + kh - 1 <= hp && out_w + kw - 1 <= wp);
     assert!(xp.len() >= n * hp * wp * c);
-    assert!(groups.iter().all(|&(y0, r)| y0 + r <= out_h));
+    let ng = groups.len();
+    assert!((0..ng).map(|g| groups.get(g)).all(|(y0, r)| y0 + r <= out_h));
     let opad = pk.opad;
     let row_len = out_w * opad;
-    let most = groups.iter().map(|g| g.1).max().unwrap_or(0);
+    let most = (0..ng).map(|g| groups.get(g).1).max().unwrap_or(0);
     let fresh = || Scratch::overwritten(most * row_len);
-    (0..n * groups.len()).into_par_iter().for_each_init(fresh, |buf: &mut Scratch, task| {
-        let (ni, gi) = (task / groups.len(), task % groups.len());
-        let (y0, rows) = groups[gi];
+    (0..n * ng).into_par_iter().for_each_init(fresh, |buf: &mut Scratch, task| {
+        let (ni, gi) = (task / ng, task % ng);
+        let (y0, rows) = groups.get(gi);
         let buf = &mut buf[..rows * row_len];
         for (ri, row) in buf.chunks_exact_mut(row_len).enumerate() {
             let y = y0 + ri;
@@ -257,7 +258,28 @@ pub(super) fn correlate_rows(
     });
 }
 
-/// One group per output row.
-pub(super) fn single_rows(out_h: usize) -> Vec<(usize, usize)> {
-    (0..out_h).map(|y| (y, 1)).collect()
+/// The groups of output rows [`correlate_rows`] produces, one rayon task per (image, group).
+#[derive(Clone, Copy)]
+pub(super) enum RowGroups<'a> {
+    /// One group per row of `out_h` rows.
+    Single(usize),
+    /// (first row, row count) of each group.
+    List(&'a [(usize, usize)]),
+}
+
+impl RowGroups<'_> {
+    fn len(self) -> usize {
+        match self {
+            RowGroups::Single(h) => h,
+            RowGroups::List(g) => g.len(),
+        }
+    }
+
+    /// (first row, row count) of group `i`.
+    fn get(self, i: usize) -> (usize, usize) {
+        match self {
+            RowGroups::Single(_) => (i, 1),
+            RowGroups::List(g) => g[i],
+        }
+    }
 }

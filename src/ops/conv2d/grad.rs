@@ -64,7 +64,7 @@ pub fn conv2d_input_grad(w: &Tensor, dy: &Tensor, pad: Padding, dx: &mut Tensor)
                 let input = winograd::Input::Padded { xp: &dyp, hp, wp };
                 winograd::correlate(&input, n, o, &pk, None, h, wd, &sink);
             } else {
-                correlate_rows(&dyp, n, hp, wp, o, kh, kw, &pk, None, h, wd, &single_rows(h), &sink);
+                correlate_rows(&dyp, n, hp, wp, o, kh, kw, &pk, None, h, wd, RowGroups::Single(h), &sink);
             }
         }
         Padding::Replicate => {
@@ -100,7 +100,7 @@ pub fn conv2d_input_grad(w: &Tensor, dy: &Tensor, pad: Padding, dx: &mut Tensor)
                     }
                 }
             };
-            correlate_rows(&dyq, n, hq, wq, o, kh, kw, &pk, None, hp, wp, &groups, &sink);
+            correlate_rows(&dyq, n, hq, wq, o, kh, kw, &pk, None, hp, wp, RowGroups::List(&groups), &sink);
         }
     }
 }

@@ -165,11 +165,13 @@ pub fn conv2d_packed(
     } else {
         None
     };
-    let bias: Option<Vec<f32>> = b.map(|b| {
-        let mut v = vec![0.0; pk.opad];
-        v[..o].copy_from_slice(&b.data[..o]);
+    // The bias padded to opad channels (a pooled buffer: this runs for every conv of a frame).
+    let bias = b.map(|b| {
+        let mut v = Tensor::zeros(&[pk.opad]);
+        v.data[..o].copy_from_slice(&b.data[..o]);
         v
     });
+    let bias = bias.as_ref().map(|v| v.data.as_slice());
     let mut y = Tensor::for_overwrite(&[n, o, h, wd]);
     let yp = SyncPtr(y.data.as_mut_ptr());
     let opad = pk.opad;
@@ -206,15 +208,13 @@ pub fn conv2d_packed(
     };
     match (&padded, wino) {
         (Some((xp, hp, wp)), false) => {
-            correlate_rows(xp, n, *hp, *wp, c, kh, kw, pk, bias.as_deref(), h, wd, &single_rows(h), &sink)
+            correlate_rows(xp, n, *hp, *wp, c, kh, kw, pk, bias, h, wd, RowGroups::Single(h), &sink)
         }
         (Some((xp, hp, wp)), true) => {
             let input = winograd::Input::Padded { xp, hp: *hp, wp: *wp };
-            winograd::correlate(&input, n, c, pk, bias.as_deref(), h, wd, &sink)
+            winograd::correlate(&input, n, c, pk, bias, h, wd, &sink)
         }
-        (None, _) => {
-            winograd::correlate(&winograd::Input::Nchw { x, pad }, n, c, pk, bias.as_deref(), h, wd, &sink)
-        }
+        (None, _) => winograd::correlate(&winograd::Input::Nchw { x, pad }, n, c, pk, bias, h, wd, &sink),
     }
     y
 }
