@@ -164,6 +164,17 @@ pub fn sequence_to_images(frames: &[GridMesh], domain: &Domain) -> Tensor {
     Tensor { shape: [frames.len(), 3, h, w].into(), data }
 }
 
+/// S(X) of the wrinkle-detail metric: `frame` resampled to the `lr_w × lr_h` grid and back to
+/// its own size with Catmull-Rom (align corners, Keys a = −0.5, clamped indices; the ×2
+/// pipeline's own interpolation, [`resize`]). What is left of X after passing through the LR grid: a smooth surface, since a Catmull-Rom interpolated grid round-trips to itself up to the
+/// resampling not being a projection. Resampled in f32, positions unchanged otherwise (metres).
+pub fn lr_round_trip(frame: &GridMesh, lr_w: usize, lr_h: usize) -> GridMesh {
+    // (1, 3, H, W): the geometry image of the unit domain holds metres unchanged.
+    let img = sequence_to_images(std::slice::from_ref(frame), &Domain::UNIT);
+    let lr = resize(&img, lr_h, lr_w, Interp::CatmullRom);
+    image_to_mesh(&resize(&lr, frame.h, frame.w, Interp::CatmullRom), 0, &Domain::UNIT)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -182,15 +193,4 @@ mod tests {
             }
         }
     }
-}
-
-/// S(X) of the wrinkle-detail metric: `frame` resampled to the `lr_w × lr_h` grid and back to
-/// its own size with Catmull-Rom (align corners, Keys a = −0.5, clamped indices; the ×2
-/// pipeline's own interpolation, [`resize`]). What is left of X after passing through the LR grid: a smooth surface, since a Catmull-Rom interpolated grid round-trips to itself up to the
-/// resampling not being a projection. Resampled in f32, positions unchanged otherwise (metres).
-pub fn lr_round_trip(frame: &GridMesh, lr_w: usize, lr_h: usize) -> GridMesh {
-    // (1, 3, H, W): the geometry image of the unit domain holds metres unchanged.
-    let img = sequence_to_images(std::slice::from_ref(frame), &Domain::UNIT);
-    let lr = resize(&img, lr_h, lr_w, Interp::CatmullRom);
-    image_to_mesh(&resize(&lr, frame.h, frame.w, Interp::CatmullRom), 0, &Domain::UNIT)
 }

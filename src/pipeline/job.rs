@@ -6,7 +6,7 @@
 use super::input::{open_input, shot_bounds, CacheIn, FrameAttrs, Input, MeshOut, Shot};
 use super::output::{refuse_duplicate_outputs, refuse_out_over_input, CacheSink, ObjSink, Outputs};
 use super::physics::PhysicsSink;
-use crate::cloth::follow::FollowParams;
+use crate::cloth::follow::{FollowOutput, FollowParams};
 use crate::cloth::run_io::DOMAIN_MARGIN;
 use crate::error::{Error, Result};
 use crate::geom::cloth_frame::InputFrame;
@@ -252,6 +252,19 @@ pub fn upscale_files(
             "domain",
             Object::new().val("bmin", Value::reals(&domain.bmin)).val("bmax", Value::reals(&domain.bmax)),
         );
+    let summary = match &job.physics {
+        Some(p) => summary.val(
+            "physics",
+            Object::new()
+                .val("gravity_m_per_s2", Value::reals(&p.gravity))
+                .num("fps", p.fps)
+                .str("material", p.material.name)
+                .num("strength_per_s2", p.strength)
+                .num("damping", p.damping)
+                .str("output", if p.output == FollowOutput::Detail { "detail" } else { "cloth" }),
+        ),
+        None => summary,
+    };
     write_json(&plan.summary_path, &summary.into(), Layout::Compact)?;
     Ok(Summary { frames: n, lr: (w, h), hr: (r * w, r * h), seconds: secs, format: plan.fmt })
 }
