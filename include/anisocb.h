@@ -39,7 +39,7 @@ typedef enum anisocb_status {
 
 /* Options; fill with anisocb_options_default, then change what you need. */
 typedef struct anisocb_options {
-    uint32_t threads;         /* worker threads; 0 = the process-wide pool (one per core) */
+    uint32_t threads;         /* worker threads of the upscaler's own; 0 = one per core */
     const char *weights_path; /* a weights bundle (.npz, UTF-8), or NULL for the embedded model */
     float eta;                /* wrinkle enhancement, -1 to 10 (default 0) */
     uint32_t temporal;        /* temporal smoothing radius in frames, 0 to 64 (default 0) */
@@ -66,9 +66,8 @@ uint32_t anisocb_scale(const anisocb_upscaler *up);
 uint32_t anisocb_latency(const anisocb_upscaler *up);
 
 /* Give the next LR frame (3*w*h floats). Writes the next HR frame into hr (hr_cap floats, at
- * least 3*r*w*r*h) and returns ANISOCB_OK, or returns ANISOCB_PENDING. With threads >= 1 it
- * allocates no heap memory after a shot's first few frames (with threads = 0, rayon's global
- * pool allocates about once per 16 frames). */
+ * least 3*r*w*r*h) and returns ANISOCB_OK, or returns ANISOCB_PENDING. It allocates no heap
+ * memory after a shot's first few frames. */
 int anisocb_push(anisocb_upscaler *up, uint32_t w, uint32_t h, const float *lr, float *hr,
                  size_t hr_cap);
 /* At the end of a shot: writes the next held-back HR frame and returns ANISOCB_OK, or returns

@@ -32,7 +32,8 @@ pub const ANISOCB_ERR_PANIC: c_int = -99;
 /// `anisocb_options` (include/anisocb.h): `repr(C)`, field for field.
 #[repr(C)]
 pub struct AnisocbOptions {
-    /// Worker threads, 0 = the process-wide pool (one per core).
+    /// Worker threads of the upscaler's own, 0 = one per core (`available_parallelism`). Its
+    /// own threads, not rayon's process-wide pool: a frame then allocates nothing.
     pub threads: u32,
     /// A weights bundle (.npz, UTF-8 path), or null for the embedded ×2 model.
     pub weights_path: *const c_char,
@@ -170,10 +171,10 @@ pub unsafe extern "C" fn anisocb_new(opts: *const AnisocbOptions, out: *mut *mut
             Some(m) => m,
             None => embedded_model()?,
         };
-        let mut up = Upscaler::new(model, params)?;
-        if threads > 0 {
-            up = up.with_threads(threads)?;
+        if threads == 0 {
+            threads = std::thread::available_parallelism().map_or(1, |n| n.get().min(1024));
         }
+        let up = Upscaler::new(model, params)?.with_threads(threads)?;
         *out = Box::into_raw(Box::new(up));
         Ok(ANISOCB_OK)
     })
