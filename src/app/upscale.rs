@@ -5,7 +5,7 @@
 
 use super::setup::{load_model, parse_threads, set_threads};
 use super::ui::progress;
-use crate::cloth::follow::{FollowOutput, FollowParams};
+use crate::cloth::follow::{FollowOutput, FollowParams, PinnedEdges};
 use crate::cloth::run_io::DOMAIN_MARGIN;
 use crate::cloth::Material;
 use crate::error::Error;
@@ -165,6 +165,12 @@ pub struct Args {
     /// With --physics: damping of that attachment as a fraction of critical (0 = none).
     #[arg(long, default_value_t = crate::cloth::follow::FollowParams::default().damping)]
     pub physics_damping: f32,
+    /// With --physics: edges of the grid the shot's cloth is held by (pinned, hooked, in a
+    /// hand), comma-separated: top, bottom, left, right (row 0 of the input is `top`, column 0
+    /// `left`), corners, or none. Those vertices follow the shot exactly and pull the cloth
+    /// into the folds the hold makes; a flag is `top`, a towel held at both ends `left,right`.
+    #[arg(long, default_value = "none", value_name = "EDGES")]
+    pub physics_pin: String,
 }
 
 /// Progress bars and messages on stderr.
@@ -228,6 +234,7 @@ pub fn run(a: Args) -> Result<()> {
                 strength: a.physics_strength,
                 damping: a.physics_damping,
                 output: if a.physics_output == "cloth" { FollowOutput::Cloth } else { FollowOutput::Detail },
+                pins: PinnedEdges::parse(&a.physics_pin)?,
                 ..FollowParams::default()
             })
         } else {

@@ -11,14 +11,15 @@
 //! What it knows: only the frames. The coarse constraint ([`super::tracking::Restriction`],
 //! one XPBD constraint per LR node on the average of the HR vertices under its tent) holds
 //! the shape the LR grid carries, frame by frame, blending linearly over the substeps; gravity,
-//! the material and the frame rate come from [`FollowParams`]; nothing is pinned and there are
-//! no colliders or wind (the shot's colliders are unknown: the tracking keeps the cloth where
-//! the shot's cloth is, folds may dip a few mm into a collider).
+//! the material, the frame rate and which edges the artist holds ([`PinnedEdges`]: those HR
+//! vertices follow the shot's frames exactly) come from [`FollowParams`]; there are no
+//! colliders or wind (the shot's colliders are unknown: the tracking keeps the cloth where the
+//! shot's cloth is, folds may dip a few mm into a collider).
 
-use super::kinematics::Kinematics;
+use super::kinematics::{Kinematics, Pin};
 use super::params::{Material, SimParams};
 use super::solver::{Cloth, Scene};
-use super::tracking::{CoarseTrack, Restriction, TrackTargets};
+use super::tracking::{bilinear_targets, CoarseTrack, PinPath, Restriction, TrackTargets};
 use super::wind::Wind;
 use crate::error::{Error, Result};
 use crate::geom::geometry_image::lr_round_trip;
@@ -44,6 +45,81 @@ pub struct FollowParams {
     pub damping: f32,
     /// What the pass hands on.
     pub output: FollowOutput,
+    /// The edges of the grid that follow the shot's frames exactly (the artist's pins).
+    pub pins: PinnedEdges,
+}
+
+/// Which vertices of the HR grid the physics pass pins to the shot (`--physics-pin`): whole
+/// edges of the grid as the input lists it (row 0 is `top`, column 0 is `left`) or its four
+/// corners. Pinned vertices take the nets' positions at every substep (blended linearly over
+/// the frame), so a held edge pulls the cloth as the shot's hand or hook did; the coarse
+/// constraints still hold the rest.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct PinnedEdges {
+    pub top: bool,
+    pub bottom: bool,
+    pub left: bool,
+    pub right: bool,
+    pub corners: bool,
+}
+
+impl PinnedEdges {
+    const NAMES: [&'static str; 5] = ["top", "bottom", "left", "right", "corners"];
+
+    /// `top,left,...` (any of top, bottom, left, right, corners; `none` or empty = nothing).
+    pub fn parse(s: &str) -> Result<PinnedEdges> {
+        let mut e = PinnedEdges::default();
+        for w in s.split(',').map(str::trim).filter(|w| !w.is_empty() && *w != "none") {
+            *match w {
+                "top" => &mut e.top,
+                "bottom" => &mut e.bottom,
+                "left" => &mut e.left,
+                "right" => &mut e.right,
+                "corners" => &mut e.corners,
+                _ => {
+                    return Err(Error::config(format!(
+                        "--physics-pin takes a comma-separated list of {} (or none), got {w:?}",
+                        Self::NAMES.join(", ")
+                    )))
+                }
+            } = true;
+        }
+        Ok(e)
+    }
+
+    fn flags(&self) -> [bool; 5] {
+        [self.top, self.bottom, self.left, self.right, self.corners]
+    }
+
+    pub fn is_empty(&self) -> bool {
+        !self.flags().iter().any(|&f| f)
+    }
+
+    /// The names set, comma-separated (`none` when empty), as `parse` reads them.
+    pub fn names(&self) -> String {
+        let n: Vec<&str> =
+            Self::NAMES.iter().zip(self.flags()).filter(|(_, f)| *f).map(|(n, _)| *n).collect();
+        if n.is_empty() {
+            "none".into()
+        } else {
+            n.join(",")
+        }
+    }
+
+    /// The pinned vertices of a `w × h` grid, in index order.
+    pub fn vertices(&self, w: usize, h: usize) -> Vec<usize> {
+        (0..w * h)
+            .filter(|&v| {
+                let (i, j) = (v % w, v / w);
+                let (l, r, t, b) = (i == 0, i + 1 == w, j == 0, j + 1 == h);
+                (self.top && t)
+                    || (self.bottom && b)
+                    || (self.left && l)
+                    || (self.right && r)
+                    || (self.corners && (l || r) && (t || b))
+            })
+            .collect()
+    }
 }
 
 /// What [`Follower::step`] returns.
@@ -69,6 +145,7 @@ impl Default for FollowParams {
             substeps_per_second: 300.0,
             damping: 1.0,
             output: FollowOutput::Detail,
+            pins: PinnedEdges::default(),
         }
     }
 }
@@ -108,14 +185,18 @@ impl FollowParams {
         Ok(())
     }
 
-    /// The solver's parameters: one frame of the shot per step, tethers off (nothing pinned).
+    /// The solver's parameters: one frame of the shot per step; tethers only with pins (each
+    /// free vertex no farther from its nearest pin than in the first frame, plus the slack: the
+    /// first frame should be the cloth laid out or hanging, not crumpled). Tethers with the pins
+    /// raised the mean correlation on the seed-6 validation runs with held edges from 0.253 to
+    /// 0.290 (pins alone 0.255; docs/wrinkles.md, "The physics pass", Pins).
     pub fn sim_params(&self) -> SimParams {
         let substeps = ((self.substeps_per_second / self.fps).ceil() as usize).clamp(1, 1000);
         SimParams {
             dt: 1.0 / self.fps,
             substeps,
             gravity: self.gravity,
-            tethers: false,
+            tethers: !self.pins.is_empty(),
             ..SimParams::default()
         }
     }
@@ -146,6 +227,8 @@ pub struct Follower {
     /// The part finer than the LR grid of each vertex's offset from the first frame at the end
     /// of [`Follower::settle`] (m).
     rest_sag: Vec<[f32; 3]>,
+    /// Where the pins were at the end of the last frame (m), in the cloth's pin order.
+    pin_from: Vec<[f32; 3]>,
     /// The LR grid (columns, rows).
     lr: (usize, usize),
     output: FollowOutput,
@@ -165,7 +248,10 @@ impl Follower {
         }
         check_frame(first, 0)?;
         let material = p.material;
-        let cloth = Cloth::new(first, &|_| material, Vec::new());
+        let pins = p.pins.vertices(first.w, first.h);
+        let pin_from: Vec<[f32; 3]> = pins.iter().map(|&v| first.pos[v]).collect();
+        let pins = pins.iter().map(|&v| Pin { vertex: v, anchor: first.pos[v], side: 0.0 }).collect();
+        let cloth = Cloth::new(first, &|_| material, pins);
         let track = CoarseTrack::new(Restriction::new(lr.0, lr.1, first.w, first.h), &cloth.inv_mass);
         let scene =
             Scene { kinematics: Kinematics::Static, wind: Wind::none(), colliders: Default::default() };
@@ -179,6 +265,7 @@ impl Follower {
             from: Vec::new(),
             lift: Vec::new(),
             rest_sag: Vec::new(),
+            pin_from,
             lr,
             output: p.output,
         };
@@ -189,17 +276,21 @@ impl Follower {
 
     /// How far the cloth hangs below its coarse targets under its own weight (one vector per
     /// LR node, m): the pass holds the shot's first frame still for [`SETTLE_SECONDS`] and
-    /// averages the coarse error over the second half, then starts again from the first frame.
-    /// It also keeps where each vertex hangs then (`rest_sag`): the scallops of a border
+    /// averages the coarse error over the second half. It also keeps where each vertex hangs
+    /// then on average (`rest_sag`, its part finer than the LR grid): the scallops of a border
     /// carried by springs instead of by whatever holds the shot's cloth, which
-    /// [`Follower::step`] takes off its output.
+    /// [`Follower::step`] takes off its output. The shot then starts from that average shape,
+    /// raised by the sag and at rest, so the raised targets hold it where it is: started from
+    /// the first frame itself, the hem's fine modes, which nothing but the material damps,
+    /// swung for seconds (a still sheet gained 1.2 mm RMS of detail).
     /// Measured, not derived: the overlapping tents make the springs about twice as stiff as
     /// one node's alone (a 12×12 sheet sags ≈ 5 mm at 1000 1/s², not g/strength = 9.8 mm).
     fn settle(&mut self, first: &GridMesh) -> Vec<[f32; 3]> {
-        let start = self.cloth.clone();
-        let t = self.track.restriction.apply(&first.pos);
+        let (time, t) = (self.cloth.time, self.track.restriction.apply(&first.pos));
         let frames = (SETTLE_SECONDS * self.sim.dt.recip()).ceil().max(2.0) as usize;
+        let n = (frames - frames.div_ceil(2)) as f32;
         let mut sag = vec![[0.0f32; 3]; t.len()];
+        let mut mean = vec![[0.0f32; 3]; first.pos.len()];
         for k in 0..frames {
             let tt = TrackTargets {
                 from: &t,
@@ -207,25 +298,38 @@ impl Follower {
                 strength: self.strength,
                 damping: self.damping,
                 coarse: Some(&self.track),
+                pins: None,
             };
             self.cloth.step(&self.sim, &self.scene, Some(&tt));
             if 2 * k >= frames {
                 let c = self.track.restriction.apply(&self.cloth.x);
                 for ((s, c), t) in sag.iter_mut().zip(&c).zip(&t) {
-                    (0..3).for_each(|i| s[i] += c[i] - t[i]);
+                    (0..3).for_each(|i| s[i] += (c[i] - t[i]) / n);
+                }
+                for (m, x) in mean.iter_mut().zip(&self.cloth.x) {
+                    (0..3).for_each(|i| m[i] += x[i] / n);
                 }
             }
         }
-        let n = (frames - frames.div_ceil(2)) as f32;
         // The part finer than the LR grid: the coarse sag is what `lift` takes care of.
         let d: Vec<[f32; 3]> =
-            self.cloth.x.iter().zip(&first.pos).map(|(x, f)| std::array::from_fn(|c| x[c] - f[c])).collect();
+            mean.iter().zip(&first.pos).map(|(x, f)| std::array::from_fn(|c| x[c] - f[c])).collect();
         let d = GridMesh::new(first.w, first.h, d);
         let coarse = lr_round_trip(&d, self.lr.0, self.lr.1);
         self.rest_sag =
             d.pos.iter().zip(&coarse.pos).map(|(a, b)| std::array::from_fn(|c| a[c] - b[c])).collect();
-        self.cloth = start;
-        sag.iter().map(|s| s.map(|x| x / n)).collect()
+        // Start from the mean shape raised by the sag (bilinear between the LR nodes), at rest.
+        let raise = GridMesh::new(self.lr.0, self.lr.1, sag.iter().map(|s| s.map(|x| -x)).collect());
+        let raise = bilinear_targets(&raise, first.w, first.h);
+        let c = &mut self.cloth;
+        for (v, (x, m)) in c.x.iter_mut().zip(&mean).enumerate() {
+            if c.inv_mass[v] > 0.0 {
+                *x = std::array::from_fn(|i| m[i] + raise[v][i]);
+            }
+        }
+        c.v.iter_mut().for_each(|v| *v = [0.0; 3]);
+        c.time = time;
+        sag
     }
 
     /// The coarse targets of an HR frame, raised by the cloth's sag under its own weight (the
@@ -249,15 +353,18 @@ impl Follower {
         }
         check_frame(target, k)?;
         let to = self.targets(target);
+        let pin_to: Vec<[f32; 3]> = self.cloth.pins.iter().map(|p| target.pos[p.vertex]).collect();
         let tt = TrackTargets {
             from: &self.from,
             to: &to,
             strength: self.strength,
             damping: self.damping,
             coarse: Some(&self.track),
+            pins: Some(PinPath { from: &self.pin_from, to: &pin_to }),
         };
         self.cloth.step(&self.sim, &self.scene, Some(&tt));
         self.from = to;
+        self.pin_from = pin_to;
         let mut out = self.cloth.mesh();
         for (o, s) in out.pos.iter_mut().zip(&self.rest_sag) {
             (0..3).for_each(|c| o[c] -= s[c]);
@@ -267,6 +374,10 @@ impl Follower {
             for ((o, t), s) in out.pos.iter_mut().zip(&target.pos).zip(&s.pos) {
                 *o = std::array::from_fn(|c| t[c] + o[c] - s[c]);
             }
+        }
+        // Pinned vertices are the shot's (the rest sag and the detail are the free cloth's).
+        for pin in &self.cloth.pins {
+            out.pos[pin.vertex] = target.pos[pin.vertex];
         }
         if out.pos.iter().flatten().any(|c| !c.is_finite()) {
             return Err(Error::numeric(format!(

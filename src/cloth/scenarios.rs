@@ -479,6 +479,7 @@ pub fn run_at(
                     strength: spec.tracking,
                     damping: 0.0,
                     coarse: coarse.as_ref(),
+                    pins: None,
                 };
                 cloth.step(&spec.params, &scene, Some(&tt));
                 from = Some(to);

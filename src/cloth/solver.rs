@@ -192,8 +192,14 @@ impl Cloth {
                     }
                 }
             }
-            for pin in &self.pins {
-                self.x[pin.vertex] = scene.kinematics.position(pin.anchor, pin.side, t);
+            let blend = (s + 1) as f32 / p.substeps as f32;
+            for (k, pin) in self.pins.iter().enumerate() {
+                self.x[pin.vertex] = match track.and_then(|tt| tt.pins) {
+                    Some(path) => {
+                        std::array::from_fn(|c| path.from[k][c] + blend * (path.to[k][c] - path.from[k][c]))
+                    }
+                    None => scene.kinematics.position(pin.anchor, pin.side, t),
+                };
             }
             self.lambda_d.iter_mut().for_each(|l| *l = 0.0);
             self.lambda_b.iter_mut().for_each(|l| *l = [0.0; 3]);
@@ -206,7 +212,6 @@ impl Cloth {
                 let par = p.parallel_min_colour;
                 solve_distance(&mut self.x, &self.inv_mass, &self.dist, &mut self.lambda_d, inv_h2, par);
                 solve_bend(&mut self.x, &self.bend_w, &mut self.lambda_b, inv_h2, par);
-                let blend = (s + 1) as f32 / p.substeps as f32;
                 match (track_frac, track) {
                     (Some(_), Some(tt @ TrackTargets { coarse: Some(ct), .. })) => {
                         let blends = (s as f32 / p.substeps as f32, blend);

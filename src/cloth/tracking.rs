@@ -59,6 +59,17 @@ pub struct TrackTargets<'a> {
     /// Eq 26) on the constraint's velocity relative to its moving target.
     pub damping: f32,
     pub coarse: Option<&'a CoarseTrack>,
+    /// Where the cloth's pins go instead of their [`super::kinematics::Kinematics`]: pin `k`
+    /// moves linearly from `from[k]` to `to[k]` over the frame (m). The physics pass's pins
+    /// follow the shot; the training runs' follow their scenario (None).
+    pub pins: Option<PinPath<'a>>,
+}
+
+/// Start and end positions of every pin over one frame (m), in the cloth's pin order.
+#[derive(Clone, Copy, Debug)]
+pub struct PinPath<'a> {
+    pub from: &'a [[f32; 3]],
+    pub to: &'a [[f32; 3]],
 }
 
 /// How a high-resolution run is tied to its low-resolution twin.

@@ -261,7 +261,8 @@ pub fn upscale_files(
                 .str("material", p.material.name)
                 .num("strength_per_s2", p.strength)
                 .num("damping", p.damping)
-                .str("output", if p.output == FollowOutput::Detail { "detail" } else { "cloth" }),
+                .str("output", if p.output == FollowOutput::Detail { "detail" } else { "cloth" })
+                .str("pins", &p.pins.names()),
         ),
         None => summary,
     };
