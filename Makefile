@@ -28,7 +28,8 @@ rust-example:
 
 ## The C ABI (include/anisocb.h) as a static and a shared library; examples/c/upscale_frames.c
 ## compiled against each with the system C compiler, run on 24 frames of a simulated drape and
-## checked bit for bit against `anisocb upscale` (plain, and with --temporal 2); then
+## checked bit for bit against `anisocb upscale` (plain, with --temporal 2, and with --physics
+## --physics-pin corners); then
 ## anisocb_push called from Rust, checked to allocate nothing per frame after warm-up
 ## (tests/upscaler_allocations.rs with --features capi). ≈ 2 min.
 CC ?= cc
@@ -44,8 +45,10 @@ c-example:
 	target/release/anisocb simulate --scenario drape --frames 24 --obj --out $(C_OUT)/sim >/dev/null
 	target/release/anisocb upscale $(C_OUT)/sim/obj --out $(C_OUT)/cli >/dev/null 2>&1
 	target/release/anisocb upscale $(C_OUT)/sim/obj --out $(C_OUT)/cli-t2 --temporal 2 >/dev/null 2>&1
+	target/release/anisocb upscale $(C_OUT)/sim/obj --out $(C_OUT)/cli-phys --physics --physics-pin corners >/dev/null 2>&1
 	$(C_OUT)/upscale_static $(C_OUT)/sim/obj $(C_OUT)/cli 24
 	$(C_OUT)/upscale_shared $(C_OUT)/sim/obj $(C_OUT)/cli-t2 24 2
+	$(C_OUT)/upscale_static $(C_OUT)/sim/obj $(C_OUT)/cli-phys 24 0 corners
 	$(CARGO) test --release --features capi --test upscaler_allocations
 
 c-example-if-cc:

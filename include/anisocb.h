@@ -48,6 +48,15 @@ typedef struct anisocb_options {
     int keep_outline;         /* 1: the border never shorter than the LR one (default) */
     int pin_border;           /* 1: outermost ring where interpolation puts it (default 0) */
     int gate_coarse_only;     /* 1: BoundaryNet gates only the coarse detail (default 0) */
+    /* The physics pass (`anisocb upscale --physics`, docs/wrinkles.md): an HR cloth held to the
+     * frames at the LR grid's scale adds the folds an HR simulation forms. Frames are read as
+     * metres; a shot starts at its first frame and ends with anisocb_flush. With it a frame
+     * allocates (the simulation's buffers). */
+    int physics;              /* 1: on (default 0) */
+    float gravity[3];         /* m/s2 in the shot's axes (default 0, -9.81, 0: y-up) */
+    float fps;                /* the shot's frame rate (default 30) */
+    const char *material;     /* silk, cotton, denim, rubber (UTF-8); NULL: cotton */
+    const char *physics_pin;  /* held edges, e.g. "top" or "left,right" (UTF-8); NULL: none */
 } anisocb_options;
 
 typedef struct Upscaler anisocb_upscaler; /* opaque */

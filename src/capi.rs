@@ -7,6 +7,8 @@
 //! Keep this file and `include/anisocb.h` in step: the status values, the options struct's
 //! field order and every signature are the contract.
 
+use crate::cloth::follow::{FollowParams, PinnedEdges};
+use crate::cloth::params::Material;
 use crate::error::Error;
 use crate::nn::bundle::AnisoCb;
 use crate::pipeline::Upscaler;
@@ -45,6 +47,16 @@ pub struct AnisocbOptions {
     pub keep_outline: c_int,
     pub pin_border: c_int,
     pub gate_coarse_only: c_int,
+    /// 1: the physics pass (`upscale --physics`); the fields after it are its settings.
+    pub physics: c_int,
+    /// m/s² in the shot's axes.
+    pub gravity: [f32; 3],
+    /// The shot's frame rate.
+    pub fps: f32,
+    /// silk, cotton, denim or rubber (UTF-8); null: cotton.
+    pub material: *const c_char,
+    /// Held edges, as `--physics-pin` (UTF-8); null: none.
+    pub physics_pin: *const c_char,
 }
 
 thread_local! {
@@ -124,6 +136,7 @@ pub unsafe extern "C" fn anisocb_options_default(opts: *mut AnisocbOptions) -> c
     guard(|| {
         let o = opts.as_mut().ok_or_else(|| argument("anisocb_options_default: opts is null"))?;
         let p = UpscaleParams::default();
+        let f = FollowParams::default();
         *o = AnisocbOptions {
             threads: 0,
             weights_path: std::ptr::null(),
@@ -134,6 +147,11 @@ pub unsafe extern "C" fn anisocb_options_default(opts: *mut AnisocbOptions) -> c
             keep_outline: p.keep_outline as c_int,
             pin_border: p.pin_border as c_int,
             gate_coarse_only: p.gate_coarse_only as c_int,
+            physics: 0,
+            gravity: f.gravity,
+            fps: f.fps,
+            material: std::ptr::null(),
+            physics_pin: std::ptr::null(),
         };
         Ok(ANISOCB_OK)
     })
@@ -150,7 +168,7 @@ pub unsafe extern "C" fn anisocb_new(opts: *const AnisocbOptions, out: *mut *mut
         let out = out.as_mut().ok_or_else(|| argument("anisocb_new: out is null"))?;
         *out = std::ptr::null_mut();
         let mut params = UpscaleParams::default();
-        let (mut threads, mut model) = (0, None);
+        let (mut threads, mut model, mut physics) = (0, None, None);
         if let Some(o) = opts.as_ref() {
             params.eta = o.eta;
             params.temporal = o.temporal as usize;
@@ -166,6 +184,25 @@ pub unsafe extern "C" fn anisocb_new(opts: *const AnisocbOptions, out: *mut *mut
                     .map_err(|_| argument("anisocb_new: weights_path is not UTF-8"))?;
                 model = Some(AnisoCb::load(Path::new(p))?);
             }
+            if o.physics != 0 {
+                let text = |p: *const c_char, what: &str| -> Result<Option<&str>, Fail> {
+                    match p.is_null() {
+                        true => Ok(None),
+                        false => CStr::from_ptr(p)
+                            .to_str()
+                            .map(Some)
+                            .map_err(|_| argument(&format!("anisocb_new: {what} is not UTF-8"))),
+                    }
+                };
+                let mut f = FollowParams { gravity: o.gravity, fps: o.fps, ..FollowParams::default() };
+                if let Some(m) = text(o.material, "material")? {
+                    f.material = Material::from_name(m)?;
+                }
+                if let Some(e) = text(o.physics_pin, "physics_pin")? {
+                    f.pins = PinnedEdges::parse(e)?;
+                }
+                physics = Some(f);
+            }
         }
         let model = match model {
             Some(m) => m,
@@ -174,7 +211,10 @@ pub unsafe extern "C" fn anisocb_new(opts: *const AnisocbOptions, out: *mut *mut
         if threads == 0 {
             threads = std::thread::available_parallelism().map_or(1, |n| n.get().min(1024));
         }
-        let up = Upscaler::new(model, params)?.with_threads(threads)?;
+        let mut up = Upscaler::new(model, params)?.with_threads(threads)?;
+        if let Some(f) = physics {
+            up = up.with_physics(f)?;
+        }
         *out = Box::into_raw(Box::new(up));
         Ok(ANISOCB_OK)
     })

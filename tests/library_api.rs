@@ -5,6 +5,7 @@
 #[path = "common/tempdir.rs"]
 mod tempdir;
 
+use anisocb::cloth::follow::{FollowParams, PinnedEdges};
 use anisocb::cloth::scenarios::{run_single, Scenario, ScenarioSpec};
 use anisocb::geom::obj::{read_obj_grid, write_obj_grid};
 use anisocb::geom::GridMesh;
@@ -87,6 +88,32 @@ fn upscaler_frame_by_frame_gives_the_cli_bits_with_its_temporal_context() {
         again.extend(up.flush().unwrap());
         assert!(again.iter().zip(&hr).all(|(a, b)| a.pos == b.pos), "a second shot differs");
     }
+}
+
+#[test]
+fn upscaler_with_physics_gives_the_cli_physics_bits_shot_after_shot() {
+    let d = TempDir::new("lib-physics");
+    let lr = drape_frames(&d.join("in"), 8);
+    let out = d.arg("cli");
+    cli(&[&d.arg("in"), "--out", &out, "--physics", "--physics-pin", "corners", "--temporal", "1"]);
+    let p = FollowParams { pins: PinnedEdges::parse("corners").unwrap(), ..FollowParams::default() };
+    let params = UpscaleParams { temporal: 1, ..UpscaleParams::default() };
+    let mut up = Upscaler::new(embedded_model().unwrap(), params).unwrap().with_physics(p).unwrap();
+    for shot in 0..2 {
+        let mut hr: Vec<GridMesh> = lr.iter().filter_map(|f| up.push(f).unwrap()).collect();
+        hr.extend(up.flush().unwrap());
+        for (k, m) in hr.iter().enumerate() {
+            let cli = read_obj_grid(&Path::new(&out).join(format!("f_{k:03}.obj"))).unwrap();
+            let same =
+                cli.pos.iter().flatten().zip(m.pos.iter().flatten()).all(|(a, b)| a.to_bits() == b.to_bits());
+            assert!(same, "shot {shot}, frame {k}: not the bits of upscale --physics");
+        }
+    }
+    let plain = Upscaler::embedded().unwrap().push(&lr[7]).unwrap().unwrap();
+    let cli7 = read_obj_grid(&Path::new(&out).join("f_007.obj")).unwrap();
+    assert_ne!(plain.pos, cli7.pos, "the physics pass changed nothing");
+    let bad = FollowParams { fps: 0.0, ..FollowParams::default() };
+    assert!(Upscaler::embedded().unwrap().with_physics(bad).err().unwrap().to_string().contains("--fps"));
 }
 
 #[test]

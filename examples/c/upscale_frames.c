@@ -2,12 +2,13 @@
  * Upscale an OBJ sequence through the C ABI and check every HR frame against the files
  * `anisocb upscale` wrote for the same frames, bit for bit.
  *
- *   upscale_frames LR_DIR CLI_HR_DIR FRAMES [TEMPORAL]
+ *   upscale_frames LR_DIR CLI_HR_DIR FRAMES [TEMPORAL [PINS]]
  *
  * LR_DIR holds frame_0000.obj ... (regular grids whose first line is the simulator's
  * "# anisocb grid W x H" comment, vertices row-major); CLI_HR_DIR holds what
- * `anisocb upscale LR_DIR --out CLI_HR_DIR [--temporal TEMPORAL]` wrote. Exit status 0 when all
- * FRAMES frames match. `make c-example` builds and runs it on the demo's frames.
+ * `anisocb upscale LR_DIR --out CLI_HR_DIR [--temporal TEMPORAL]` wrote (with PINS, the physics
+ * pass with those held edges: `--physics --physics-pin PINS`). Exit status 0 when all FRAMES
+ * frames match. `make c-example` builds and runs it on the demo's frames.
  */
 #include "anisocb.h"
 
@@ -57,7 +58,7 @@ static int same_as_cli(const char *hr_dir, int k, const float *hr, size_t n) {
 
 int main(int argc, char **argv) {
     if (argc < 4) {
-        fprintf(stderr, "usage: %s LR_DIR CLI_HR_DIR FRAMES [TEMPORAL]\n", argv[0]);
+        fprintf(stderr, "usage: %s LR_DIR CLI_HR_DIR FRAMES [TEMPORAL [PINS]]\n", argv[0]);
         return 2;
     }
     const char *lr_dir = argv[1], *hr_dir = argv[2];
@@ -65,6 +66,10 @@ int main(int argc, char **argv) {
     anisocb_options opts;
     anisocb_options_default(&opts);
     if (argc > 4) opts.temporal = (uint32_t)atoi(argv[4]);
+    if (argc > 5) {
+        opts.physics = 1;
+        opts.physics_pin = argv[5];
+    }
     anisocb_upscaler *up = NULL;
     if (anisocb_new(&opts, &up) != ANISOCB_OK) {
         fprintf(stderr, "anisocb_new: %s\n", anisocb_last_error());

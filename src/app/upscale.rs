@@ -171,6 +171,10 @@ pub struct Args {
     /// into the folds the hold makes; a flag is `top`, a towel held at both ends `left,right`.
     #[arg(long, default_value = "none", value_name = "EDGES")]
     pub physics_pin: String,
+    /// With --physics: XPBD substeps per second of shot time (at least one per frame). More
+    /// makes the cloth stiffer against stretching and costs time in proportion.
+    #[arg(long, default_value_t = crate::cloth::follow::FollowParams::default().substeps_per_second)]
+    pub physics_substeps: f32,
 }
 
 /// Progress bars and messages on stderr.
@@ -235,7 +239,7 @@ pub fn run(a: Args) -> Result<()> {
                 damping: a.physics_damping,
                 output: if a.physics_output == "cloth" { FollowOutput::Cloth } else { FollowOutput::Detail },
                 pins: PinnedEdges::parse(&a.physics_pin)?,
-                ..FollowParams::default()
+                substeps_per_second: a.physics_substeps,
             })
         } else {
             None

@@ -37,7 +37,11 @@ pub struct FollowParams {
     pub material: Material,
     /// Coarse tracking strength (1/s²): the square of the attachment's angular frequency.
     pub strength: f32,
-    /// XPBD substeps per second of shot time (at least 1 per frame).
+    /// XPBD substeps per second of shot time (at least 1 per frame). With one solver
+    /// iteration per substep the cloth is stiffer against stretching the more substeps it
+    /// takes: 600 (the default, what the training truth's HR runs take: 20 per 30 fps frame)
+    /// was chosen on the seed-6 validation runs over 300 and 1200 (docs/wrinkles.md, "The
+    /// physics pass").
     pub substeps_per_second: f32,
     /// Damping of the tracking as a fraction of critical: with nothing pinned and no
     /// colliders, an undamped attachment rings at its own frequency (√strength rad/s, 5 Hz)
@@ -142,7 +146,7 @@ impl Default for FollowParams {
             fps: 30.0,
             material: Material::COTTON,
             strength: FOLLOW_STRENGTH,
-            substeps_per_second: 300.0,
+            substeps_per_second: 600.0,
             damping: 1.0,
             output: FollowOutput::Detail,
             pins: PinnedEdges::default(),
@@ -178,7 +182,7 @@ impl FollowParams {
         }
         if !(self.substeps_per_second.is_finite() && (1.0..=1e5).contains(&self.substeps_per_second)) {
             return Err(Error::config(format!(
-                "substeps per second must be 1 to 1e5, got {}",
+                "--physics-substeps must be 1 to 1e5 per second, got {}",
                 self.substeps_per_second
             )));
         }

@@ -224,7 +224,7 @@ pub fn upscale_files(
     let mut physics;
     let sink: &mut dyn crate::sr::stream::HrSink = match &job.physics {
         Some(p) => {
-            physics = PhysicsSink::new(&mut out, domain, p.clone(), (w, h));
+            physics = PhysicsSink::new(&mut out, domain, p.clone(), (w, h))?;
             &mut physics
         }
         None => &mut out,
@@ -261,6 +261,7 @@ pub fn upscale_files(
                 .str("material", p.material.name)
                 .num("strength_per_s2", p.strength)
                 .num("damping", p.damping)
+                .num("substeps_per_second", p.substeps_per_second)
                 .str("output", if p.output == FollowOutput::Detail { "detail" } else { "cloth" })
                 .str("pins", &p.pins.names()),
         ),

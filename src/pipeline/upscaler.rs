@@ -5,7 +5,9 @@
 //! [`Upscaler::flush`] hands out the last k at the end of the shot. Each frame gives the same
 //! bits as `anisocb upscale` gives it in the whole shot ([`crate::sr::stream`]).
 
+use super::physics::PhysicsPass;
 use super::worker::Worker;
+use crate::cloth::follow::FollowParams;
 use crate::error::{Error, Result};
 use crate::geom::cloth_frame::InputFrame;
 use crate::geom::geometry_image::{grid_to_image, image_to_grid, image_to_mesh};
@@ -22,7 +24,8 @@ use crate::tensor::Tensor;
 /// [`Upscaler::push_into`] (the C ABI's `anisocb_push`) on its own threads
 /// ([`Upscaler::with_threads`]) allocates nothing on the heap; [`Upscaler::push`] allocates the
 /// mesh it returns (tests/upscaler_allocations.rs). On rayon's global pool, handing the frame's
-/// work to the pool allocates about once every 16 frames (rayon's job queue).
+/// work to the pool allocates about once every 16 frames (rayon's job queue). The physics pass
+/// ([`Upscaler::with_physics`]) allocates its simulation's buffers every frame.
 pub struct Upscaler {
     model: AnisoCb,
     /// Every conv's weights packed once ([`AnisoCb::pack_all`] of `model`, which never changes).
@@ -31,6 +34,8 @@ pub struct Upscaler {
     ops: Box<dyn Ops>,
     /// Worker threads of its own (`None`: the global pool).
     pool: Option<Worker>,
+    /// The physics pass the HR frames go through, in shot order (`None`: off).
+    physics: Option<PhysicsPass>,
     /// The box geometry images are encoded with (Eq 1): the unit box for a cloth-frame model,
     /// for which each frame depends on itself alone.
     domain: Domain,
@@ -64,6 +69,7 @@ impl Upscaler {
             params,
             ops: Box::new(Cpu),
             pool: None,
+            physics: None,
             domain: Domain::UNIT,
             grid: None,
             raw: None,
@@ -87,6 +93,15 @@ impl Upscaler {
         let pool = Worker::new(threads)
             .map_err(|e| Error::config(format!("cannot start {threads} worker threads: {e}")))?;
         self.pool = Some(pool);
+        Ok(self)
+    }
+
+    /// Send every HR frame through the physics pass (`anisocb upscale --physics`,
+    /// docs/wrinkles.md): an HR cloth held to the frames at the LR grid's scale, so folds finer
+    /// than the LR grid form. The shot must start at its first frame; [`Upscaler::flush`] ends
+    /// it. Frames are read as metres.
+    pub fn with_physics(mut self, params: FollowParams) -> Result<Upscaler> {
+        self.physics = Some(PhysicsPass::new(params)?);
         Ok(self)
     }
 
@@ -217,6 +232,9 @@ impl Upscaler {
         }
         self.grid = None;
         self.raw = None;
+        if let Some(p) = self.physics.as_mut() {
+            p.reset();
+        }
         (self.pushed, self.emitted, self.raw_lo) = (0, 0, 0);
         Ok(None)
     }
@@ -241,14 +259,20 @@ impl Upscaler {
         let mut window = self.scratch.window.take().unwrap_or_else(Predictions::none);
         raw.copy_frames_into(lo - self.raw_lo..self.pushed - self.raw_lo, &mut window);
         let (model, params) = (&self.model, &self.params);
-        let up = in_pool(&self.pool, || finish(window, model, params)).map_err(|err| at_frame(err, lo))?;
-        let mesh = out(&up.hr, e - lo, &self.domain);
+        let mut up =
+            in_pool(&self.pool, || finish(window, model, params)).map_err(|err| at_frame(err, lo))?;
+        // A frame the physics pass fails on is used up like any other (the error says which).
+        let physics = match self.physics.as_mut() {
+            Some(p) => p.apply(&mut up.hr, e - lo, e, &self.domain, self.grid.expect("frames were pushed")),
+            None => Ok(()),
+        };
+        let mesh = physics.map(|()| out(&up.hr, e - lo, &self.domain));
         self.scratch.window = Some(up.into_nets());
         let keep_from = (e + 1).saturating_sub(k);
         raw.drop_front(keep_from - self.raw_lo);
         self.raw_lo = keep_from;
         self.emitted += 1;
-        Ok(mesh)
+        mesh
     }
 }
 
