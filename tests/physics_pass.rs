@@ -41,12 +41,7 @@ fn on_lr_surface(lr: &[GridMesh]) -> Vec<GridMesh> {
 }
 
 fn follow(frames: &[GridMesh], p: &FollowParams) -> Vec<GridMesh> {
-    let mut f = Follower::new(&frames[0], (frames[0].w / 2, frames[0].h / 2), p).unwrap();
-    let mut out = vec![frames[0].clone()];
-    for (k, t) in frames.iter().enumerate().skip(1) {
-        out.push(f.step(t, k).unwrap());
-    }
-    out
+    Follower::run(frames, (frames[0].w / 2, frames[0].h / 2), p).unwrap()
 }
 
 fn rms_gap(a: &GridMesh, b: &GridMesh) -> f32 {
@@ -97,6 +92,10 @@ fn physics_pass_forms_folds_finer_than_the_lr_grid_where_the_shot_compresses_the
     // `detail` output keeps the shot's coarse shape: only folds finer than the LR grid added.
     let coarse = rms_gap(&lr_round_trip(last, 16, 16), &lr_round_trip(frames.last().unwrap(), 16, 16));
     assert!(coarse < 0.3 * folds, "the coarse shape moved {coarse} m for {folds} m of folds");
+    // ... and its border: the outermost ring is the shot's, bit for bit.
+    let shot = frames.last().unwrap();
+    let ring = (0..32 * 32).filter(|v| [v % 32, v / 32].iter().any(|&c| c == 0 || c == 31));
+    assert!(ring.into_iter().all(|v| last.pos[v] == shot.pos[v]), "the border moved off the shot");
     // The same shot gives the same bits.
     let again = follow(&frames, &p);
     assert!(out.iter().zip(&again).all(|(a, b)| a.pos == b.pos), "two passes over one shot differ");
@@ -134,6 +133,27 @@ fn physics_pass_pinned_edges_follow_the_shot_exactly_and_only_they() {
     assert!(PinnedEdges::parse("none").unwrap().is_empty());
     let e = PinnedEdges::parse("top,middle").unwrap_err().to_string();
     assert!(e.contains("middle") && e.contains("corners"), "{e}");
+}
+
+#[test]
+fn each_scenarios_held_edges_are_the_vertices_it_pins_and_runs_tell_the_pass_them() {
+    for sc in Scenario::ALL {
+        let spec = ScenarioSpec::new(sc);
+        let (cloth, _) = spec.setup(9, 7);
+        let mut pinned: Vec<usize> = cloth.pins.iter().map(|p| p.vertex).collect();
+        pinned.sort_unstable();
+        assert_eq!(pinned, sc.held_edges().vertices(9, 7), "{}", sc.name());
+    }
+    // What eval --physics reads of a run: gravity, frame rate, material, the held edges.
+    let meta = anisocb::cloth::run_io::meta_json(
+        &ScenarioSpec::new(Scenario::TwistZeroG),
+        "hr",
+        8,
+        8,
+        &anisocb::geom::Domain::UNIT,
+    );
+    let p = FollowParams::for_run(&meta);
+    assert_eq!((p.gravity, p.fps, p.pins.names().as_str()), ([0.0; 3], 30.0, "left,right"));
 }
 
 #[test]

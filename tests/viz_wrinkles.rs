@@ -105,7 +105,7 @@ fn closeup_of_millimetre_folds_shows_more_variation_than_a_smooth_sheet() {
     let folded = sheet_with_folds(64, 0.001, 20, 50);
     let smooth = sheet_with_folds(64, 0.0, 20, 50);
     let (lr_f, lr_s) = (lr_of(&folded, 32), lr_of(&smooth, 32));
-    let frame = |lr, hr| Frame { lr, catmull_rom: hr, ours: hr, truth: hr };
+    let frame = |lr, hr| Frame { lr, catmull_rom: hr, ours: hr, ours_label: "anisocb", truth: hr };
     let a = closeup_rows(&[(0, frame(&lr_f, &folded))], 12, 128).unwrap();
     let b = closeup_rows(&[(0, frame(&lr_s, &smooth))], 12, 128).unwrap();
     save("closeup-folded.png", &a);
@@ -120,7 +120,7 @@ fn closeup_of_millimetre_folds_shows_more_variation_than_a_smooth_sheet() {
 fn flipbook_has_every_frame_up_to_60_and_every_2nd_above() {
     let hr = sheet_with_folds(32, 0.002, 4, 14);
     let lr = lr_of(&hr, 16);
-    let f = Frame { lr: &lr, catmull_rom: &hr, ours: &hr, truth: &hr };
+    let f = Frame { lr: &lr, catmull_rom: &hr, ours: &hr, ours_label: "anisocb", truth: &hr };
     let frames = flipbook_frames(&vec![f; 61], 6, 48).unwrap();
     assert_eq!(frames.len(), 31);
     assert!(frames.iter().all(|p| (p.w, p.h) == (frames[0].w, frames[0].h)));

@@ -185,7 +185,18 @@ pub fn run(a: Args) -> Result<()> {
     write_pictures(&a.out, &frames, &lr, &bicubic, &ours, &hr, up.boundary(), up.enhance(), &ours_img)?;
     let shown: Vec<(usize, closeup::Frame)> = frames
         .iter()
-        .map(|&k| (k, closeup::Frame { lr: &lr[k], catmull_rom: &cr[k], ours: &ours[k], truth: &hr[k] }))
+        .map(|&k| {
+            (
+                k,
+                closeup::Frame {
+                    lr: &lr[k],
+                    catmull_rom: &cr[k],
+                    ours: &ours[k],
+                    ours_label: "anisocb",
+                    truth: &hr[k],
+                },
+            )
+        })
         .collect();
     let wrinkles = closeup::closeup_rows(&shown, closeup::CLOSEUP_LR_SIZE, 256)?;
     save_png(&a.out.join("wrinkles.png"), &wrinkles)?;

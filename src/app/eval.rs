@@ -6,6 +6,7 @@
 use super::demo::pick_frames;
 use super::setup::{load_geometry_net, load_model, set_threads};
 use super::ui::{progress, save_apng, save_png};
+use crate::cloth::follow::{FollowParams, Follower};
 use crate::cloth::run_io::read_pair;
 use crate::cloth::scenarios::{run_single, Scenario, ScenarioSpec};
 use crate::error::Result;
@@ -90,6 +91,12 @@ pub struct Args {
     /// HR, every frame (every 2nd above 60).
     #[arg(long)]
     pub flipbook: bool,
+    /// Also evaluate the physics pass (`upscale --physics`, default settings) on the default
+    /// model's frames, with each run's gravity, frame rate and material from its meta.json and
+    /// its scenario's held edges (`--physics-pin`), as the artist of the shot would give them;
+    /// the close-ups and flip-book then show it too (`<scenario>-wrinkles-physics.png`, …).
+    #[arg(long)]
+    pub physics: bool,
     /// Also run the speed study (LR sim + upscale vs HR sim at 32, 64, 128 LR grids).
     #[arg(long)]
     pub speed: bool,
@@ -315,7 +322,14 @@ pub fn run(a: Args) -> Result<()> {
         let scenario = pair.label();
         let hr = images_to_sequence(&pair.hr, domain);
         let lr_m = images_to_sequence(lr, domain);
-        let methods = methods_for_run(ops.as_ref(), &model, &others, lr, domain, &etas)?;
+        let mut methods = methods_for_run(ops.as_ref(), &model, &others, lr, domain, &etas)?;
+        if a.physics {
+            let ours =
+                &methods.iter().find(|m| m.name == format!("anisocb, eta={DEFAULT_ETA}")).unwrap().meshes;
+            let p = FollowParams::for_run(&pair.meta);
+            let meshes = Follower::run(ours, (lr.shape[3], lr.shape[2]), &p)?;
+            methods.push(Method { name: PHYSICS.into(), meshes });
+        }
         if a.moved {
             let ours =
                 &methods.iter().find(|m| m.name == format!("anisocb, eta={DEFAULT_ETA}")).unwrap().meshes;
@@ -334,7 +348,11 @@ pub fn run(a: Args) -> Result<()> {
         if a.worst > 0 {
             write_worst_renders(&a.out, &scenario, &lr_m, &methods, &hr, &rows, a.worst)?;
         }
-        write_closeups(&a.out, &scenario, &lr_m, &methods, &hr, a.flipbook)?;
+        let ours = format!("anisocb, eta={DEFAULT_ETA}");
+        write_closeups(&a.out, &scenario, &lr_m, &methods, &hr, (&ours, ""), a.flipbook)?;
+        if a.physics {
+            write_closeups(&a.out, &scenario, &lr_m, &methods, &hr, (PHYSICS, "-physics"), a.flipbook)?;
+        }
         cells.extend(rows);
         pb.inc(1);
     }
@@ -431,31 +449,42 @@ fn write_worst_renders(
     save_png(&out.join(format!("{scenario}-worst.png")), &img)
 }
 
-/// `{scenario}-wrinkles.png`: close-ups of 3 frames where the truth has the most wrinkle
-/// detail, LR | Catmull-Rom | anisocb at the default η | HR; with `flipbook` also
-/// `{scenario}-flipbook.png`, the animated close-up of the whole run.
+/// The physics pass's row in `eval --physics`.
+const PHYSICS: &str = "anisocb --physics";
+
+/// `{scenario}-wrinkles{suffix}.png`: close-ups of 3 frames where the truth has the most
+/// wrinkle detail, LR | Catmull-Rom | the method `shown.0` (the default model at the default
+/// η, or the physics pass) | HR; with `flipbook` also `{scenario}-flipbook{suffix}.png`, the
+/// animated close-up of the whole run.
 fn write_closeups(
     out: &Path,
     scenario: &str,
     lr: &[GridMesh],
     methods: &[Method],
     hr: &[GridMesh],
+    (method, suffix): (&str, &str),
     flipbook: bool,
 ) -> Result<()> {
     let find = |name: &str| methods.iter().find(|m| m.name == name).map(|m| &m.meshes[..]);
-    let (Some(cr), Some(ours)) = (find("catmull-rom"), find(&format!("anisocb, eta={DEFAULT_ETA}"))) else {
+    let (Some(cr), Some(ours)) = (find("catmull-rom"), find(method)) else {
         return Ok(());
     };
     let seq: Vec<closeup::Frame> = (0..hr.len())
-        .map(|k| closeup::Frame { lr: &lr[k], catmull_rom: &cr[k], ours: &ours[k], truth: &hr[k] })
+        .map(|k| closeup::Frame {
+            lr: &lr[k],
+            catmull_rom: &cr[k],
+            ours: &ours[k],
+            ours_label: method,
+            truth: &hr[k],
+        })
         .collect();
     let shown: Vec<(usize, closeup::Frame)> =
         pick_frames(hr.len(), 3).into_iter().map(|k| (k, seq[k])).collect();
     let img = closeup::closeup_rows(&shown, closeup::CLOSEUP_LR_SIZE, 256)?;
-    save_png(&out.join(format!("{scenario}-wrinkles.png")), &img)?;
+    save_png(&out.join(format!("{scenario}-wrinkles{suffix}.png")), &img)?;
     if flipbook {
         let pics = closeup::flipbook_frames(&seq, closeup::CLOSEUP_LR_SIZE, 200)?;
-        save_apng(&out.join(format!("{scenario}-flipbook.png")), &pics, FLIPBOOK_FPS)?;
+        save_apng(&out.join(format!("{scenario}-flipbook{suffix}.png")), &pics, FLIPBOOK_FPS)?;
     }
     Ok(())
 }

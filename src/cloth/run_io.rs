@@ -114,6 +114,8 @@ pub struct RunPair {
     pub hr: Tensor,
     /// The HR run's domain.
     pub domain: Domain,
+    /// `meta.json` (HR, else LR; `Null` without one).
+    pub meta: Value,
 }
 
 impl RunPair {
@@ -192,7 +194,7 @@ pub fn read_pair(dir: &Path) -> Result<RunPair> {
     let meta = hr_meta.or(lr_meta).unwrap_or(Value::Null);
     let scenario = meta.get("scenario").and_then(Value::as_str).unwrap_or("unknown").to_string();
     let seed = meta.get("seed").and_then(Value::as_u64);
-    Ok(RunPair { name: pd.display().to_string(), scenario, seed, lr, hr, domain })
+    Ok(RunPair { name: pd.display().to_string(), scenario, seed, lr, hr, domain, meta })
 }
 
 /// Human-readable metadata of one run (`role`: "single", "lr" or "hr") at `w × h`.
@@ -276,7 +278,8 @@ pub fn write_pair(
     let (hw, hh) = (hr[0].w, hr[0].h);
     let lr = write_run(&dir.join("lr"), lr, &domain, &meta_json(spec, "lr", spec.w, spec.h, &domain), obj)?;
     let hs = spec.for_scale(spec.scale);
-    let hr = write_run(&dir.join("hr"), hr, &domain, &meta_json(&hs, "hr", hw, hh, &domain), obj)?;
+    let meta = meta_json(&hs, "hr", hw, hh, &domain);
+    let hr = write_run(&dir.join("hr"), hr, &domain, &meta, obj)?;
     Ok(RunPair {
         name: dir.display().to_string(),
         scenario: spec.scenario.name().to_string(),
@@ -284,5 +287,6 @@ pub fn write_pair(
         lr,
         hr,
         domain,
+        meta,
     })
 }

@@ -7,6 +7,7 @@
 //! rectangle with `scale·w × scale·h` vertices (corners aligned).
 
 use super::collision::{Colliders, Cuboid, Sphere};
+use super::follow::PinnedEdges;
 use super::kinematics::{Kinematics, Pin};
 use super::params::{Material, SimParams};
 use super::solver::{Cloth, Scene};
@@ -68,6 +69,21 @@ impl Scenario {
             let names: Vec<&str> = Scenario::ALL.iter().map(|s| s.name()).collect();
             Error::config(format!("unknown scenario '{name}'; choose one of: {}", names.join(", ")))
         })
+    }
+
+    /// The edges of the grid the scenario holds its cloth by, as an artist names them to
+    /// `upscale --physics-pin` (the vertices [`ScenarioSpec::setup`] pins; a test checks it).
+    pub fn held_edges(self) -> PinnedEdges {
+        let mut e = PinnedEdges::default();
+        match self {
+            Scenario::Flag | Scenario::FlagSphere => e.top = true,
+            Scenario::Drape => e.corners = true,
+            Scenario::Twist | Scenario::TwistMaterials | Scenario::TwistZeroG => {
+                (e.left, e.right) = (true, true)
+            }
+            Scenario::Drop | Scenario::DropTable => {}
+        }
+        e
     }
 
     pub fn description(self) -> &'static str {

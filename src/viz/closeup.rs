@@ -147,6 +147,8 @@ pub struct Frame<'a> {
     pub lr: &'a GridMesh,
     pub catmull_rom: &'a GridMesh,
     pub ours: &'a GridMesh,
+    /// The label of `ours` ("anisocb", "anisocb --physics").
+    pub ours_label: &'a str,
     pub truth: &'a GridMesh,
 }
 
@@ -178,7 +180,12 @@ pub fn render_patches(f: &Frame<'_>, win: &Window, tile: usize, first_label: &st
     let mut pics = Vec::with_capacity(4);
     for (k, m) in meshes.iter().enumerate() {
         let mut p = render_mesh_with_normals(m, &normals[k], &cam, &shade)?;
-        p.label(if k == 0 { first_label } else { CLOSEUP_LABELS[k] }, scale);
+        let label = match k {
+            0 => first_label,
+            2 => f.ours_label,
+            _ => CLOSEUP_LABELS[k],
+        };
+        p.label(label, scale);
         pics.push(p);
     }
     Ok(hstack(&pics, 6, WHITE))

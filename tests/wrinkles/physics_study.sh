@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # `upscale --physics` (docs/wrinkles.md, "The physics pass") against the truth: wrinkle ratio,
 # correlation, D change and vertex RMSE beside Catmull-Rom's (tests/wrinkles/stats.py), each run
-# upscaled with its own material (meta.json: the artist knows the cloth) and 30 fps.
+# upscaled with its own material and gravity (meta.json: the artist knows the cloth) and 30 fps.
+# `anisocb eval --physics --runs RUN...` reports the same pass with every other metric.
 #   [PINS=1] tests/wrinkles/physics_study.sh val|heldout [OUTDIR] [upscale options...]
 # PINS=1 names each scene's held edges as its artist would (--physics-pin: the flag's top row,
 # the twist's two ends, the drape's corners; the drops hold nothing).
@@ -27,8 +28,12 @@ for r in $runs; do
   vary=$seed; [ "$seed" = 1000 ] && vary=0
   [ -f "$run/hr/geometry.npy" ] || "$BIN" simulate --scenario "$scen" --res 32x32 --pair --frames "$frames" \
     --seed "$seed" --vary "$vary" --out "$run" >/dev/null 2>&1 || { echo "simulate failed: $run" >&2; exit 1; }
-  mat=$(python3 -c "import json,sys; m=json.load(open(sys.argv[1]))['material']; print(m['name'] if isinstance(m, dict) else 'cotton')" "$run/hr/meta.json")
-  "$BIN" upscale "$run/lr" --out "$OUT/physics/$scen-$seed" --format npy --physics --material "$mat" --physics-pin "$pins" "$@" \
+  # The run's material (cotton where it mixes materials) and gravity, as FollowParams::for_run
+  # (eval --physics) reads them.
+  read -r mat grav < <(python3 -c "import json,sys; j=json.load(open(sys.argv[1])); m=j['material']
+print(m['name'] if isinstance(m, dict) else 'cotton', ','.join(map(str, j['gravity_m_per_s2'])))" "$run/hr/meta.json")
+  "$BIN" upscale "$run/lr" --out "$OUT/physics/$scen-$seed" --format npy --physics --material "$mat" --gravity="$grav" \
+    --physics-pin "$pins" "$@" \
     >/dev/null 2>"$OUT/physics/$scen-$seed.log" || { cat "$OUT/physics/$scen-$seed.log" >&2; exit 1; }
   pairs="$pairs $run:$OUT/physics/$scen-$seed"
 done
