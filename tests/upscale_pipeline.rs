@@ -279,10 +279,23 @@ fn demo_and_eval_write_their_tables_and_pictures() {
         .unwrap();
     assert!(o.status.success(), "demo failed: {}", String::from_utf8_lossy(&o.stderr));
     let table = std::fs::read_to_string(demo.join("metrics.md")).unwrap();
-    for row in ["| bicubic interpolation |", "| catmull-rom interpolation |", "| anisocb, η = 0 |"] {
+    for row in [
+        "| bicubic interpolation |",
+        "| catmull-rom interpolation |",
+        "| anisocb, η = 0 |",
+        "| anisocb --physics |",
+    ] {
         assert!(table.contains(row), "metrics.md lacks {row}:\n{table}");
     }
-    for f in ["compare.png", "error.png", "maps.png", "anisocb/frame_0007.obj", "hr/frame_0007.obj"] {
+    for f in [
+        "compare.png",
+        "error.png",
+        "maps.png",
+        "wrinkles-physics.png",
+        "anisocb/frame_0007.obj",
+        "anisocb-physics/frame_0007.obj",
+        "hr/frame_0007.obj",
+    ] {
         assert!(demo.join(f).is_file(), "demo did not write {f}");
     }
     // The demo's simulated pair doubles as a held-out run for eval.
@@ -296,6 +309,7 @@ fn demo_and_eval_write_their_tables_and_pictures() {
             out.to_str().unwrap(),
             "--eta",
             "0,1",
+            "--physics",
         ])
         .output()
         .unwrap();
@@ -307,11 +321,14 @@ fn demo_and_eval_write_their_tables_and_pictures() {
         "| anisocb -boundary, eta=0 |",
         "| anisocb, eta=0 |",
         "| anisocb, eta=1 |",
+        "| anisocb --physics |",
     ] {
         assert!(md.contains(row), "results.md lacks {row}:\n{md}");
     }
     assert!(
-        out.join("sim-rmse.png").is_file() && out.join("sim-worst.png").is_file(),
+        out.join("sim-rmse.png").is_file()
+            && out.join("sim-worst.png").is_file()
+            && out.join("sim-wrinkles-physics.png").is_file(),
         "runs are labelled by directory"
     );
 }

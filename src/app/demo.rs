@@ -4,10 +4,11 @@
 
 use super::setup::{load_model, set_threads};
 use super::ui::{progress, save_png};
+use crate::cloth::follow::{FollowParams, Follower};
 use crate::cloth::run_io::write_pair;
 use crate::cloth::scenarios::{paired_run_with_progress, Scenario, ScenarioSpec, SCENARIO_HELP};
 use crate::error::Result;
-use crate::eval::metrics::{border_mask, sequence_metrics, vertex_errors, SequenceMetrics};
+use crate::eval::metrics::{border_mask, sequence_metrics, vertex_errors, wrinkle_stats, SequenceMetrics};
 use crate::eval::report::{metrics_table, Column};
 use crate::geom::geometry_image::images_to_sequence;
 use crate::geom::obj::write_obj_grid;
@@ -71,7 +72,7 @@ pub struct Row {
 }
 
 /// The columns of the demo's table (lengths in mm).
-pub const COLUMNS: [Column; 7] = [
+pub const COLUMNS: [Column; 9] = [
     Column::Rmse,
     Column::BoundaryRmse,
     Column::Hausdorff,
@@ -79,7 +80,12 @@ pub const COLUMNS: [Column; 7] = [
     Column::NormalAngle,
     Column::Flicker,
     Column::StedTemporal,
+    Column::WrinkleRatio,
+    Column::WrinkleCorr,
 ];
+
+/// The physics pass's row and label (demo and eval).
+pub(crate) const PHYSICS: &str = "anisocb --physics";
 
 pub fn run(a: Args) -> Result<()> {
     set_threads(a.threads)?;
@@ -121,27 +127,28 @@ pub fn run(a: Args) -> Result<()> {
     // The better cubic: Catmull-Rom (a = −0.5), the U the shipped model refines.
     let cr =
         images_to_sequence(&interpolate(ops.as_ref(), &pair.lr, model.scale(), Interp::CatmullRom), &domain);
+    // The physics pass (`upscale --physics`, opt in) on anisocb's frames, told the scene's
+    // gravity, frame rate, material and held edges as its artist would tell it.
+    let physics = Follower::run(&ours, (lr[0].w, lr[0].h), &FollowParams::for_run(&pair.meta))?;
 
     // 3. Metrics against the HR run.
     let mask = border_mask(hr[0].w, hr[0].h);
+    // Wrinkle detail is what the LR grid cannot hold (docs/wrinkles.md).
+    let metrics_of = |seq: &[GridMesh]| -> Result<SequenceMetrics> {
+        let mut m = sequence_metrics(seq, &hr, Some(&mask))?;
+        m.wrinkle = Some(wrinkle_stats(seq, &hr, lr[0].w, lr[0].h)?);
+        Ok(m)
+    };
     let mut rows = vec![
-        Row {
-            method: "bicubic interpolation".into(),
-            metrics: sequence_metrics(&bicubic, &hr, Some(&mask))?,
-        },
-        Row { method: "catmull-rom interpolation".into(), metrics: sequence_metrics(&cr, &hr, Some(&mask))? },
+        Row { method: "bicubic interpolation".into(), metrics: metrics_of(&bicubic)? },
+        Row { method: "catmull-rom interpolation".into(), metrics: metrics_of(&cr)? },
     ];
     if a.eta != 0.0 {
         let plain = images_to_sequence(&up.with_eta(0.0)?, &domain);
-        rows.push(Row {
-            method: "anisocb, η = 0".into(),
-            metrics: sequence_metrics(&plain, &hr, Some(&mask))?,
-        });
+        rows.push(Row { method: "anisocb, η = 0".into(), metrics: metrics_of(&plain)? });
     }
-    rows.push(Row {
-        method: format!("anisocb, η = {}", a.eta),
-        metrics: sequence_metrics(&ours, &hr, Some(&mask))?,
-    });
+    rows.push(Row { method: format!("anisocb, η = {}", a.eta), metrics: metrics_of(&ours)? });
+    rows.push(Row { method: PHYSICS.into(), metrics: metrics_of(&physics)? });
     let table = metrics_table(rows.iter().map(|r| (r.method.as_str(), &r.metrics)), &COLUMNS);
     let header = format!(
         "anisocb demo: scenario `{}` (seed {}, held out of training), {} frames, LR {}x{} -> HR {}x{}\n\
@@ -169,8 +176,10 @@ pub fn run(a: Args) -> Result<()> {
     write_json(&a.out.join("metrics.json"), &json.into(), Layout::Compact)?;
 
     // 4. OBJ sequences.
-    let pb = progress(4 * spec.frames as u64, "write obj");
-    for (name, seq) in [("lr", &lr), ("hr", &hr), ("bicubic", &bicubic), ("anisocb", &ours)] {
+    let pb = progress(5 * spec.frames as u64, "write obj");
+    let seqs =
+        [("lr", &lr), ("hr", &hr), ("bicubic", &bicubic), ("anisocb", &ours), ("anisocb-physics", &physics)];
+    for (name, seq) in seqs {
         let dir = a.out.join(name);
         ensure_dir(&dir)?;
         for (k, m) in seq.iter().enumerate() {
@@ -183,23 +192,24 @@ pub fn run(a: Args) -> Result<()> {
     // 5. Pictures.
     let frames = pick_frames(spec.frames, 3);
     write_pictures(&a.out, &frames, &lr, &bicubic, &ours, &hr, up.boundary(), up.enhance(), &ours_img)?;
-    let shown: Vec<(usize, closeup::Frame)> = frames
-        .iter()
-        .map(|&k| {
-            (
-                k,
-                closeup::Frame {
+    for (seq, label, file) in
+        [(&ours, "anisocb", "wrinkles.png"), (&physics, PHYSICS, "wrinkles-physics.png")]
+    {
+        let shown: Vec<(usize, closeup::Frame)> = frames
+            .iter()
+            .map(|&k| {
+                let f = closeup::Frame {
                     lr: &lr[k],
                     catmull_rom: &cr[k],
-                    ours: &ours[k],
-                    ours_label: "anisocb",
+                    ours: &seq[k],
+                    ours_label: label,
                     truth: &hr[k],
-                },
-            )
-        })
-        .collect();
-    let wrinkles = closeup::closeup_rows(&shown, closeup::CLOSEUP_LR_SIZE, 256)?;
-    save_png(&a.out.join("wrinkles.png"), &wrinkles)?;
+                };
+                (k, f)
+            })
+            .collect();
+        save_png(&a.out.join(file), &closeup::closeup_rows(&shown, closeup::CLOSEUP_LR_SIZE, 256)?)?;
+    }
 
     println!("{header}{table}");
     let out = a.out.display();
@@ -207,9 +217,10 @@ pub fn run(a: Args) -> Result<()> {
     println!("  compare.png         shaded renders LR | bicubic | anisocb | HR for frames {frames:?}");
     println!("  error.png           per-vertex error (mm) of bicubic and anisocb vs HR");
     println!("  wrinkles.png        close-ups where the truth's folds are, LR | Catmull-Rom | anisocb | HR, normal shading");
+    println!("  wrinkles-physics.png  the same with the physics pass (upscale --physics) in anisocb's place");
     println!("  maps.png            anisocb geometry image, predicted boundary map Γb, wrinkle map Γe");
     println!("  metrics.md, .json   the table above (per frame in the JSON)");
-    println!("  lr/ hr/ bicubic/ anisocb/   OBJ sequences (frame_0000.obj ...); sim/ the simulated runs");
+    println!("  lr/ hr/ bicubic/ anisocb/ anisocb-physics/   OBJ sequences (frame_0000.obj ...); sim/ the simulated runs");
     println!("total {:.1} s", t0.elapsed().as_secs_f64());
     Ok(())
 }

@@ -3,7 +3,7 @@
 //! truth's folds are (`--flipbook`: animated); `--speed` adds the study of (LR simulation +
 //! upscaling) vs HR simulation.
 
-use super::demo::pick_frames;
+use super::demo::{pick_frames, PHYSICS};
 use super::setup::{load_geometry_net, load_model, set_threads};
 use super::ui::{progress, save_apng, save_png};
 use crate::cloth::follow::{FollowParams, Follower};
@@ -448,9 +448,6 @@ fn write_worst_renders(
     let img = vstack(&pics, 6, [255; 3]);
     save_png(&out.join(format!("{scenario}-worst.png")), &img)
 }
-
-/// The physics pass's row in `eval --physics`.
-const PHYSICS: &str = "anisocb --physics";
 
 /// `{scenario}-wrinkles{suffix}.png`: close-ups of 3 frames where the truth has the most
 /// wrinkle detail, LR | Catmull-Rom | the method `shown.0` (the default model at the default
