@@ -31,7 +31,8 @@ rust-example:
 ## checked bit for bit against `anisocb upscale` (plain, with --temporal 2, and with --physics
 ## --physics-pin corners); then
 ## anisocb_push called from Rust, checked to allocate nothing per frame after warm-up
-## (tests/upscaler_allocations.rs with --features capi). ≈ 2 min.
+## (tests/upscaler_allocations.rs with --features capi), and its physics options checked
+## (tests/c_abi_physics.rs). ≈ 2 min.
 CC ?= cc
 C_OUT = target/c-example
 c-example:
@@ -49,7 +50,7 @@ c-example:
 	$(C_OUT)/upscale_static $(C_OUT)/sim/obj $(C_OUT)/cli 24
 	$(C_OUT)/upscale_shared $(C_OUT)/sim/obj $(C_OUT)/cli-t2 24 2
 	$(C_OUT)/upscale_static $(C_OUT)/sim/obj $(C_OUT)/cli-phys 24 0 corners
-	$(CARGO) test --release --features capi --test upscaler_allocations
+	$(CARGO) test --release --features capi --test upscaler_allocations --test c_abi_physics
 
 c-example-if-cc:
 	@if command -v $(CC) >/dev/null 2>&1; then $(MAKE) c-example; \

@@ -46,8 +46,8 @@ pub struct FollowParams {
     /// physics pass").
     pub substeps_per_second: f32,
     /// Damping of the tracking as a fraction of critical: with nothing pinned and no
-    /// colliders, an undamped attachment rings at its own frequency (√strength rad/s, 8.7 Hz at 3000 1/s²)
-    /// after every jolt of the shot.
+    /// colliders, an undamped attachment rings at its own frequency (√strength rad/s: 8.7 Hz
+    /// at 3000 1/s²) after every jolt of the shot.
     pub damping: f32,
     /// What the pass hands on.
     pub output: FollowOutput,
