@@ -240,7 +240,8 @@ impl FollowParams {
 /// substeps per second with nothing held: 0.200 at 10 000 critically damped, 0.181 at 1000
 /// critically damped, 0.147 at 1000 undamped. Again at 600 substeps per second with the held
 /// edges named, critically damped: 0.220 at 30 000, 0.269 at 10 000, 0.306 at 3000, 0.291
-/// at 1000 (docs/wrinkles.md, "The physics pass").
+/// at 1000; at 3000, damping 0.5× critical 0.281 and 2× 0.282 (docs/wrinkles.md, "The physics
+/// pass").
 pub const FOLLOW_STRENGTH: f32 = 3_000.0;
 
 /// Shot time (s) the pass holds the first frame still to measure the cloth's sag.
