@@ -1009,7 +1009,7 @@ fn upscale_refused(args: &[&str], code: i32, want: &[&str]) -> String {
 }
 
 #[test]
-fn upscale_refuses_absurd_eta_margin_and_temporal_before_reading_or_writing() {
+fn upscale_refuses_absurd_option_values_and_physics_settings_before_reading_or_writing() {
     let d = scratch("upscale_values");
     let shot = obj_shot(&d, "shot", 2);
     let (inp, out) = (shot.to_str().unwrap(), d.join("out"));
@@ -1028,6 +1028,11 @@ fn upscale_refuses_absurd_eta_margin_and_temporal_before_reading_or_writing() {
         (&["--batch", "100000000"], &["--batch", "1 to 1024"]),
         (&["--strain-iters", "1000000000"], &["--strain-iters", "at most 1000"]),
         (&["--chunk", "0"], &["--chunk must be ≥ 1"]),
+        (&["--physics", "--physics-pin", "top,middle"], &["--physics-pin", "middle", "corners"]),
+        (&["--physics", "--material", "velvet"], &["velvet", "silk"]),
+        (&["--physics", "--fps", "0"], &["--fps", "1 to 1000"]),
+        (&["--physics", "--physics-substeps", "NaN"], &["--physics-substeps"]),
+        (&["--physics", "--gravity", "0,nan,0"], &["--gravity"]),
     ];
     for (extra, want) in cases {
         let mut args = vec![inp, "--out", o];

@@ -138,7 +138,8 @@ pub struct Args {
     /// Physics pass (opt-in): an HR cloth simulated alongside the shot, held to the nets' frames
     /// at the LR grid's scale only, so folds finer than the LR grid form where an HR simulation
     /// forms them (docs/wrinkles.md, "The physics pass"). Reads the shot as metres; set
-    /// --gravity, --fps and --material to match it. Needs the whole shot from frame 0.
+    /// --gravity, --fps and --material to match it, and --physics-pin where the cloth is held.
+    /// Needs the whole shot from frame 0.
     #[arg(long)]
     pub physics: bool,
     /// With --physics: gravity in the shot's axes, m/s² (y-up OBJ: 0,-9.81,0; a z-up scene:
@@ -154,7 +155,7 @@ pub struct Args {
     pub material: String,
     /// With --physics: what the pass hands on: `detail` = the nets' frame plus the simulated
     /// cloth's folds finer than the LR grid (the default), `cloth` = the simulated cloth itself
-    /// (it sags and lags behind the shot by about a centimetre).
+    /// (it sags and lags behind the shot by millimetres).
     #[arg(long, default_value = "detail", value_parser = ["detail", "cloth"])]
     pub physics_output: String,
     /// With --physics: how hard the simulated cloth is held to the shot at the LR grid's scale
