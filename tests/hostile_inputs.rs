@@ -1033,6 +1033,7 @@ fn upscale_refuses_absurd_option_values_and_physics_settings_before_reading_or_w
         (&["--physics", "--fps", "0"], &["--fps", "1 to 1000"]),
         (&["--physics", "--physics-substeps", "NaN"], &["--physics-substeps"]),
         (&["--physics", "--gravity", "0,nan,0"], &["--gravity"]),
+        (&["--physics", "--physics-drift", "NaN"], &["--physics-drift", "seconds"]),
     ];
     for (extra, want) in cases {
         let mut args = vec![inp, "--out", o];

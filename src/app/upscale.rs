@@ -153,11 +153,17 @@ pub struct Args {
     /// stiffness sets how fine the folds are.
     #[arg(long, default_value = "cotton")]
     pub material: String,
-    /// With --physics: what the pass hands on: `detail` = the nets' frame plus the simulated
-    /// cloth's folds finer than the LR grid (the default), `cloth` = the simulated cloth itself
-    /// (it sags and lags behind the shot by millimetres).
-    #[arg(long, default_value = "detail", value_parser = ["detail", "cloth"])]
+    /// With --physics: what the pass hands on: `cloth` = the simulated cloth itself, its slow
+    /// drift from the shot taken out (--physics-drift; the default: its folds stay put and it
+    /// filters the nets' frame-to-frame jitter), `detail` = the nets' frame plus the simulated
+    /// cloth's folds finer than the LR grid (the nets' coarse shape, jitter included).
+    #[arg(long, default_value = "cloth", value_parser = ["cloth", "detail"])]
     pub physics_output: String,
+    /// With --physics and `cloth` output: time constant (s) over which the cloth's coarse
+    /// drift from the shot (the part the pass's springs, without the shot's wind and
+    /// colliders, leave) is taken out; 0 = every frame in full, inf = never.
+    #[arg(long, value_name = "SECONDS", default_value_t = crate::cloth::follow::DRIFT_SECONDS)]
+    pub physics_drift: f32,
     /// With --physics: how hard the simulated cloth is held to the shot at the LR grid's scale
     /// (1/s², the square of the attachment's angular frequency; higher = closer to the shot,
     /// folds finer than the LR grid stay free either way).
@@ -239,6 +245,7 @@ pub fn run(a: Args) -> Result<()> {
                 strength: a.physics_strength,
                 damping: a.physics_damping,
                 output: if a.physics_output == "cloth" { FollowOutput::Cloth } else { FollowOutput::Detail },
+                drift_seconds: a.physics_drift,
                 pins: PinnedEdges::parse(&a.physics_pin)?,
                 substeps_per_second: a.physics_substeps,
             })

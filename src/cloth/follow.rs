@@ -51,6 +51,15 @@ pub struct FollowParams {
     pub damping: f32,
     /// What the pass hands on.
     pub output: FollowOutput,
+    /// `cloth` output only: the time constant (s) of the drift correction, an exponential
+    /// moving average of how far the cloth's coarse shape (its Catmull-Rom round trip through
+    /// the LR grid) lies from the shot's, added back to the cloth. It takes out the slow part
+    /// of the lag (wind or a collider the pass does not know push the shot's cloth where the
+    /// springs alone would not) and leaves out the frame-to-frame jitter of the nets' coarse
+    /// shape, which the simulated cloth filters. `f32::INFINITY` turns it off, 0 corrects
+    /// every frame in full. 3 s was chosen on the seed-6 validation runs (docs/wrinkles.md,
+    /// "The physics pass", Output).
+    pub drift_seconds: f32,
     /// The edges of the grid that follow the shot's frames exactly (the artist's pins).
     pub pins: PinnedEdges,
 }
@@ -133,11 +142,14 @@ impl PinnedEdges {
 pub enum FollowOutput {
     /// The shot's frame plus the simulated cloth's detail finer than the LR grid,
     /// `target + (x − S(x))` with `S` the Catmull-Rom round trip through the LR grid
-    /// ([`lr_round_trip`]): the shape stays the nets', the folds are the simulation's. The
-    /// default: the simulated cloth's own coarse shape sags and lags behind the shot by
-    /// `(a − g)/strength` (millimetres at rest), which this leaves out.
+    /// ([`lr_round_trip`]): the shape stays the nets', the folds are the simulation's, and
+    /// so does the nets' frame-to-frame jitter of their coarse shape (STED temporal up to
+    /// 1.7× Catmull-Rom's on the validation twists).
     Detail,
-    /// The simulated cloth itself.
+    /// The simulated cloth itself, its slow coarse drift from the shot taken out
+    /// ([`FollowParams::drift_seconds`]). The default: chosen over `Detail` on the seed-6
+    /// validation runs (mean correlation 0.306 → 0.317, STED temporal below Catmull-Rom's on
+    /// all six instead of four; docs/wrinkles.md, "The physics pass", Output).
     Cloth,
 }
 
@@ -150,7 +162,8 @@ impl Default for FollowParams {
             strength: FOLLOW_STRENGTH,
             substeps_per_second: 600.0,
             damping: 1.0,
-            output: FollowOutput::Detail,
+            output: FollowOutput::Cloth,
+            drift_seconds: DRIFT_SECONDS,
             pins: PinnedEdges::default(),
         }
     }
@@ -180,6 +193,12 @@ impl FollowParams {
             return Err(Error::config(format!(
                 "the physics pass's damping must be 0 to 100 (× critical), got {}",
                 self.damping
+            )));
+        }
+        if !(self.drift_seconds >= 0.0) {
+            return Err(Error::config(format!(
+                "--physics-drift must be a time in seconds ≥ 0 (inf turns the correction off), got {}",
+                self.drift_seconds
             )));
         }
         if !(self.substeps_per_second.is_finite() && (1.0..=1e5).contains(&self.substeps_per_second)) {
@@ -244,6 +263,13 @@ impl FollowParams {
 /// pass").
 pub const FOLLOW_STRENGTH: f32 = 3_000.0;
 
+/// Default time constant (s) of the `cloth` output's drift correction
+/// ([`FollowParams::drift_seconds`]): on the seed-6 validation runs a longer one kept more of
+/// the cloth's own coarse motion (mean correlation 0.311 at 0.3 s, 0.313 at 0.65 s, 0.314 at
+/// 1.1 s, 0.317 at 3.3 s; 0.318 with none, but then the flag's vertex RMSE is 1.13×
+/// Catmull-Rom's, over the rule's 1.1×).
+pub const DRIFT_SECONDS: f32 = 3.0;
+
 /// Shot time (s) the pass holds the first frame still to measure the cloth's sag.
 pub const SETTLE_SECONDS: f32 = 1.0;
 
@@ -267,6 +293,12 @@ pub struct Follower {
     /// The LR grid (columns, rows).
     lr: (usize, usize),
     output: FollowOutput,
+    /// `cloth` output: the weight of the last frame in the drift correction's moving average,
+    /// `exp(−1/(fps·drift_seconds))` (1 = off).
+    drift_keep: f32,
+    /// The moving average of `S(shot) − S(cloth)` (m, one per HR vertex; empty before the
+    /// first frame).
+    drift: Vec<[f32; 3]>,
 }
 
 impl Follower {
@@ -303,6 +335,8 @@ impl Follower {
             pin_from,
             lr,
             output: p.output,
+            drift_keep: (-1.0 / (p.fps * p.drift_seconds)).exp(),
+            drift: Vec::new(),
         };
         f.lift = f.settle(first);
         f.from = f.targets(first);
@@ -416,13 +450,17 @@ impl Follower {
         for (o, s) in out.pos.iter_mut().zip(&self.rest_sag) {
             (0..3).for_each(|c| o[c] -= s[c]);
         }
-        if self.output == FollowOutput::Detail {
-            let s = lr_round_trip(&out, self.lr.0, self.lr.1);
-            let (w, h) = (out.w, out.h);
-            for (v, ((o, t), s)) in out.pos.iter_mut().zip(&target.pos).zip(&s.pos).enumerate() {
-                let k = border_taper(v % w, v / w, w, h);
-                *o = std::array::from_fn(|c| t[c] + k * (o[c] - s[c]));
+        match self.output {
+            FollowOutput::Detail => {
+                let s = lr_round_trip(&out, self.lr.0, self.lr.1);
+                let (w, h) = (out.w, out.h);
+                for (v, ((o, t), s)) in out.pos.iter_mut().zip(&target.pos).zip(&s.pos).enumerate() {
+                    let k = border_taper(v % w, v / w, w, h);
+                    *o = std::array::from_fn(|c| t[c] + k * (o[c] - s[c]));
+                }
             }
+            FollowOutput::Cloth if self.drift_keep < 1.0 => self.correct_drift(&mut out, target),
+            FollowOutput::Cloth => {}
         }
         // Pinned vertices are the shot's (the rest sag and the detail are the free cloth's).
         for pin in &self.cloth.pins {
@@ -435,6 +473,28 @@ impl Follower {
             )));
         }
         Ok(out)
+    }
+}
+
+impl Follower {
+    /// `cloth` output: move `out` (the cloth) by the moving average of how far its coarse shape
+    /// lies from the shot's, `drift ← keep·drift + (1 − keep)·(S(target) − S(out))`, the
+    /// first frame's offset taken as it is.
+    fn correct_drift(&mut self, out: &mut GridMesh, target: &GridMesh) {
+        let (st, so) =
+            (lr_round_trip(target, self.lr.0, self.lr.1), lr_round_trip(out, self.lr.0, self.lr.1));
+        let now = st.pos.iter().zip(&so.pos).map(|(t, o)| std::array::from_fn(|c| t[c] - o[c]));
+        if self.drift.is_empty() {
+            self.drift = now.collect();
+        } else {
+            let k = self.drift_keep;
+            for (d, n) in self.drift.iter_mut().zip(now) {
+                *d = std::array::from_fn(|c| k * d[c] + (1.0 - k) * n[c]);
+            }
+        }
+        for (o, d) in out.pos.iter_mut().zip(&self.drift) {
+            (0..3).for_each(|c| o[c] += d[c]);
+        }
     }
 }
 

@@ -263,6 +263,7 @@ pub fn upscale_files(
                 .num("damping", p.damping)
                 .num("substeps_per_second", p.substeps_per_second)
                 .str("output", if p.output == FollowOutput::Detail { "detail" } else { "cloth" })
+                .val("drift_seconds", Value::finite(p.drift_seconds))
                 .str("pins", &p.pins.names()),
         ),
         None => summary,
