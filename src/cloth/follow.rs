@@ -195,7 +195,7 @@ impl FollowParams {
                 self.damping
             )));
         }
-        if !(self.drift_seconds >= 0.0) {
+        if self.drift_seconds.is_nan() || self.drift_seconds < 0.0 {
             return Err(Error::config(format!(
                 "--physics-drift must be a time in seconds ≥ 0 (inf turns the correction off), got {}",
                 self.drift_seconds
