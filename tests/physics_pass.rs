@@ -178,13 +178,14 @@ fn cloth_output_takes_out_the_lag_the_pass_cannot_explain_over_its_drift_time() 
 }
 
 #[test]
-fn each_scenarios_held_edges_are_the_vertices_it_pins_and_runs_tell_the_pass_them() {
+fn each_scenarios_held_edges_and_ground_are_what_it_sets_up_and_runs_tell_the_pass_them() {
     for sc in Scenario::ALL {
         let spec = ScenarioSpec::new(sc);
-        let (cloth, _) = spec.setup(9, 7);
+        let (cloth, scene) = spec.setup(9, 7);
         let mut pinned: Vec<usize> = cloth.pins.iter().map(|p| p.vertex).collect();
         pinned.sort_unstable();
         assert_eq!(pinned, sc.held_edges().vertices(9, 7), "{}", sc.name());
+        assert_eq!(scene.colliders.ground, sc.ground(), "{}", sc.name());
     }
     // What eval --physics reads of a run: gravity, frame rate, material, the held edges.
     let meta = anisocb::cloth::run_io::meta_json(
@@ -196,6 +197,38 @@ fn each_scenarios_held_edges_are_the_vertices_it_pins_and_runs_tell_the_pass_the
     );
     let p = FollowParams::for_run(&meta);
     assert_eq!((p.gravity, p.fps, p.pins.names().as_str()), ([0.0; 3], 30.0, "left,right"));
+    let meta = anisocb::cloth::run_io::meta_json(
+        &ScenarioSpec::new(Scenario::Drop),
+        "hr",
+        8,
+        8,
+        &anisocb::geom::Domain::UNIT,
+    );
+    assert_eq!(FollowParams::for_run(&meta).ground, Some(0.0));
+}
+
+#[test]
+fn physics_pass_keeps_the_output_above_a_named_floor() {
+    // The shot lowers a sheet onto y = 1 m and squeezes it: the folds would hang below it.
+    let lr: Vec<GridMesh> = (0..30).map(|k| sheet(12, 12, 0.12 * (k as f32 / 29.0))).collect();
+    let frames = on_lr_surface(&lr);
+    // Frame 0 is the shot's own (the cloth starts there); the floor holds from frame 1 on.
+    let lowest =
+        |out: &[GridMesh]| out[1..].iter().flat_map(|m| m.pos.iter().map(|p| p[1])).fold(f32::MAX, f32::min);
+    let free = follow(&frames, &FollowParams::default());
+    assert!(lowest(&free) < 0.999, "the folds should dip below the shot's sheet: lowest {} m", lowest(&free));
+    let floor = follow(&frames, &FollowParams { ground: Some(1.0), ..FollowParams::default() });
+    assert!(lowest(&floor) >= 1.0, "a vertex went below the floor: {} m", lowest(&floor));
+    // z-up: the floor is along −gravity.
+    let zup = FollowParams { gravity: [0.0, 0.0, -9.81], ground: Some(-0.5), ..FollowParams::default() };
+    let out = follow(&frames, &zup);
+    assert!(out[1..].iter().flat_map(|m| &m.pos).all(|p| p[2] >= -0.5), "z-up floor crossed");
+    let e =
+        Follower::new(&frames[0], (12, 12), &FollowParams { gravity: [0.0; 3], ground: Some(0.0), ..zup })
+            .err()
+            .expect("a floor without a gravity accepted")
+            .to_string();
+    assert!(e.contains("--physics-ground"), "{e}");
 }
 
 #[test]

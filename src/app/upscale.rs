@@ -164,6 +164,11 @@ pub struct Args {
     /// colliders, leave) is taken out; 0 = every frame in full, inf = never.
     #[arg(long, value_name = "SECONDS", default_value_t = crate::cloth::follow::DRIFT_SECONDS)]
     pub physics_drift: f32,
+    /// With --physics: the height (m, along −gravity: `y` in a y-up shot) of a floor under the
+    /// cloth; no output vertex goes below it. The pass does not see the shot's colliders, so
+    /// without it folds may dip into the floor by centimetres.
+    #[arg(long, value_name = "HEIGHT", allow_hyphen_values = true)]
+    pub physics_ground: Option<f32>,
     /// With --physics: how hard the simulated cloth is held to the shot at the LR grid's scale
     /// (1/s², the square of the attachment's angular frequency; higher = closer to the shot,
     /// folds finer than the LR grid stay free either way).
@@ -246,6 +251,7 @@ pub fn run(a: Args) -> Result<()> {
                 damping: a.physics_damping,
                 output: if a.physics_output == "cloth" { FollowOutput::Cloth } else { FollowOutput::Detail },
                 drift_seconds: a.physics_drift,
+                ground: a.physics_ground,
                 pins: PinnedEdges::parse(&a.physics_pin)?,
                 substeps_per_second: a.physics_substeps,
             })

@@ -264,6 +264,7 @@ pub fn upscale_files(
                 .num("substeps_per_second", p.substeps_per_second)
                 .str("output", if p.output == FollowOutput::Detail { "detail" } else { "cloth" })
                 .val("drift_seconds", Value::finite(p.drift_seconds))
+                .val("ground_m", p.ground.map_or(Value::Null, Value::finite))
                 .str("pins", &p.pins.names()),
         ),
         None => summary,
