@@ -57,6 +57,11 @@ typedef struct anisocb_options {
     float fps;                /* the shot's frame rate (default 30) */
     const char *material;     /* silk, cotton, denim, rubber (UTF-8); NULL: cotton */
     const char *physics_pin;  /* held edges, e.g. "top" or "left,right" (UTF-8); NULL: none */
+    float physics_drift;      /* s over which the cloth's drift from the shot is taken out
+                               * (default 3; INFINITY: never) */
+    float physics_ground;     /* a floor's height (m) along -gravity; NAN (default): none */
+    float physics_sphere[4];  /* a static sphere: centre x, y, z and radius (m); r = 0: none */
+    float physics_box[6];     /* a static axis-aligned box: centre, half extents (m); 0: none */
 } anisocb_options;
 
 typedef struct Upscaler anisocb_upscaler; /* opaque */

@@ -7,6 +7,7 @@
 //! Keep this file and `include/anisocb.h` in step: the status values, the options struct's
 //! field order and every signature are the contract.
 
+use crate::cloth::collision::{Cuboid, Sphere};
 use crate::cloth::follow::{FollowParams, PinnedEdges};
 use crate::cloth::params::Material;
 use crate::error::Error;
@@ -57,6 +58,14 @@ pub struct AnisocbOptions {
     pub material: *const c_char,
     /// Held edges, as `--physics-pin` (UTF-8); null: none.
     pub physics_pin: *const c_char,
+    /// `--physics-drift`: seconds; infinity: off.
+    pub physics_drift: f32,
+    /// `--physics-ground`: a floor's height (m) along −gravity; NaN: no floor.
+    pub physics_ground: f32,
+    /// `--physics-sphere` X, Y, Z, R (m); R = 0: none.
+    pub physics_sphere: [f32; 4],
+    /// `--physics-box` centre X, Y, Z and half extents (m); all half extents 0: none.
+    pub physics_box: [f32; 6],
 }
 
 thread_local! {
@@ -152,6 +161,10 @@ pub unsafe extern "C" fn anisocb_options_default(opts: *mut AnisocbOptions) -> c
             fps: f.fps,
             material: std::ptr::null(),
             physics_pin: std::ptr::null(),
+            physics_drift: f.drift_seconds,
+            physics_ground: f32::NAN,
+            physics_sphere: [0.0; 4],
+            physics_box: [0.0; 6],
         };
         Ok(ANISOCB_OK)
     })
@@ -194,7 +207,21 @@ pub unsafe extern "C" fn anisocb_new(opts: *const AnisocbOptions, out: *mut *mut
                             .map_err(|_| argument(&format!("anisocb_new: {what} is not UTF-8"))),
                     }
                 };
-                let mut f = FollowParams { gravity: o.gravity, fps: o.fps, ..FollowParams::default() };
+                let mut f = FollowParams {
+                    gravity: o.gravity,
+                    fps: o.fps,
+                    drift_seconds: o.physics_drift,
+                    ground: (!o.physics_ground.is_nan()).then_some(o.physics_ground),
+                    sphere: match o.physics_sphere {
+                        [_, _, _, 0.0] => None,
+                        [x, y, z, r] => Some(Sphere { center: [x, y, z], radius: r }),
+                    },
+                    cuboid: match o.physics_box {
+                        [_, _, _, 0.0, 0.0, 0.0] => None,
+                        [x, y, z, hx, hy, hz] => Some(Cuboid { center: [x, y, z], half: [hx, hy, hz] }),
+                    },
+                    ..FollowParams::default()
+                };
                 if let Some(m) = text(o.material, "material")? {
                     f.material = Material::from_name(m)?;
                 }

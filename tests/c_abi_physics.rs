@@ -54,6 +54,14 @@ fn c_abi_physics_options_are_checked_and_run_the_pass() {
     assert!(s == ANISOCB_ERR_CONFIG && msg.contains("middle"), "{s}: {msg}");
     let (s, msg, _) = new_with(|o| (o.physics, o.fps) = (1, 0.0));
     assert!(s == ANISOCB_ERR_CONFIG && msg.contains("--fps"), "{s}: {msg}");
+    let (s, msg, _) = new_with(|o| (o.physics, o.physics_drift) = (1, -1.0));
+    assert!(s == ANISOCB_ERR_CONFIG && msg.contains("--physics-drift"), "{s}: {msg}");
+    let (s, msg, _) = new_with(|o| (o.physics, o.gravity, o.physics_ground) = (1, [0.0; 3], 0.0));
+    assert!(s == ANISOCB_ERR_CONFIG && msg.contains("--physics-ground"), "{s}: {msg}");
+    let (s, msg, _) = new_with(|o| (o.physics, o.physics_sphere) = (1, [0.0, 0.0, 0.0, -1.0]));
+    assert!(s == ANISOCB_ERR_CONFIG && msg.contains("--physics-sphere"), "{s}: {msg}");
+    let (s, msg, _) = new_with(|o| (o.physics, o.physics_box) = (1, [0.0, 0.0, 0.0, 1.0, f32::NAN, 1.0]));
+    assert!(s == ANISOCB_ERR_CONFIG && msg.contains("--physics-box"), "{s}: {msg}");
 
     let silk = CString::new("silk").unwrap();
     let (s, msg, phys) = new_with(|o| (o.physics, o.material, o.threads) = (1, silk.as_ptr(), 1));
@@ -63,6 +71,15 @@ fn c_abi_physics_options_are_checked_and_run_the_pass() {
     assert_eq!(a[0], b[0], "the first frame is the nets' with or without the pass");
     assert_ne!(a[11], b[11], "the physics pass changed nothing");
     assert!(a.iter().flatten().all(|x| x.is_finite()));
+    // A floor just under the sheet (y = 1 m): no output vertex below it after the first frame.
+    let (s, msg, floor) = new_with(|o| (o.physics, o.threads, o.physics_ground) = (1, 1, 0.9995));
+    assert_eq!(s, ANISOCB_OK, "{msg}");
+    let below = |frames: &[Vec<f32>]| frames[1..].iter().flat_map(|hr| hr.chunks(3)).any(|p| p[1] < 0.9995);
+    assert!(below(&a), "without a floor the folds should dip below y = 0.9995 m");
+    let f = run(floor, 12);
+    assert!(!below(&f), "a vertex went below the floor");
+    // SAFETY: the handle came from anisocb_new and is not used afterwards.
+    unsafe { anisocb_free(floor) };
     // SAFETY: both handles came from anisocb_new and are not used afterwards.
     unsafe {
         anisocb_free(phys);

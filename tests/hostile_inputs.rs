@@ -1034,6 +1034,8 @@ fn upscale_refuses_absurd_option_values_and_physics_settings_before_reading_or_w
         (&["--physics", "--physics-substeps", "NaN"], &["--physics-substeps"]),
         (&["--physics", "--gravity", "0,nan,0"], &["--gravity"]),
         (&["--physics", "--physics-drift", "NaN"], &["--physics-drift", "seconds"]),
+        (&["--physics", "--physics-sphere", "1,2,3"], &["--physics-sphere", "4 numbers"]),
+        (&["--physics", "--physics-box", "0,0.4,0,0.5,-0.4,0.5"], &["--physics-box", "half extents"]),
     ];
     for (extra, want) in cases {
         let mut args = vec![inp, "--out", o];

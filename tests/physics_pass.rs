@@ -7,6 +7,7 @@
 #[path = "common/tempdir.rs"]
 mod tempdir;
 
+use anisocb::cloth::collision::{Cuboid, Sphere};
 use anisocb::cloth::follow::{FollowOutput, FollowParams, Follower, PinnedEdges};
 use anisocb::cloth::scenarios::{run_single, Scenario, ScenarioSpec};
 use anisocb::cloth::tracking::bilinear_targets;
@@ -178,14 +179,13 @@ fn cloth_output_takes_out_the_lag_the_pass_cannot_explain_over_its_drift_time() 
 }
 
 #[test]
-fn each_scenarios_held_edges_and_ground_are_what_it_sets_up_and_runs_tell_the_pass_them() {
+fn each_scenarios_held_edges_and_colliders_are_what_runs_tell_the_pass() {
     for sc in Scenario::ALL {
         let spec = ScenarioSpec::new(sc);
-        let (cloth, scene) = spec.setup(9, 7);
+        let (cloth, _) = spec.setup(9, 7);
         let mut pinned: Vec<usize> = cloth.pins.iter().map(|p| p.vertex).collect();
         pinned.sort_unstable();
         assert_eq!(pinned, sc.held_edges().vertices(9, 7), "{}", sc.name());
-        assert_eq!(scene.colliders.ground, sc.ground(), "{}", sc.name());
     }
     // What eval --physics reads of a run: gravity, frame rate, material, the held edges.
     let meta = anisocb::cloth::run_io::meta_json(
@@ -197,18 +197,26 @@ fn each_scenarios_held_edges_and_ground_are_what_it_sets_up_and_runs_tell_the_pa
     );
     let p = FollowParams::for_run(&meta);
     assert_eq!((p.gravity, p.fps, p.pins.names().as_str()), ([0.0; 3], 30.0, "left,right"));
-    let meta = anisocb::cloth::run_io::meta_json(
-        &ScenarioSpec::new(Scenario::Drop),
+    // ... and the colliders of its variant (a run's meta.json names the scenario, the LR grid and
+    // the variation seed), here a varied drop's sphere and floor.
+    let mut spec = ScenarioSpec::new(Scenario::Drop);
+    (spec.w, spec.h, spec.vary) = (16, 16, 5);
+    let scene = spec.setup(16, 16).1;
+    let p = FollowParams::for_run(&anisocb::cloth::run_io::meta_json(
+        &spec,
         "hr",
-        8,
-        8,
+        32,
+        32,
         &anisocb::geom::Domain::UNIT,
+    ));
+    assert_eq!((p.sphere, p.cuboid, p.ground), (scene.colliders.sphere, None, Some(0.0)));
+    assert!(
+        p.sphere.is_some() && p.sphere != ScenarioSpec::new(Scenario::Drop).setup(16, 16).1.colliders.sphere
     );
-    assert_eq!(FollowParams::for_run(&meta).ground, Some(0.0));
 }
 
 #[test]
-fn physics_pass_keeps_the_output_above_a_named_floor() {
+fn physics_pass_keeps_the_output_above_a_named_floor_and_out_of_named_colliders() {
     // The shot lowers a sheet onto y = 1 m and squeezes it: the folds would hang below it.
     let lr: Vec<GridMesh> = (0..30).map(|k| sheet(12, 12, 0.12 * (k as f32 / 29.0))).collect();
     let frames = on_lr_surface(&lr);
@@ -219,6 +227,23 @@ fn physics_pass_keeps_the_output_above_a_named_floor() {
     assert!(lowest(&free) < 0.999, "the folds should dip below the shot's sheet: lowest {} m", lowest(&free));
     let floor = follow(&frames, &FollowParams { ground: Some(1.0), ..FollowParams::default() });
     assert!(lowest(&floor) >= 1.0, "a vertex went below the floor: {} m", lowest(&floor));
+    // A sphere and a table top just under the middle of the sheet: nothing inside them.
+    let sphere = Sphere { center: [0.0, 0.9, 0.0], radius: 0.0998 };
+    let cuboid = Cuboid { center: [0.3, 0.8, 0.0], half: [0.1, 0.1998, 0.1] };
+    let out = follow(
+        &frames,
+        &FollowParams { sphere: Some(sphere), cuboid: Some(cuboid), ..FollowParams::default() },
+    );
+    let inside = |p: &[f32; 3]| {
+        let d: [f32; 3] = std::array::from_fn(|c| p[c] - sphere.center[c]);
+        let in_box = (0..3).all(|c| (p[c] - cuboid.center[c]).abs() < cuboid.half[c] - 1e-6);
+        (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt() < sphere.radius - 1e-6 || in_box
+    };
+    assert!(
+        free[1..].iter().flat_map(|m| &m.pos).any(inside),
+        "the free folds should reach into the colliders"
+    );
+    assert!(!out[1..].iter().flat_map(|m| &m.pos).any(inside), "an output vertex is inside a collider");
     // z-up: the floor is along −gravity.
     let zup = FollowParams { gravity: [0.0, 0.0, -9.81], ground: Some(-0.5), ..FollowParams::default() };
     let out = follow(&frames, &zup);

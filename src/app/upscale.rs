@@ -5,6 +5,7 @@
 
 use super::setup::{load_model, parse_threads, set_threads};
 use super::ui::progress;
+use crate::cloth::collision::{Cuboid, Sphere};
 use crate::cloth::follow::{FollowOutput, FollowParams, PinnedEdges};
 use crate::cloth::run_io::DOMAIN_MARGIN;
 use crate::cloth::Material;
@@ -169,6 +170,14 @@ pub struct Args {
     /// without it folds may dip into the floor by centimetres.
     #[arg(long, value_name = "HEIGHT", allow_hyphen_values = true)]
     pub physics_ground: Option<f32>,
+    /// With --physics: a static sphere in the shot, X,Y,Z,R (m, the shot's axes): the pass's
+    /// cloth collides with it and the output stays out of it.
+    #[arg(long, value_name = "X,Y,Z,R", allow_hyphen_values = true)]
+    pub physics_sphere: Option<String>,
+    /// With --physics: a static box in the shot, aligned with its axes, X,Y,Z,HX,HY,HZ (centre
+    /// and half extents, m): a table top is its upper face.
+    #[arg(long, value_name = "X,Y,Z,HX,HY,HZ", allow_hyphen_values = true)]
+    pub physics_box: Option<String>,
     /// With --physics: how hard the simulated cloth is held to the shot at the LR grid's scale
     /// (1/s², the square of the attachment's angular frequency; higher = closer to the shot,
     /// folds finer than the LR grid stay free either way).
@@ -252,6 +261,18 @@ pub fn run(a: Args) -> Result<()> {
                 output: if a.physics_output == "cloth" { FollowOutput::Cloth } else { FollowOutput::Detail },
                 drift_seconds: a.physics_drift,
                 ground: a.physics_ground,
+                sphere: a
+                    .physics_sphere
+                    .as_deref()
+                    .map(|s| numbers::<4>(s, "--physics-sphere", "X,Y,Z,R in metres"))
+                    .transpose()?
+                    .map(|[x, y, z, r]| Sphere { center: [x, y, z], radius: r }),
+                cuboid: a
+                    .physics_box
+                    .as_deref()
+                    .map(|s| numbers::<6>(s, "--physics-box", "X,Y,Z,HX,HY,HZ in metres"))
+                    .transpose()?
+                    .map(|[x, y, z, hx, hy, hz]| Cuboid { center: [x, y, z], half: [hx, hy, hz] }),
                 pins: PinnedEdges::parse(&a.physics_pin)?,
                 substeps_per_second: a.physics_substeps,
             })
@@ -284,12 +305,15 @@ pub fn run(a: Args) -> Result<()> {
 }
 
 /// `--gravity X,Y,Z` (m/s²).
-fn parse_gravity(s: &str) -> Result<[f32; 3]> {
+/// `N` comma-separated numbers for option `what` (`form` says which).
+fn numbers<const N: usize>(s: &str, what: &str, form: &str) -> Result<[f32; N]> {
     let v: Vec<f32> = s.split(',').filter_map(|c| c.trim().parse().ok()).collect();
-    match v[..] {
-        [x, y, z] if s.split(',').count() == 3 => Ok([x, y, z]),
-        _ => Err(Error::config(format!(
-            "--gravity {s}: expected three numbers X,Y,Z in m/s² (y-up: 0,-9.81,0; z-up: 0,0,-9.81)"
-        ))),
-    }
+    <[f32; N]>::try_from(v.as_slice())
+        .ok()
+        .filter(|_| s.split(',').count() == N)
+        .ok_or_else(|| Error::config(format!("{what} {s}: expected {N} numbers {form}")))
+}
+
+fn parse_gravity(s: &str) -> Result<[f32; 3]> {
+    numbers::<3>(s, "--gravity", "X,Y,Z in m/s² (y-up: 0,-9.81,0; z-up: 0,0,-9.81)")
 }

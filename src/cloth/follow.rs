@@ -17,9 +17,10 @@
 //! the tracking and the drift correction keep the cloth where the shot's cloth is, and folds
 //! may dip into a collider).
 
+use super::collision::{Colliders, Cuboid, Sphere};
 use super::kinematics::{Kinematics, Pin};
 use super::params::{Material, SimParams};
-use super::scenarios::Scenario;
+use super::scenarios::{Scenario, ScenarioSpec};
 use super::solver::{Cloth, Scene};
 use super::tracking::{bilinear_targets, CoarseTrack, PinPath, Restriction, TrackTargets};
 use super::wind::Wind;
@@ -68,6 +69,11 @@ pub struct FollowParams {
     /// see the shot's colliders; without a floor its folds dipped up to 22 mm into the
     /// seed-6 drop's). `None`: no floor.
     pub ground: Option<f32>,
+    /// A static sphere and an axis-aligned box in the shot (`--physics-sphere`,
+    /// `--physics-box`; m, the shot's axes): the pass's cloth collides with them, and no output
+    /// vertex is left inside them.
+    pub sphere: Option<Sphere>,
+    pub cuboid: Option<Cuboid>,
 }
 
 /// Which vertices of the HR grid the physics pass pins to the shot (`--physics-pin`): whole
@@ -172,6 +178,8 @@ impl Default for FollowParams {
             drift_seconds: DRIFT_SECONDS,
             pins: PinnedEdges::default(),
             ground: None,
+            sphere: None,
+            cuboid: None,
         }
     }
 }
@@ -211,6 +219,22 @@ impl FollowParams {
                 )));
             }
         }
+        let sphere_ok = self.sphere.is_none_or(|s| s.center.iter().all(|c| c.is_finite()) && s.radius > 0.0);
+        if !sphere_ok || self.sphere.is_some_and(|s| !s.radius.is_finite()) {
+            return Err(Error::config(format!(
+                "--physics-sphere must be X,Y,Z,R in metres with a finite centre and R > 0, got {:?}",
+                self.sphere
+            )));
+        }
+        let box_ok = self.cuboid.is_none_or(|b| {
+            b.center.iter().all(|c| c.is_finite()) && b.half.iter().all(|h| h.is_finite() && *h > 0.0)
+        });
+        if !box_ok {
+            return Err(Error::config(format!(
+                "--physics-box must be X,Y,Z,HX,HY,HZ in metres (centre, half extents > 0), got {:?}",
+                self.cuboid
+            )));
+        }
         if self.drift_seconds.is_nan() || self.drift_seconds < 0.0 {
             return Err(Error::config(format!(
                 "--physics-drift must be a time in seconds ≥ 0 (inf turns the correction off), got {}",
@@ -238,6 +262,18 @@ impl FollowParams {
         });
         let material = meta.get("material").and_then(|m| m.get("name")).and_then(Value::as_str);
         let scenario = meta.get("scenario").and_then(Value::as_str).and_then(|s| Scenario::from_name(s).ok());
+        // The scene's colliders, rebuilt from the run's scenario, LR grid and variation seed
+        // (the artist of the shot knows them; our scenes are y-up, so their ground is a floor).
+        let lr = meta.get("lr_resolution").and_then(Value::as_array).and_then(|r| match r {
+            [w, h] => Some((w.as_u64()? as usize, h.as_u64()? as usize)),
+            _ => None,
+        });
+        let vary = meta.get("vary").and_then(Value::as_u64).unwrap_or(0);
+        let obstacles = scenario.zip(lr).filter(|(_, (w, h))| *w >= 2 && *h >= 2).map(|(sc, (w, h))| {
+            let mut spec = ScenarioSpec::new(sc);
+            (spec.w, spec.h, spec.vary) = (w, h, vary);
+            spec.setup(w, h).1.colliders
+        });
         FollowParams {
             gravity: gravity.unwrap_or(d.gravity),
             // 1/dt to a thousandth of a frame: 1/0.033333335 s is the 30 fps it was.
@@ -248,7 +284,9 @@ impl FollowParams {
                 .map_or(d.fps, |dt| (1e3 / dt).round() / 1e3),
             material: material.and_then(|m| Material::from_name(m).ok()).unwrap_or(d.material),
             pins: scenario.map_or(d.pins, Scenario::held_edges),
-            ground: scenario.and_then(Scenario::ground),
+            ground: obstacles.and_then(|c| c.ground),
+            sphere: obstacles.and_then(|c| c.sphere),
+            cuboid: obstacles.and_then(|c| c.cuboid),
             ..d
         }
     }
@@ -339,8 +377,8 @@ impl Follower {
         let pins = pins.iter().map(|&v| Pin { vertex: v, anchor: first.pos[v], side: 0.0 }).collect();
         let cloth = Cloth::new(first, &|_| material, pins);
         let track = CoarseTrack::new(Restriction::new(lr.0, lr.1, first.w, first.h), &cloth.inv_mass);
-        let scene =
-            Scene { kinematics: Kinematics::Static, wind: Wind::none(), colliders: Default::default() };
+        let colliders = Colliders { sphere: p.sphere, cuboid: p.cuboid, ground: None };
+        let scene = Scene { kinematics: Kinematics::Static, wind: Wind::none(), colliders };
         let mut f = Follower {
             cloth,
             scene,
@@ -485,6 +523,11 @@ impl Follower {
             FollowOutput::Cloth if self.drift_keep < 1.0 => self.correct_drift(&mut out, target),
             FollowOutput::Cloth => {}
         }
+        // Out of the colliders (the drift correction and the rest sag may carry it in), onto
+        // their surfaces: `prev = out` leaves friction nothing to do.
+        let before = out.pos.clone();
+        let free = vec![1.0; out.pos.len()];
+        self.scene.colliders.project(&mut out.pos, &before, &free, 0.0, 0.0);
         if let Some((up, h)) = self.floor {
             for o in &mut out.pos {
                 let below = h - (0..3).map(|c| o[c] * up[c]).sum::<f32>();

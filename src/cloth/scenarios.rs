@@ -86,16 +86,6 @@ impl Scenario {
         e
     }
 
-    /// The height (m) of the ground plane the scenario's cloth may reach, as an artist names it
-    /// to `upscale --physics-ground` (the ground [`ScenarioSpec::setup`] places; a test checks
-    /// it).
-    pub fn ground(self) -> Option<f32> {
-        match self {
-            Scenario::Drape | Scenario::Drop | Scenario::DropTable => Some(0.0),
-            _ => None,
-        }
-    }
-
     pub fn description(self) -> &'static str {
         SCENARIO_HELP
             .lines()
