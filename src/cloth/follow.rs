@@ -12,10 +12,10 @@
 //! one XPBD constraint per LR node on the average of the HR vertices under its tent) holds
 //! the shape the LR grid carries, frame by frame, blending linearly over the substeps; gravity,
 //! the material, the frame rate and which edges the artist holds ([`PinnedEdges`]: those HR
-//! vertices follow the shot's frames exactly) come from [`FollowParams`], and so may a floor
-//! the output stays above; there are no other colliders and no wind (the shot's are unknown:
-//! the tracking and the drift correction keep the cloth where the shot's cloth is, and folds
-//! may dip into a collider).
+//! vertices follow the shot's frames exactly) come from [`FollowParams`], and so do the
+//! colliders the artist names (a floor, a sphere, a box: the output stays out of them); there
+//! is no wind, and a collider not named is not seen (the tracking and the drift correction keep
+//! the cloth where the shot's cloth is; its folds may dip into it).
 
 use super::collision::{Colliders, Cuboid, Sphere};
 use super::kinematics::{Kinematics, Pin};
@@ -160,7 +160,7 @@ pub enum FollowOutput {
     Detail,
     /// The simulated cloth itself, its slow coarse drift from the shot taken out
     /// ([`FollowParams::drift_seconds`]). The default: chosen over `Detail` on the seed-6
-    /// validation runs (mean correlation 0.306 → 0.317, STED temporal below Catmull-Rom's on
+    /// validation runs (mean correlation 0.306 → 0.316, STED temporal below Catmull-Rom's on
     /// all six instead of four; docs/wrinkles.md, "The physics pass", Output).
     Cloth,
 }
@@ -219,8 +219,9 @@ impl FollowParams {
                 )));
             }
         }
-        let sphere_ok = self.sphere.is_none_or(|s| s.center.iter().all(|c| c.is_finite()) && s.radius > 0.0);
-        if !sphere_ok || self.sphere.is_some_and(|s| !s.radius.is_finite()) {
+        let sphere_ok =
+            |s: &Sphere| s.center.iter().all(|c| c.is_finite()) && s.radius.is_finite() && s.radius > 0.0;
+        if !self.sphere.as_ref().is_none_or(sphere_ok) {
             return Err(Error::config(format!(
                 "--physics-sphere must be X,Y,Z,R in metres with a finite centre and R > 0, got {:?}",
                 self.sphere
@@ -525,9 +526,11 @@ impl Follower {
         }
         // Out of the colliders (the drift correction and the rest sag may carry it in), onto
         // their surfaces: `prev = out` leaves friction nothing to do.
-        let before = out.pos.clone();
-        let free = vec![1.0; out.pos.len()];
-        self.scene.colliders.project(&mut out.pos, &before, &free, 0.0, 0.0);
+        let c = &self.scene.colliders;
+        if c.sphere.is_some() || c.cuboid.is_some() {
+            let (before, free) = (out.pos.clone(), vec![1.0; out.pos.len()]);
+            c.project(&mut out.pos, &before, &free, 0.0, 0.0);
+        }
         if let Some((up, h)) = self.floor {
             for o in &mut out.pos {
                 let below = h - (0..3).map(|c| o[c] * up[c]).sum::<f32>();
