@@ -22,7 +22,7 @@ use super::kinematics::{Kinematics, Pin};
 use super::params::{Material, SimParams};
 use super::scenarios::{Scenario, ScenarioSpec};
 use super::solver::{Cloth, Scene};
-use super::tracking::{CoarseTrack, PinPath, Restriction, TrackTargets};
+use super::tracking::{bilinear_targets, CoarseTrack, PinPath, Restriction, TrackTargets};
 use super::wind::Wind;
 use crate::error::{Error, Result};
 use crate::geom::geometry_image::lr_round_trip;
@@ -326,7 +326,7 @@ pub const FOLLOW_STRENGTH: f32 = 3_000.0;
 /// Catmull-Rom's, over the rule's 1.1×).
 pub const DRIFT_SECONDS: f32 = 3.0;
 
-/// Shot time (s) the pass holds the first frame still before the shot starts.
+/// Shot time (s) the pass holds the first frame still to measure the cloth's sag.
 pub const SETTLE_SECONDS: f32 = 1.0;
 
 /// The physics pass's state over one shot: the HR cloth and the last frame's coarse targets.
@@ -339,6 +339,8 @@ pub struct Follower {
     track: CoarseTrack,
     /// Coarse targets (one per LR node, m) of the last frame given.
     from: Vec<[f32; 3]>,
+    /// The cloth's sag below its coarse targets when held still ([`Follower::settle`]).
+    lift: Vec<[f32; 3]>,
     /// The part finer than the LR grid of each vertex's offset from the first frame at the end
     /// of [`Follower::settle`] (m).
     rest_sag: Vec<[f32; 3]>,
@@ -386,6 +388,7 @@ impl Follower {
             damping: p.damping,
             track,
             from: Vec::new(),
+            lift: Vec::new(),
             rest_sag: Vec::new(),
             pin_from,
             lr,
@@ -397,31 +400,27 @@ impl Follower {
             }),
             drift: Vec::new(),
         };
-        f.settle(first);
-        f.from = f.track.restriction.apply(&first.pos);
+        f.lift = f.settle(first);
+        f.from = f.targets(first);
         Ok(f)
     }
 
-    /// Settle the cloth on the shot's first frame: the pass holds that frame still for
-    /// [`SETTLE_SECONDS`] and the shot starts from the cloth's mean shape over the second
-    /// half, at rest. Started from the first frame itself, the hem's fine modes, which nothing
-    /// but the material damps, swung for seconds (a still sheet gained 1.2 mm RMS of detail).
-    /// It also keeps where each vertex hangs then on average (`rest_sag`, its part finer than
-    /// the LR grid): the scallops of a border carried by springs instead of by whatever holds
-    /// the shot's cloth, which [`Follower::step`] takes off its output.
-    ///
-    /// The cloth hangs below its targets on its springs (≈ half of g/strength: the
-    /// overlapping tents make them stiffer than one node's alone), as the training truth's HR
-    /// runs hang below their LR runs; the targets are not raised to carry that weight. Raised
-    /// (the targets lifted by the sag measured here, and the start with them), the seed-6
-    /// validation runs' mean correlation was 0.356, without 0.386 (drop 0.19 → 0.29,
-    /// drop-table 0.37 → 0.42, drape 0.50 → 0.55, the twist 0.55 → 0.51) and the vertex
-    /// RMSE within 1.1× Catmull-Rom's on every run (docs/wrinkles.md, "The physics pass").
-    /// `cloth` output's drift correction takes the sag out of the output from the first frame.
-    fn settle(&mut self, first: &GridMesh) {
+    /// How far the cloth hangs below its coarse targets under its own weight (one vector per
+    /// LR node, m): the pass holds the shot's first frame still for [`SETTLE_SECONDS`] and
+    /// averages the coarse error over the second half. It also keeps where each vertex hangs
+    /// then on average (`rest_sag`, its part finer than the LR grid): the scallops of a border
+    /// carried by springs instead of by whatever holds the shot's cloth, which
+    /// [`Follower::step`] takes off its output. The shot then starts from that average shape,
+    /// raised by the sag and at rest, so the raised targets hold it where it is: started from
+    /// the first frame itself, the hem's fine modes, which nothing but the material damps,
+    /// swung for seconds (a still sheet gained 1.2 mm RMS of detail).
+    /// Measured, not derived: the overlapping tents make the springs about twice as stiff as
+    /// one node's alone (a 12×12 sheet sags ≈ 5 mm at 1000 1/s², not g/strength = 9.8 mm).
+    fn settle(&mut self, first: &GridMesh) -> Vec<[f32; 3]> {
         let (time, t) = (self.cloth.time, self.track.restriction.apply(&first.pos));
         let frames = (SETTLE_SECONDS * self.sim.dt.recip()).ceil().max(2.0) as usize;
         let n = (frames - frames.div_ceil(2)) as f32;
+        let mut sag = vec![[0.0f32; 3]; t.len()];
         let mut mean = vec![[0.0f32; 3]; first.pos.len()];
         for k in 0..frames {
             let tt = TrackTargets {
@@ -434,26 +433,44 @@ impl Follower {
             };
             self.cloth.step(&self.sim, &self.scene, Some(&tt));
             if 2 * k >= frames {
+                let c = self.track.restriction.apply(&self.cloth.x);
+                for ((s, c), t) in sag.iter_mut().zip(&c).zip(&t) {
+                    (0..3).for_each(|i| s[i] += (c[i] - t[i]) / n);
+                }
                 for (m, x) in mean.iter_mut().zip(&self.cloth.x) {
                     (0..3).for_each(|i| m[i] += x[i] / n);
                 }
             }
         }
-        // The part finer than the LR grid: the coarse sag stays in the cloth.
+        // The part finer than the LR grid: the coarse sag is what `lift` takes care of.
         let d: Vec<[f32; 3]> =
             mean.iter().zip(&first.pos).map(|(x, f)| std::array::from_fn(|c| x[c] - f[c])).collect();
         let d = GridMesh::new(first.w, first.h, d);
         let coarse = lr_round_trip(&d, self.lr.0, self.lr.1);
         self.rest_sag =
             d.pos.iter().zip(&coarse.pos).map(|(a, b)| std::array::from_fn(|c| a[c] - b[c])).collect();
+        // Start from the mean shape raised by the sag (bilinear between the LR nodes), at rest.
+        let raise = GridMesh::new(self.lr.0, self.lr.1, sag.iter().map(|s| s.map(|x| -x)).collect());
+        let raise = bilinear_targets(&raise, first.w, first.h);
         let c = &mut self.cloth;
         for (v, (x, m)) in c.x.iter_mut().zip(&mean).enumerate() {
             if c.inv_mass[v] > 0.0 {
-                *x = *m;
+                *x = std::array::from_fn(|i| m[i] + raise[v][i]);
             }
         }
         c.v.iter_mut().for_each(|v| *v = [0.0; 3]);
         c.time = time;
+        sag
+    }
+
+    /// The coarse targets of an HR frame, raised by the cloth's sag under its own weight (the
+    /// constraints carry it all: there are no colliders).
+    fn targets(&self, frame: &GridMesh) -> Vec<[f32; 3]> {
+        let mut t = self.track.restriction.apply(&frame.pos);
+        for (p, s) in t.iter_mut().zip(&self.lift) {
+            (0..3).for_each(|c| p[c] -= s[c]);
+        }
+        t
     }
 
     /// The pass over a whole shot in memory (HR frames in shot order, LR grid `lr`): the first
@@ -478,7 +495,7 @@ impl Follower {
             )));
         }
         check_frame(target, k)?;
-        let to = self.track.restriction.apply(&target.pos);
+        let to = self.targets(target);
         let pin_to: Vec<[f32; 3]> = self.cloth.pins.iter().map(|p| target.pos[p.vertex]).collect();
         let tt = TrackTargets {
             from: &self.from,
