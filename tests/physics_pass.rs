@@ -1,5 +1,5 @@
 //! `upscale --physics` (cloth/follow.rs, pipeline/physics.rs): the HR cloth coarse-tracked to
-//! the shot keeps a still cloth still (its weight carried by the lifted targets), forms folds
+//! the shot keeps a still cloth where the shot has it (by the drift correction), forms folds
 //! the LR grid cannot hold where the shot compresses the cloth, keeps the shot's coarse shape
 //! (in `detail` output exactly, in `cloth` output by its drift correction), gives the same
 //! bits twice, and refuses what it cannot do.
@@ -58,27 +58,36 @@ fn rms(v: &[f32]) -> f32 {
 
 #[test]
 fn physics_pass_keeps_a_still_cloth_where_the_shot_has_it() {
-    // 30 frames of a sheet at rest under gravity: without its lift the cloth would hang up to
-    // g/strength (3.3 mm at the default 3000 1/s²) below the shot on its springs.
+    // 30 frames of a sheet at rest under gravity. The simulated cloth hangs below the shot on
+    // its springs, as the training truth's HR runs hang below their LR runs (the targets are
+    // not raised to carry its weight: docs/wrinkles.md, "The physics pass"); at most
+    // g/strength (4.9 mm at the default 2000 1/s²), measured 4.3 mm.
     let frames = on_lr_surface(&vec![sheet(12, 12, 0.0); 30]);
-    let p = FollowParams { drift_seconds: f32::INFINITY, ..FollowParams::default() };
-    let out = follow(&frames, &p);
-    let worst = out.iter().zip(&frames).map(|(o, t)| rms_gap(o, t)).fold(0.0f32, f32::max);
-    // The cloth without its drift correction. Measured 1.7 mm at the default strength (at
-    // 10 000 1/s²: 1.3 mm from the settled shape,
-    // 3.1 mm when the cloth started from the first frame and its hem swung; at 1000: 14 mm
-    // with the lift derived for one node alone, ≈ 5 mm without any): the bound says the
-    // measured lift holds the cloth on the shot, not that it is still to the micrometre.
-    assert!(worst < 2e-3, "a still sheet moves {worst} m RMS off the shot under its own weight");
-    // That sway is the only detail the still sheet gains, in either output: measured 0.31 mm
-    // RMS(D) in `detail` output (1.22 mm when the cloth started from the first frame: the
-    // hem's modes finer than the LR grid, which only the material damps, swung for seconds),
-    // 0.31 mm in `cloth` output (the default).
+    let gap = |p: &FollowParams| {
+        let out = follow(&frames, p);
+        out.iter().zip(&frames).map(|(o, t)| rms_gap(o, t)).fold(0.0f32, f32::max)
+    };
+    let hangs = gap(&FollowParams { drift_seconds: f32::INFINITY, ..FollowParams::default() });
+    assert!(
+        (1e-3..9.81 / FollowParams::default().strength).contains(&hangs),
+        "without its drift correction a still sheet hangs {hangs} m RMS off the shot, not 1 mm to g/strength"
+    );
+    // `cloth` output (the default) takes that sag out from the first frame: the output is the
+    // shot's sheet within the hem's sway. Measured ≈ 0.15 mm.
+    let worst = gap(&FollowParams::default());
+    assert!(worst < 0.5e-3, "a still sheet comes out {worst} m RMS off the shot");
+    // That sway is the only detail the still sheet gains, in either output: measured 0.43 mm
+    // RMS(D) at its peak (frame 5) in both, 0.23 mm by frame 29 (1.22 mm when the cloth
+    // started from the first frame: the hem's modes finer than the LR grid, which only the
+    // material damps, swung for seconds). The bound was 0.4 mm while the targets were raised
+    // to carry the cloth's weight (0.31 mm measured then); it is 0.5 mm since they are not,
+    // a choice made on the validation runs' correlation (docs/wrinkles.md). A settle of 2 s
+    // instead of 1 s gives 0.16 mm, but a lower validation correlation (0.365 against 0.386).
     for output in [FollowOutput::Detail, FollowOutput::Cloth] {
         let out = follow(&frames, &FollowParams { output, ..FollowParams::default() });
         let detail = out.iter().map(|o| rms(&wrinkle_detail(o, 12, 12).unwrap())).fold(0.0f32, f32::max);
-        eprintln!("still sheet: cloth {worst} m RMS off the shot, {output:?} output RMS(D) ≤ {detail} m");
-        assert!(detail < 0.4e-3, "{output:?} output: a still sheet gains {detail} m RMS of folds");
+        eprintln!("still sheet: hangs {hangs} m, output {worst} m RMS off the shot, {output:?} output RMS(D) ≤ {detail} m");
+        assert!(detail < 0.5e-3, "{output:?} output: a still sheet gains {detail} m RMS of folds");
     }
 }
 
@@ -173,7 +182,9 @@ fn cloth_output_takes_out_the_lag_the_pass_cannot_explain_over_its_drift_time() 
     let (off, default, every) = (gap(f32::INFINITY), gap(FollowParams::default().drift_seconds), gap(0.0));
     eprintln!("coarse gap after 3 s at 3 m/s²: off {off} m, default {default} m, every frame {every} m");
     assert!(off > 3e-4, "the springs should lag the accelerating shot: {off} m");
-    // Measured: 2.6 mm without the correction, 0.30 mm at the default 3 s, 0.03 mm every frame.
+    // Measured: 3.7 mm without the correction (the lag and the cloth's sag on its springs:
+    // 2.6 mm while the targets were raised to carry its weight), 0.48 mm at the default 3 s,
+    // 0.03 mm every frame.
     assert!(default < 0.5 * off, "the default drift correction left {default} m of {off} m");
     assert!(every < 0.1 * off, "the full correction left {every} m of {off} m");
 }

@@ -13,7 +13,8 @@
 //! - [`wind`]: a time-varying wind field, deterministic from the seed.
 //! - [`solver`]: the XPBD substep loop ([`solver::Cloth::step`]).
 //! - [`tracking`]: soft attachment of a high-resolution run to a low-resolution one.
-//! - [`follow`]: the physics pass of `upscale --physics`, an HR cloth coarse-tracked to a shot.
+//! - [`follow`]: the physics pass of `upscale --physics`, an HR cloth coarse-tracked to a shot;
+//!   [`held_edges`]: the grid edges it pins.
 //! - [`scenarios`]: named presets ([`Scenario`]), [`ScenarioSpec`], [`run_single`], [`paired_run`].
 //! - [`run_io`]: the run directory (`geometry.npy`, `domain.npy`, `meta.json`, `obj/`).
 //!
@@ -23,6 +24,7 @@
 pub mod collision;
 pub mod constraints;
 pub mod follow;
+pub mod held_edges;
 pub mod kinematics;
 pub mod params;
 pub mod run_io;
