@@ -54,11 +54,11 @@ pub struct FollowParams {
     /// Damping of the tracking as a fraction of critical. The default is none, as the
     /// training truth's HR runs track their LR runs: the cloth's coarse shape then swings
     /// about the shot as the truth's swings about its LR run, and the folds form where the
-    /// truth's do (critically damped, validation mean correlation 0.427 → undamped with the
-    /// targets below 0.447; docs/wrinkles.md, "The physics pass"). An undamped attachment
-    /// rings at √strength rad/s (7.1 Hz at 2000 1/s²) after a jolt of the shot: the nets'
-    /// frame-to-frame jitter no longer reaches it (the targets are the frame's LR-grid
-    /// resampling), but a shot that jumps does.
+    /// truth's do (at 2000 1/s² on the seed-6 validation runs, mean correlation 0.369 at 0.1
+    /// of critical, 0.380 at 0.3, 0.447 undamped; docs/wrinkles.md, "The physics pass"). An
+    /// undamped attachment rings at √strength rad/s (7.1 Hz at 2000 1/s²) after a jolt: on the
+    /// Blender sheet landing on a sphere, STED temporal 1.01× Catmull-Rom's (0.86× at 0.1 of
+    /// critical), so give a shot that lands or jumps hard some damping.
     pub damping: f32,
     /// What the pass hands on.
     pub output: FollowOutput,
@@ -267,7 +267,7 @@ pub const DRIFT_SECONDS: f32 = 3.0;
 /// 0.79 mm RMS of detail, 0.45 mm with the settle critically damped, 0.18 mm over 2 s
 /// (`tests/physics_pass.rs`). The validation runs' mean correlation was 0.447 at 1 s and is
 /// 0.423 at 2 s, the difference the chaotic drops' (drop 0.24 → 0.15, drop-table 0.45 →
-/// 0.33; the other four 2.05 → 2.05 in sum): the still sheet decided.
+/// 0.33; the other four 2.00 → 2.06 in sum): the still sheet decided.
 pub const SETTLE_SECONDS: f32 = 2.0;
 
 /// The physics pass's state over one shot: the HR cloth and the last frame's coarse targets.
