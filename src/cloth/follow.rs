@@ -345,8 +345,9 @@ impl Follower {
 
     /// Settle the cloth on the shot's first frame: the pass holds that frame still for
     /// [`SETTLE_SECONDS`], the attachment at least critically damped, and the shot starts from
-    /// the cloth's mean shape over the second half, at rest. Started from the first frame itself, the hem's fine modes, which nothing
-    /// but the material damps, swung for seconds (a still sheet gained 1.2 mm RMS of detail).
+    /// the cloth's mean shape over the second half, at rest. Started from the first frame
+    /// itself, the hem's fine modes, which nothing but the material damps, swung for seconds
+    /// (a still sheet gained 1.2 mm RMS of detail).
     /// It also keeps where each vertex hangs then on average (`rest_sag`, its part finer than
     /// the LR grid): the scallops of a border carried by springs instead of by whatever holds
     /// the shot's cloth, which [`Follower::step`] takes off its output.
@@ -358,8 +359,8 @@ impl Follower {
     /// validation runs' mean correlation from 0.356 to 0.386 (drop-table 0.37 → 0.42, drape
     /// 0.50 → 0.55), but on its own it put the held-out flag's vertex error at 1.30×
     /// Catmull-Rom's; with the attachment undamped and the LR-grid targets it is 0.94×
-    /// (docs/wrinkles.md, "The physics pass").
-    /// `cloth` output's drift correction takes the sag out of the output from the first frame.
+    /// (docs/wrinkles.md, "The physics pass"). `cloth` output's drift correction takes the sag
+    /// out of the output from the first frame.
     fn settle(&mut self, first: &GridMesh) {
         let (time, t) = (self.cloth.time, self.targets(first));
         let frames = (SETTLE_SECONDS * self.sim.dt.recip()).ceil().max(2.0) as usize;
