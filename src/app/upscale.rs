@@ -183,8 +183,10 @@ pub struct Args {
     /// folds finer than the LR grid stay free either way).
     #[arg(long, default_value_t = crate::cloth::follow::FollowParams::default().strength)]
     pub physics_strength: f32,
-    /// With --physics: damping of that attachment as a fraction of critical (0 = none, as the
-    /// training truth's runs; try 0.1 for a shot whose cloth lands or jumps hard, which rings).
+    /// With --physics: damping of that attachment as a fraction of critical. 0 = none, as the
+    /// training truth's runs (chosen on our simulator's runs); use 1 for a Blender shot, whose
+    /// more damped cloth the undamped pass follows with a ring after it lands (chosen on the five
+    /// Blender validation scenes: docs/wrinkles.md, "Blender shots").
     #[arg(long, default_value_t = crate::cloth::follow::FollowParams::default().damping)]
     pub physics_damping: f32,
     /// With --physics: edges of the grid the shot's cloth is held by (pinned, hooked, in a

@@ -56,9 +56,10 @@ pub struct FollowParams {
     /// about the shot as the truth's swings about its LR run, and the folds form where the
     /// truth's do (at 2000 1/s² on the seed-6 validation runs, mean correlation 0.369 at 0.1
     /// of critical, 0.380 at 0.3, 0.447 undamped; docs/wrinkles.md, "The physics pass"). An
-    /// undamped attachment rings at √strength rad/s (7.1 Hz at 2000 1/s²) after a jolt: on the
-    /// Blender sheet landing on a sphere, STED temporal 1.01× Catmull-Rom's (0.86× at 0.1 of
-    /// critical), so give a shot that lands or jumps hard some damping.
+    /// undamped attachment rings at √strength rad/s (7.1 Hz at 2000 1/s²) after a jolt, which
+    /// a more damped solver's cloth does not: on the Blender sheet landing on a sphere, STED
+    /// temporal 1.01× Catmull-Rom's undamped, 0.78× at 1 (critical), the value for Blender
+    /// shots chosen on the five Blender validation scenes (docs/wrinkles.md, "Blender shots").
     pub damping: f32,
     /// What the pass hands on.
     pub output: FollowOutput,
