@@ -151,7 +151,8 @@ pub struct Args {
     #[arg(long, default_value_t = 30.0)]
     pub fps: f32,
     /// With --physics: the cloth's material (silk, cotton, denim, rubber); its bending
-    /// stiffness sets how fine the folds are.
+    /// stiffness sets how fine the folds are. For a Blender shot, silk with
+    /// --physics-damping 1 (Blender's sheets fold finer than cotton).
     #[arg(long, default_value = "cotton")]
     pub material: String,
     /// With --physics: what the pass hands on: `cloth` = the simulated cloth itself, its slow
@@ -184,9 +185,9 @@ pub struct Args {
     #[arg(long, default_value_t = crate::cloth::follow::FollowParams::default().strength)]
     pub physics_strength: f32,
     /// With --physics: damping of that attachment as a fraction of critical. 0 = none, as the
-    /// training truth's runs (chosen on our simulator's runs); use 1 for a Blender shot, whose
-    /// more damped cloth the undamped pass follows with a ring after it lands (chosen on the five
-    /// Blender validation scenes: docs/wrinkles.md, "Blender shots").
+    /// training truth's runs (chosen on our simulator's runs); use 1 for a Blender shot (with
+    /// --material silk), whose more damped cloth the undamped pass follows with a ring after it
+    /// lands (chosen on the five Blender validation scenes: docs/wrinkles.md, "Blender shots").
     #[arg(long, default_value_t = crate::cloth::follow::FollowParams::default().damping)]
     pub physics_damping: f32,
     /// With --physics: edges of the grid the shot's cloth is held by (pinned, hooked, in a

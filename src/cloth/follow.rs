@@ -58,8 +58,9 @@ pub struct FollowParams {
     /// of critical, 0.380 at 0.3, 0.447 undamped; docs/wrinkles.md, "The physics pass"). An
     /// undamped attachment rings at √strength rad/s (7.1 Hz at 2000 1/s²) after a jolt, which
     /// a more damped solver's cloth does not: on the Blender sheet landing on a sphere, STED
-    /// temporal 1.01× Catmull-Rom's undamped, 0.78× at 1 (critical), the value for Blender
-    /// shots chosen on the five Blender validation scenes (docs/wrinkles.md, "Blender shots").
+    /// temporal 1.01× Catmull-Rom's undamped, 0.78× at 1 (critical; 0.81× in silk), the
+    /// value for Blender shots chosen on the five Blender validation scenes (docs/wrinkles.md,
+    /// "Blender shots").
     pub damping: f32,
     /// What the pass hands on.
     pub output: FollowOutput,
