@@ -2,7 +2,7 @@
 """Make LR/HR cloth animations with Blender's own cloth solver, for evaluating anisocb.
 
 For each scene this simulates the same cloth twice with Blender's cloth modifier (via the
-`bpy` module from PyPI, pinned in tests/blender/requirements.txt): once as a 32x32-vertex
+`bpy` module from PyPI, pinned in research/blender/requirements.txt): once as a 32x32-vertex
 grid (LR) and once as a 64x64-vertex grid (HR) over the same rest square, corners aligned
 (align-corners: LR vertex (i, j) rests at (u, v) = (i, j) / 31, HR vertex (i, j) at
 (i, j) / 63, so only the corners coincide exactly). Every frame 1..N is exported the way
@@ -38,8 +38,8 @@ motion with finer folds"): Blender's cloth settings are per vertex or per spring
 This is NOT part of `make test`: it needs bpy (a large download) and minutes of CPU.
 
 Usage:
-    python3 -m pip install -r tests/blender/requirements.txt   # Python 3.11
-    python3 tests/blender/make_scenes.py --out DIR [--frames N] [--scenes a,b] [--quality Q]
+    python3 -m pip install -r research/blender/requirements.txt   # Python 3.11
+    python3 research/blender/make_scenes.py --out DIR [--frames N] [--scenes a,b] [--quality Q]
 """
 
 import argparse
@@ -54,7 +54,7 @@ import numpy as np
 try:
     import bpy
 except ImportError:
-    sys.exit("make_scenes.py needs Blender's bpy module: pip install -r tests/blender/requirements.txt")
+    sys.exit("make_scenes.py needs Blender's bpy module: pip install -r research/blender/requirements.txt")
 
 LR_N = 32  # LR grid: 32 x 32 vertices
 HR_N = 64  # HR grid: 64 x 64 vertices

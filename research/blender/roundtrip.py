@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Check anisocb's round trip through Blender: export from Blender, upscale, import back.
 
-In Blender (the `bpy` module from PyPI, pinned in tests/blender/requirements.txt; factory
+In Blender (the `bpy` module from PyPI, pinned in research/blender/requirements.txt; factory
 settings, no UI) this builds a cloth the way an artist would: a 16x16-vertex, 1 m grid named
 `Cloth` with its UV map and a texture-free Principled material `Fabric`, pinned along one
 edge and falling under gravity (cloth modifier, 12 frames). It then exports
@@ -32,8 +32,8 @@ Each check prints its numbers and PASS/FAIL; the exit status is 1 if any check f
 Not part of `make test` (needs bpy, a large download).
 
 Usage:
-    python3 -m pip install -r tests/blender/requirements.txt   # Python 3.11
-    python3 tests/blender/roundtrip.py --anisocb target/release/anisocb [--keep DIR]
+    python3 -m pip install -r research/blender/requirements.txt   # Python 3.11
+    python3 research/blender/roundtrip.py --anisocb target/release/anisocb [--keep DIR]
 """
 
 import argparse
@@ -53,7 +53,7 @@ try:
     import bpy
     import mathutils
 except ImportError:
-    sys.exit("roundtrip.py needs Blender's bpy module: pip install -r tests/blender/requirements.txt")
+    sys.exit("roundtrip.py needs Blender's bpy module: pip install -r research/blender/requirements.txt")
 
 N = 16  # LR grid: N x N vertices
 SIZE = 1.0  # metres

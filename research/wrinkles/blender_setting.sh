@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
-# The physics pass's setting for Blender shots (docs/wrinkles.md, "Blender shots"): Blender's
-# cloth is more damped and folds finer than our simulator's cotton, whose runs chose the
-# pass's defaults. This makes the five Blender validation scenes (tests/blender/README.md:
+# The physics pass's setting for Blender shots (docs/research/wrinkles.md, "Blender shots"):
+# Blender's cloth is more damped and folds finer than our simulator's cotton, whose runs chose the
+# pass's defaults. This makes the five Blender validation scenes (research/blender/README.md:
 # box-drape, towel-rail, stool-drape, oval-table, bench-drape) and the four test scenes
 # (drop-sphere, flag-wind, corner-hang, table-cloth), 80 frames at 24 fps, and chooses on the
 # validation scenes only, in two steps, each rule fixed before its grid ran:
@@ -12,8 +12,8 @@
 # Each row prints STED temporal beside Catmull-Rom's, the wrinkle ratio, correlation and D
 # change (stats.py, sted.py). Then the test scenes at the defaults and at the chosen setting
 # (never used for a choice).
-#   tests/wrinkles/blender_setting.sh [OUTDIR]
-# Needs bpy (tests/blender/requirements.txt) and NumPy; ≈ 25 min on 2 cores (stats.py takes
+#   research/wrinkles/blender_setting.sh [OUTDIR]
+# Needs bpy (research/blender/requirements.txt) and NumPy; ≈ 25 min on 2 cores (stats.py takes
 # ≈ 25 s a row). Blender's drop-sphere is not repeatable to the bit (make_scenes.py): on three
 # reruns STED moved by ≤ 0.001 %, the ratio by ≤ 0.02.
 set -euo pipefail

@@ -1,5 +1,5 @@
 """How far one HR run's wrinkle detail D agrees with another's under the same LR run
-(docs/wrinkles.md, "How much of the detail the LR run fixes"), for determinacy_study.sh:
+(docs/research/wrinkles.md, "How much of the detail the LR run fixes"), for determinacy_study.sh:
   python3 determinacy.py twin BASE OTHER        whole-run correlation of D (frames 1..)
   python3 determinacy.py restart BASE OTHER F   correlation of D at F + lag, per lag
   python3 determinacy.py blind BASE OTHER       correlation, amount, change and vertex RMSE

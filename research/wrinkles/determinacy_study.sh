@@ -1,13 +1,13 @@
 #!/usr/bin/env bash
-# How much of the HR truth's fine detail its LR run fixes (docs/wrinkles.md, "How much of the
-# detail the LR run fixes"). Seed-6 validation runs, coarse tracking 1000 1/s², 32x32 -> 64x64.
+# How much of the HR truth's fine detail its LR run fixes (docs/research/wrinkles.md, "How much
+# of the detail the LR run fixes"). Seed-6 validation runs, coarse tracking 1000 1/s², 32x32 -> 64x64.
 # For each scenario the pair is simulated once, then its HR run again under the same LR run:
 #   twin     rest positions jittered by 1 µm, 0.1 mm, 1 mm (`simulate --hr-jitter J`);
 #   restart  the HR run put back on the LR surface at frame F (`--hr-restart F`);
 #   blind    the HR run knows only the LR run: no colliders, no wind (`--hr-blind`).
-# Prints the correlation of the wrinkle detail D with the original HR run's (tests/wrinkles/
+# Prints the correlation of the wrinkle detail D with the original HR run's (research/wrinkles/
 # determinacy.py). Needs NumPy. ≈ 8 min on 2 cores.
-#   tests/wrinkles/determinacy_study.sh [OUTDIR]
+#   research/wrinkles/determinacy_study.sh [OUTDIR]
 set -euo pipefail
 BIN=${BIN:-target/release/anisocb}
 OUT=${1:-target/determinacy-study}

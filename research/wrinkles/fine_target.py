@@ -1,7 +1,7 @@
 """Copies simulator pairs with the HR truth replaced by U(LR) + (HR - S(HR)): the Catmull-Rom
 upsampled LR run plus only the HR run's detail beyond the LR grid, so a GeometryNet trained on
 it (`anisocb dataset` + `train --net geometry`) is asked for the fine folds alone, with no
-coarse correction to drown them (docs/wrinkles.md, "Can a per-frame net place the folds?").
+coarse correction to drown them (docs/research/wrinkles.md, "How much of the detail the LR run fixes").
   python3 fine_target.py SRC_RUNS_DIR DST_RUNS_DIR"""
 import os
 import shutil

@@ -1,7 +1,7 @@
 """Per frame, how hard a shot's coarse motion jolts upward: the RMS over LR vertices of the
 upward part of their acceleration (second differences, m/s²; gravity along −y). A landing
 shows as a spike; so do a drape's corners pulling taut and a flag's gusts, which is why this
-is not the trigger for the physics pass's damping (docs/wrinkles.md, "Blender shots").
+is not the trigger for the physics pass's damping (docs/research/wrinkles.md, "Blender shots").
 `python3 jolt.py LR_DIR:FPS ...` (LR_DIR with geometry.npy + domain.npy)."""
 import os
 import sys

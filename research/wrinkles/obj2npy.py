@@ -1,5 +1,5 @@
 """An OBJ sequence of a square grid whose vertices are stored row by row (Blender's grid, as
-`tests/blender/make_scenes.py` exports it) as geometry.npy + domain.npy, for stats.py / sted.py:
+`research/blender/make_scenes.py` exports it) as geometry.npy + domain.npy, for stats.py / sted.py:
 `python3 obj2npy.py OBJ_DIR OUT_DIR`. The domain is the unit box, so values are metres."""
 import glob
 import os

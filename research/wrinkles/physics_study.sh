@@ -1,9 +1,9 @@
 #!/usr/bin/env bash
-# `upscale --physics` (docs/wrinkles.md, "The physics pass") against the truth: wrinkle ratio,
-# correlation, D change and vertex RMSE beside Catmull-Rom's (tests/wrinkles/stats.py), each run
+# `upscale --physics` (docs/research/wrinkles.md, "The physics pass") against the truth: wrinkle
+# ratio, correlation, D change and vertex RMSE beside Catmull-Rom's (research/wrinkles/stats.py), each run
 # upscaled with its own material and gravity (meta.json: the artist knows the cloth) and 30 fps.
 # `anisocb eval --physics --runs RUN...` reports the same pass with every other metric.
-#   [PINS=1] tests/wrinkles/physics_study.sh val|heldout [OUTDIR] [upscale options...]
+#   [PINS=1] research/wrinkles/physics_study.sh val|heldout [OUTDIR] [upscale options...]
 # PINS=1 names each scene's held edges as its artist would (--physics-pin: the flag's top row,
 # the twist's two ends, the drape's corners; the drops hold nothing) and its floor
 # (--physics-ground 0 under the drops and the drape).

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # The training truth's wrinkle detail per scenario with coarse tracking, per-vertex tracking and
-# none (docs/wrinkles.md): seed-6 validation runs, 32x32 -> 64x64. Needs NumPy. ≈ 1 min.
-#   tests/wrinkles/truth_study.sh [OUTDIR]
+# none (docs/research/wrinkles.md): seed-6 validation runs, 32x32 -> 64x64. Needs NumPy. ≈ 1 min.
+#   research/wrinkles/truth_study.sh [OUTDIR]
 set -euo pipefail
 BIN=${BIN:-target/release/anisocb}
 OUT=${1:-target/wrinkle-study}
