@@ -6,8 +6,8 @@
 //! cargo run --release --no-default-features --example upscale_obj -- demo-out/lr hr/
 //! ```
 
+use anisocb::nn::weights::embedded_model;
 use anisocb::pipeline::{upscale_files, Quiet, UpscaleJob};
-use anisocb::sr::upscale::embedded_model;
 
 fn main() -> anisocb::Result<()> {
     let args: Vec<String> = std::env::args().skip(1).collect();

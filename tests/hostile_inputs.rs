@@ -1071,7 +1071,8 @@ fn upscale_refuses_thread_counts_that_would_hang() {
 /// caller is not bound by the CLI's check), stay finite: a constant sequence stays constant.
 #[test]
 fn temporal_smoothing_weights_do_not_overflow_at_any_radius() {
-    use anisocb::sr::upscale::{smooth_in_time, UpscaleParams, MAX_TEMPORAL};
+    use anisocb::sr::params::{UpscaleParams, MAX_TEMPORAL};
+    use anisocb::sr::temporal::smooth_in_time;
     let x = Tensor::from_vec(&[5, 1, 1, 2], vec![0.25; 10]).unwrap();
     for k in [1, MAX_TEMPORAL, 600, 2000] {
         let y = smooth_in_time(&x, k);

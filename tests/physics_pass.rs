@@ -14,8 +14,8 @@ use anisocb::cloth::tracking::bilinear_targets;
 use anisocb::eval::metrics::{lr_round_trip, wrinkle_detail};
 use anisocb::geom::obj::write_obj_grid;
 use anisocb::geom::GridMesh;
+use anisocb::nn::weights::embedded_model;
 use anisocb::pipeline::{upscale_files, Quiet, UpscaleJob};
-use anisocb::sr::upscale::embedded_model;
 use tempdir::TempDir;
 
 /// A flat `w × h` sheet of side 1.2 m in the xz plane, squeezed along x by `squeeze` (fraction).

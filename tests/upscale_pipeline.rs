@@ -9,10 +9,11 @@ use anisocb::geom::obj::{parse_obj, write_obj_grid};
 use anisocb::geom::{Domain, GridMesh};
 use anisocb::nn::bundle::AnisoCb;
 use anisocb::nn::config::NetConfig;
+use anisocb::nn::weights::embedded_model;
 use anisocb::ops::{Cpu, Interp, Ops};
-use anisocb::sr::upscale::{
-    embedded_model, finish, run_nets, smooth_in_time, upscale_images, upscale_meshes, UpscaleParams,
-};
+use anisocb::sr::params::UpscaleParams;
+use anisocb::sr::temporal::smooth_in_time;
+use anisocb::sr::upscale::{finish, run_nets, upscale_images, upscale_meshes};
 use std::path::Path;
 use std::process::Command;
 use tempdir::TempDir;

@@ -17,8 +17,9 @@
 mod alloc;
 
 use anisocb::geom::GridMesh;
+use anisocb::nn::weights::embedded_model;
 use anisocb::pipeline::Upscaler;
-use anisocb::sr::upscale::{embedded_model, UpscaleParams};
+use anisocb::sr::params::UpscaleParams;
 
 /// Frames of a shot after which nothing is allocated any more (measured: frames 0–3 allocate
 /// with temporal 0, 0–5 with temporal 2, whose window of the nets' outputs grows to 2k + 1

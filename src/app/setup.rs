@@ -4,8 +4,8 @@
 use crate::error::{Error, Result};
 use crate::nn::bundle::AnisoCb;
 use crate::nn::geometry_net::GeometryNet;
+use crate::nn::weights::embedded_model;
 use crate::nn::weights::{load_any, Weights};
-use crate::sr::upscale::embedded_model;
 use std::path::Path;
 
 /// The model to use: `--weights FILE` or the embedded one.

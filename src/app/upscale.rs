@@ -11,10 +11,10 @@ use crate::cloth::run_io::DOMAIN_MARGIN;
 use crate::cloth::Material;
 use crate::error::Error;
 use crate::error::Result;
+use crate::pipeline::stream::DEFAULT_CHUNK;
 use crate::pipeline::{upscale_files, OutputFormat, Report, UpscaleJob};
 use crate::sr::compose::DEFAULT_ETA;
-use crate::sr::stream::DEFAULT_CHUNK;
-use crate::sr::upscale::UpscaleParams;
+use crate::sr::params::UpscaleParams;
 use indicatif::ProgressBar;
 use std::path::PathBuf;
 
@@ -66,19 +66,19 @@ pub struct Args {
     /// default because mirror averaging already removes the detail's frame-to-frame noise and
     /// smoothing then measured worse (most on cloth that keeps turning); it can still calm a
     /// one-pass (`--mirrors false`) result. At most 64.
-    #[arg(long, default_value_t = crate::sr::upscale::DEFAULT_TEMPORAL)]
+    #[arg(long, default_value_t = crate::sr::params::DEFAULT_TEMPORAL)]
     pub temporal: usize,
     /// Strain limit: iterations pulling the output's edge lengths toward those of the input
     /// frame (0 = off). About 10 removes swimming and frame-to-frame edge flicker on cloth that
     /// barely stretches (flags, drapes: also −6 % error); do not use it on cloth that stretches
     /// a lot (rubber, strongly twisted strips), where it makes the result worse.
-    #[arg(long, default_value_t = crate::sr::upscale::DEFAULT_STRAIN_ITERS)]
+    #[arg(long, default_value_t = crate::sr::params::DEFAULT_STRAIN_ITERS)]
     pub strain_iters: usize,
     /// Average the nets over the grid's four mirror images (as given, flipped left-right,
     /// top-bottom, both; each in its own cloth frame): the detail no longer depends on which
     /// way the grid runs, and what one view invents is averaged out (smoother shading, less
     /// flicker). 4× the network time; `--mirrors false` for one pass.
-    #[arg(long, default_value_t = crate::sr::upscale::DEFAULT_MIRRORS, action = clap::ArgAction::Set)]
+    #[arg(long, default_value_t = crate::sr::params::DEFAULT_MIRRORS, action = clap::ArgAction::Set)]
     pub mirrors: bool,
     /// Outline floor: the output's border is never shorter than the LR frame's own border
     /// polyline; where the nets' correction would shorten it, its part along the surface
@@ -88,7 +88,7 @@ pub struct Args {
     /// shorten by up to 0.7 %. On by default (chosen on validation scenes); `false` saves
     /// 1–2 % vertex error on cloth whose true outline is shorter than the LR one (strongly
     /// twisted strips) and gives the nets' border as it is.
-    #[arg(long, default_value_t = crate::sr::upscale::DEFAULT_KEEP_OUTLINE, action = clap::ArgAction::Set)]
+    #[arg(long, default_value_t = crate::sr::params::DEFAULT_KEEP_OUTLINE, action = clap::ArgAction::Set)]
     pub keep_outline: bool,
     /// BoundaryNet gates only the coarse part of the predicted detail (what the LR grid can
     /// hold); folds finer than the LR grid are kept as GeometryNet predicts them. For the

@@ -9,7 +9,8 @@ use crate::geom::geometry_image::images_to_sequence;
 use crate::geom::GridMesh;
 use crate::nn::bundle::AnisoCb;
 use crate::ops::Ops;
-use crate::sr::upscale::{upscale_images, UpscaleParams};
+use crate::sr::params::UpscaleParams;
+use crate::sr::upscale::upscale_images;
 
 /// One line of `invariance.md`.
 pub struct InvarianceRow {

@@ -5,6 +5,7 @@ pub mod anisotropy;
 pub mod cloth_frame;
 pub mod geometry_image;
 pub mod laplacian;
+pub mod layout;
 pub mod mesh;
 pub mod obj;
 pub mod obj_sequence;

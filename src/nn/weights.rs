@@ -10,8 +10,19 @@ use super::bundle::AnisoCb;
 use super::config::{NetConfig, NetKind};
 use super::layers::{param_shapes, Trunk};
 use crate::error::{Error, Result};
+use crate::io::npz::npz_from_bytes;
 use crate::io::{read_npz, write_npz, NpzEntries};
 use std::path::Path;
+
+/// The shipped ×2 model (see weights/README.md), embedded so the binary needs no files.
+pub static EMBEDDED_WEIGHTS: &[u8] = include_bytes!("../../weights/anisocb-x2.npz");
+
+/// Decode [`EMBEDDED_WEIGHTS`].
+pub fn embedded_model() -> Result<AnisoCb> {
+    let what = Path::new("<embedded weights/anisocb-x2.npz>");
+    let e = npz_from_bytes(EMBEDDED_WEIGHTS).map_err(|e| e.in_file(what))?;
+    bundle_from_npz(&e, what)
+}
 
 /// Add `trunk`'s arrays and config to `entries`, every name prefixed by `prefix`.
 pub fn push_trunk(entries: &mut NpzEntries, trunk: &Trunk, prefix: &str) {

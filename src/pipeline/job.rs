@@ -18,8 +18,9 @@ use crate::io::point_cache::{write_header, CacheHeader};
 use crate::io::write_npy;
 use crate::nn::bundle::AnisoCb;
 use crate::ops::Ops;
-use crate::sr::stream::{upscale_stream, DEFAULT_CHUNK};
-use crate::sr::upscale::{upscale_meshes, UpscaleParams};
+use crate::pipeline::stream::{upscale_stream, DEFAULT_CHUNK};
+use crate::sr::params::UpscaleParams;
+use crate::sr::upscale::upscale_meshes;
 use std::ops::Range;
 use std::path::PathBuf;
 use std::time::Instant;
@@ -222,7 +223,7 @@ pub fn upscale_files(
         report.progress(k);
     };
     let mut physics;
-    let sink: &mut dyn crate::sr::stream::HrSink = match &job.physics {
+    let sink: &mut dyn super::stream::HrSink = match &job.physics {
         Some(p) => {
             physics = PhysicsSink::new(&mut out, domain, p.clone(), (w, h))?;
             &mut physics

@@ -9,7 +9,7 @@
 //!
 //! ```no_run
 //! use anisocb::pipeline::{upscale_files, Quiet, UpscaleJob};
-//! use anisocb::sr::upscale::embedded_model;
+//! use anisocb::nn::weights::embedded_model;
 //!
 //! let model = embedded_model()?;
 //! let job = UpscaleJob::new(vec!["frames/".into()], "hr/");
@@ -22,6 +22,7 @@ pub mod input;
 pub mod job;
 pub mod output;
 pub mod physics;
+pub mod stream;
 pub mod upscaler;
 mod worker;
 

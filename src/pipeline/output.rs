@@ -9,7 +9,7 @@ use crate::geom::Domain;
 use crate::io::atomic::{write_atomic_bytes, AtomicFile};
 use crate::io::npy::NpyWriter;
 use crate::io::point_cache::{write_frame, CacheFormat};
-use crate::sr::stream::HrSink;
+use crate::pipeline::stream::HrSink;
 use crate::sr::upscale::Upscaled;
 use std::ops::Range;
 use std::path::{Path, PathBuf};

@@ -6,7 +6,7 @@ use crate::cloth::follow::{FollowParams, Follower};
 use crate::error::Result;
 use crate::geom::geometry_image::image_to_mesh;
 use crate::geom::Domain;
-use crate::sr::stream::HrSink;
+use crate::pipeline::stream::HrSink;
 use crate::sr::upscale::Upscaled;
 use crate::tensor::Tensor;
 use std::ops::Range;

@@ -2,21 +2,23 @@
 //! host that has its frames in memory (a game engine, a DCC plug-in, the C ABI). It keeps the
 //! temporal context itself: with `temporal` = k (cloth-frame models), frame `f`'s result needs
 //! the nets' outputs of frames `f − k … f + k`, so it comes out k frames after `f` went in, and
-//! [`Upscaler::flush`] hands out the last k at the end of the shot. Each frame gives the same
-//! bits as `anisocb upscale` gives it in the whole shot ([`crate::sr::stream`]).
+//! [`Upscaler::flush`] hands out the last k at the end of the shot. It drives the same
+//! [`FrameWindow`] as the file pipeline, so each frame gives the same bits as `anisocb upscale`
+//! gives it in the whole shot ([`super::stream`]).
 
 use super::physics::PhysicsPass;
+use super::stream::{at_frame, temporal_radius, FrameWindow};
 use super::worker::Worker;
 use crate::cloth::follow::FollowParams;
 use crate::error::{Error, Result};
-use crate::geom::cloth_frame::InputFrame;
-use crate::geom::geometry_image::{grid_to_image, image_to_grid, image_to_mesh};
+use crate::geom::layout::{GridLayout, Layout};
 use crate::geom::{Domain, GridMesh};
 use crate::nn::bundle::AnisoCb;
+use crate::nn::weights::embedded_model;
 use crate::ops::conv2d::PackedConv;
 use crate::ops::{Cpu, Ops};
-use crate::sr::upscale::{embedded_model, finish, run_nets_into, Predictions, UpscaleParams};
-use crate::tensor::Tensor;
+use crate::sr::params::UpscaleParams;
+use crate::sr::upscale::{finish, run_nets_into, Predictions};
 
 /// A model ready to upscale a shot frame by frame (see the module docs).
 ///
@@ -39,11 +41,10 @@ pub struct Upscaler {
     /// The box geometry images are encoded with (Eq 1): the unit box for a cloth-frame model,
     /// for which each frame depends on itself alone.
     domain: Domain,
-    /// The shot's LR grid (columns, rows), fixed by its first frame.
-    grid: Option<(usize, usize)>,
-    /// The nets' outputs for frames `raw_lo .. pushed` of the shot.
-    raw: Option<Predictions>,
-    raw_lo: usize,
+    /// The shot's LR grid, fixed by its first frame.
+    grid: Option<GridLayout>,
+    /// The nets' outputs for the frames of the shot that a frame still to come out reads.
+    window: FrameWindow,
     /// Frames given to [`Upscaler::push`] and handed out so far.
     pushed: usize,
     emitted: usize,
@@ -56,7 +57,7 @@ struct Scratch {
     /// The nets' outputs for the frame just pushed, before they join `raw`.
     fresh: Option<Predictions>,
     /// The frames [`finish`] reads for the frame handed out (they come back in its result).
-    window: Option<Predictions>,
+    context: Option<Predictions>,
 }
 
 impl Upscaler {
@@ -64,6 +65,7 @@ impl Upscaler {
     pub fn new(model: AnisoCb, params: UpscaleParams) -> Result<Upscaler> {
         params.validate()?;
         Ok(Upscaler {
+            window: FrameWindow::new(temporal_radius(&model, &params)),
             packed: model.pack_all(),
             model,
             params,
@@ -72,8 +74,6 @@ impl Upscaler {
             physics: None,
             domain: Domain::UNIT,
             grid: None,
-            raw: None,
-            raw_lo: 0,
             pushed: 0,
             emitted: 0,
             scratch: Scratch::default(),
@@ -127,7 +127,7 @@ impl Upscaler {
 
     /// The shot's LR grid (columns, rows), fixed by its first frame; `None` before it.
     pub fn grid(&self) -> Option<(usize, usize)> {
-        self.grid
+        self.grid.map(|g| (g.w, g.h))
     }
 
     /// Frames pushed whose results are not handed out yet (what [`Upscaler::flush`] gives).
@@ -137,11 +137,7 @@ impl Upscaler {
 
     /// Frames a result comes out after its input went in.
     pub fn latency(&self) -> usize {
-        if self.model.input_frame() == InputFrame::Cloth {
-            self.params.temporal
-        } else {
-            0
-        }
+        temporal_radius(&self.model, &self.params)
     }
 
     /// Give the next LR frame of the shot; returns the next HR frame once its temporal context
@@ -151,7 +147,7 @@ impl Upscaler {
         if !self.take_frame(lr.w, lr.h, &lr.pos)? {
             return Ok(None);
         }
-        self.emit(image_to_mesh).map(Some)
+        self.emit_mesh().map(Some)
     }
 
     /// [`Upscaler::push`] of the `w` × `h` grid of positions `lr` (row-major) that writes the
@@ -159,19 +155,16 @@ impl Upscaler {
     /// whether it did: without allocating, after the first frames of a shot.
     pub fn push_into(&mut self, w: usize, h: usize, lr: &[[f32; 3]], hr: &mut [[f32; 3]]) -> Result<bool> {
         let n = self.hr_vertices(w, h, hr.len())?;
-        if lr.len() != w * h {
-            return Err(Error::shape(format!("a {w}×{h} grid has {} vertices, got {}", w * h, lr.len())));
-        }
         if !self.take_frame(w, h, lr)? {
             return Ok(false);
         }
-        self.emit(|img, k, d| image_to_grid(img, k, d, &mut hr[..n])).map(|_| true)
+        self.emit(&mut hr[..n]).map(|_| true)
     }
 
     /// The HR vertices of a `w` × `h` frame, or an error if `room` (positions) cannot hold them.
     fn hr_vertices(&self, w: usize, h: usize, room: usize) -> Result<usize> {
         let r = self.scale();
-        let n = (r * w).saturating_mul(r * h);
+        let n = GridLayout { w, h }.hr_vertices(r);
         if room < n {
             return Err(Error::shape(format!(
                 "room for {room} HR positions; a {w}×{h} frame upscales to {} × {} = {n}",
@@ -185,31 +178,23 @@ impl Upscaler {
     /// Run the nets on the next LR frame (`w` × `h` positions `lr`) and keep their outputs;
     /// whether a frame is then ready to hand out.
     fn take_frame(&mut self, w0: usize, h0: usize, lr: &[[f32; 3]]) -> Result<bool> {
-        let (w, h) = *self.grid.get_or_insert((w0, h0));
-        if (w0, h0) != (w, h) {
+        let g = *self.grid.get_or_insert(GridLayout { w: w0, h: h0 });
+        if (w0, h0) != (g.w, g.h) {
             return Err(Error::shape(format!(
-                "frame {} is a {w0}×{h0} grid, the shot's first frame {w}×{h}: every frame of a shot \
+                "frame {} is a {w0}×{h0} grid, the shot's first frame {}×{}: every frame of a shot \
                  must have the same grid (call flush to start a new shot)",
-                self.pushed
+                self.pushed, g.w, g.h
             )));
         }
-        if w < 2 || h < 2 {
-            return Err(Error::shape(format!("a grid of {w}×{h} vertices is too small: at least 2×2")));
-        }
-        let img = grid_to_image(w, h, lr, &self.domain).reshape(&[1, 3, h, w])?;
+        GridLayout::new(g.w, g.h)?;
+        let img = g.to_image(lr, &self.domain)?;
         let (ops, domain, params) = (self.ops.as_ref(), &self.domain, &self.params);
         let nets = self.model.packed_with(&self.packed);
         let new = self.scratch.fresh.get_or_insert_with(Predictions::none);
         let frame = self.pushed;
         in_pool(&self.pool, || run_nets_into(ops, &nets, &img, domain, params, &mut |_| {}, new))
             .map_err(|e| at_frame(e, frame))?;
-        match self.raw.as_mut() {
-            Some(r) => r.append(new),
-            None => {
-                self.raw = Some(new.slice_frames(0..1));
-                self.raw_lo = self.pushed;
-            }
-        }
+        self.window.append(frame, new);
         self.pushed += 1;
         Ok(self.pushed - self.emitted > self.latency())
     }
@@ -228,14 +213,14 @@ impl Upscaler {
     /// next push starts a new shot).
     pub fn flush_one(&mut self) -> Result<Option<GridMesh>> {
         if self.emitted < self.pushed {
-            return self.emit(image_to_mesh).map(Some);
+            return self.emit_mesh().map(Some);
         }
         self.grid = None;
-        self.raw = None;
+        self.window.reset();
         if let Some(p) = self.physics.as_mut() {
             p.reset();
         }
-        (self.pushed, self.emitted, self.raw_lo) = (0, 0, 0);
+        (self.pushed, self.emitted) = (0, 0);
         Ok(None)
     }
 
@@ -243,36 +228,44 @@ impl Upscaler {
     /// left to write.
     pub fn flush_into(&mut self, hr: &mut [[f32; 3]]) -> Result<bool> {
         if self.emitted < self.pushed {
-            let (w, h) = self.grid.expect("frames were pushed");
-            let n = self.hr_vertices(w, h, hr.len())?;
-            return self.emit(|img, k, d| image_to_grid(img, k, d, &mut hr[..n])).map(|_| true);
+            let g = self.grid.expect("frames were pushed");
+            let n = self.hr_vertices(g.w, g.h, hr.len())?;
+            return self.emit(&mut hr[..n]).map(|_| true);
         }
         self.flush_one().map(|_| false)
     }
 
-    /// Finish frame `emitted` over its window `emitted − k … pushed`, hand it to `out` (the
-    /// HR images, the frame's index in them, the domain) and drop what no later frame reads.
-    fn emit<T>(&mut self, out: impl FnOnce(&Tensor, usize, &Domain) -> T) -> Result<T> {
-        let (e, k) = (self.emitted, self.latency());
-        let lo = e.saturating_sub(k);
-        let raw = self.raw.as_mut().expect("frames were pushed");
-        let mut window = self.scratch.window.take().unwrap_or_else(Predictions::none);
-        raw.copy_frames_into(lo - self.raw_lo..self.pushed - self.raw_lo, &mut window);
+    /// [`Upscaler::emit`] into a new HR mesh.
+    fn emit_mesh(&mut self) -> Result<GridMesh> {
+        let g = self.grid.expect("frames were pushed");
+        let r = self.scale();
+        let mut hr = GridMesh::new(r * g.w, r * g.h, vec![[0.0; 3]; g.hr_vertices(r)]);
+        self.emit(&mut hr.pos)?;
+        Ok(hr)
+    }
+
+    /// Finish frame `emitted` over its context `emitted − k … pushed`, write its HR vertices
+    /// into `out` and release what no later frame reads.
+    fn emit(&mut self, out: &mut [[f32; 3]]) -> Result<()> {
+        let e = self.emitted;
+        let g = self.grid.expect("frames were pushed");
+        let context = self.window.context(e..e + 1, self.pushed);
+        let mut window = self.scratch.context.take().unwrap_or_else(Predictions::none);
+        self.window.copy_into(context.clone(), &mut window);
         let (model, params) = (&self.model, &self.params);
-        let mut up =
-            in_pool(&self.pool, || finish(window, model, params)).map_err(|err| at_frame(err, lo))?;
+        let mut up = in_pool(&self.pool, || finish(window, model, params))
+            .map_err(|err| at_frame(err, context.start))?;
+        let f = e - context.start;
         // A frame the physics pass fails on is used up like any other (the error says which).
         let physics = match self.physics.as_mut() {
-            Some(p) => p.apply(&mut up.hr, e - lo, e, &self.domain, self.grid.expect("frames were pushed")),
+            Some(p) => p.apply(&mut up.hr, f, e, &self.domain, (g.w, g.h)),
             None => Ok(()),
         };
-        let mesh = physics.map(|()| out(&up.hr, e - lo, &self.domain));
-        self.scratch.window = Some(up.into_nets());
-        let keep_from = (e + 1).saturating_sub(k);
-        raw.drop_front(keep_from - self.raw_lo);
-        self.raw_lo = keep_from;
+        let done = physics.map(|()| g.to_vertices(&up.hr, f, &self.domain, out));
+        self.scratch.context = Some(up.into_nets());
+        self.window.release_before((e + 1).saturating_sub(self.latency()));
         self.emitted += 1;
-        mesh
+        done
     }
 }
 
@@ -281,13 +274,5 @@ fn in_pool<T: Send>(pool: &Option<Worker>, f: impl FnOnce() -> T + Send) -> T {
     match pool {
         Some(p) => p.run(f),
         None => f(),
-    }
-}
-
-/// A numeric error's frame numbers counted from frame `first` of the shot.
-fn at_frame(e: Error, first: usize) -> Error {
-    match e {
-        Error::Numeric(m) => Error::numeric(format!("{m} (counting from frame {first} of the shot)")),
-        e => e,
     }
 }

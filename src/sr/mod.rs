@@ -5,7 +5,6 @@ pub mod compose;
 pub mod outline;
 pub mod params;
 pub mod strain;
-pub mod stream;
 pub mod temporal;
 pub mod upscale;
 pub mod uv;

@@ -1,21 +1,7 @@
-//! What an upscale runs with: the embedded model, and [`UpscaleParams`] with each default and
-//! the measurement that chose it.
+//! What an upscale runs with: [`UpscaleParams`] with each default and the measurement that
+//! chose it.
 
 use crate::error::{Error, Result};
-use crate::io::npz::npz_from_bytes;
-use crate::nn::bundle::AnisoCb;
-use crate::nn::weights::bundle_from_npz;
-use std::path::Path;
-
-/// The shipped ×2 model (see weights/README.md), embedded so the binary needs no files.
-pub static EMBEDDED_WEIGHTS: &[u8] = include_bytes!("../../weights/anisocb-x2.npz");
-
-/// Decode [`EMBEDDED_WEIGHTS`].
-pub fn embedded_model() -> Result<AnisoCb> {
-    let what = Path::new("<embedded weights/anisocb-x2.npz>");
-    let e = npz_from_bytes(EMBEDDED_WEIGHTS).map_err(|e| e.in_file(what))?;
-    bundle_from_npz(&e, what)
-}
 
 /// Default [`UpscaleParams::strain_iters`]: off. Measured on validation runs (seed 6), 10
 /// iterations lower vertex RMSE by 6 % on a drape and a flag and put their temporal

@@ -9,11 +9,10 @@
 //! output mapped back, so the result moves, turns and scales with the input frame by frame.
 
 use super::compose::compose;
-pub use super::outline::{blend_outer_rings, loop_length, outline_base, outline_weight, set_border};
-pub use super::params::*;
-pub use super::strain::{hr_edge_targets, limit_strain};
-pub use super::temporal::smooth_in_time;
-pub use super::uv::upscale_uv;
+use super::outline::{blend_outer_rings, loop_length, outline_base, outline_weight, set_border};
+use super::params::UpscaleParams;
+use super::strain::{hr_edge_targets, limit_strain};
+use super::temporal::smooth_in_time;
 use crate::error::{Error, Result};
 use crate::geom::cloth_frame::{mirror_net_images, Affine, InputFrame, GRID_MIRRORS};
 use crate::geom::geometry_image::{images_to_sequence, sequence_to_images};
@@ -109,6 +108,22 @@ impl Predictions {
         out.net_frames.clear();
         out.net_frames.extend_from_slice(&self.net_frames[r]);
         out.how = self.how;
+    }
+
+    /// `frames` frames of zeros at an HR size of `hh` × `hw` (an LR size of half that), in
+    /// the domain's frame: for tests of what cuts and joins them.
+    #[cfg(test)]
+    pub(crate) fn blank(frames: usize, hh: usize, hw: usize) -> Predictions {
+        let z = |c: usize, h: usize, w: usize| Tensor::zeros(&[frames, c, h, w]);
+        Predictions {
+            interpolated: z(3, hh, hw),
+            residual: z(3, hh, hw),
+            boundary: z(1, hh, hw),
+            enhance: z(1, hh, hw),
+            net_frames: vec![(Affine::IDENTITY, Affine::IDENTITY); frames],
+            lr_net: z(3, hh / 2, hw / 2),
+            how: Composition::default(),
+        }
     }
 
     /// Drop the first `n` frames.
@@ -296,6 +311,7 @@ pub fn run_nets(
     params: &UpscaleParams,
     on_frames: &mut dyn FnMut(usize),
 ) -> Result<Predictions> {
+    params.validate()?;
     // Every conv's weights packed once for all batches and mirror views.
     let mut out = Predictions::none();
     run_nets_into(ops, &model.packed(), lr, domain, params, on_frames, &mut out)?;
@@ -326,7 +342,6 @@ pub(crate) fn run_nets_into(
         let frame = i / (c * h * w);
         return Err(Error::numeric(format!("input frame {frame} holds a non-finite value {v}")));
     }
-    params.validate()?;
     domain.validate()?;
     let r = model.scale();
     let (hh, hw) = (r * h, r * w);
