@@ -11,9 +11,9 @@
 #
 # Held out of training, chosen before training (used by `anisocb demo`, docs/results.md's
 # evaluation and `eval`): the scenarios flag-sphere and twist-zero-g, seeds ≥ 7 of every
-# scenario, and every Blender test scene (tests/blender/make_scenes.py, both test sets). Seed 6
-# of every scenario and the Blender validation scenes (make_scenes.py's VALIDATION_SCENES) are
-# for choices made after training.
+# scenario, and every Blender test scene (research/blender/make_scenes.py, both test sets).
+# Seed 6 of every scenario and the Blender validation scenes (make_scenes.py's
+# VALIDATION_SCENES) are for choices made after training.
 set -euo pipefail
 BIN=${BIN:-target/release/anisocb}
 WORK=${WORK:-target/weights-work}
@@ -23,25 +23,25 @@ MAP_STEPS=${MAP_STEPS:-1500}   # BoundaryNet, EnhanceNet
 FRAMES=${FRAMES:-150}
 TRACKING=${TRACKING:-1000}     # as the held-out runs: detail the LR frame can predict
 # anisocb-x2.npz was trained on per-vertex tracking (`simulate --track vertex`), which flattens
-# the HR runs' own folds; `simulate` now defaults to coarse tracking (docs/wrinkles.md), which
-# the opt-in wrinkle model at the end of this script is trained on.
+# the HR runs' own folds; `simulate` now defaults to coarse tracking (docs/research/wrinkles.md),
+# which the opt-in wrinkle model at the end of this script is trained on.
 SEEDS=${SEEDS:-"1 2 3 4 5"}
 EDGE=${EDGE:-1.0}              # weight of the edge-vector loss term
 # Weight of the edge-length term: a net that averages wrinkles it cannot place shortens the
 # edges, and the cloth shrinks in its plane (area 3.5 % below the truth on the twisted
 # validation strip with 0). Chosen over 0 and 1 on the seed-6 validation runs
-# (weights/README.md, "choices made after training").
+# (docs/research/model-history.md).
 LENGTH=${LENGTH:-4}
 UPSAMPLE=${UPSAMPLE:-catmull-rom}  # the U every residual refines (bicubic = Keys a = -0.75)
 # Replicate padding: beyond the border every conv sees the cloth continued flat, not a cliff to
 # the origin of the cloth frame that the first layers must learn to undo. Chosen over the
-# paper's zero padding on the seed-6 validation runs (weights/README.md, "choices made after
-# training"): vertex RMSE and normal error lower on all five, the smooth flag's normals most.
+# paper's zero padding on the seed-6 validation runs (docs/research/model-history.md): vertex
+# RMSE and normal error lower on all five, the smooth flag's normals most.
 PADDING=${PADDING:-replicate}
 # Whole 32×32 frames (--patch 32, batch 8: as many pixels per step as 32 patches of 16²): the
 # nets see the cloth's real border with the zero padding around it, as `upscale` does, and no
 # cut patch edges that look like a border but are not. Chosen over 16² patches on the seed-6
-# validation runs (numbers in weights/README.md, "choices made after training").
+# validation runs (numbers in docs/research/model-history.md).
 TRAIN=(--config small --lr 5e-4 --patch 32 --batch 8 --edge-weight "$EDGE" --length-weight "$LENGTH" --upsample "$UPSAMPLE" --padding "$PADDING")
 MAPS=(--gamma 0.3 --canny-low 0.12 --canny-high 0.16)
 rm -rf "$WORK"
@@ -50,7 +50,7 @@ mkdir -p "$WORK/runs" "$OUT"
 # `drop` (a free sheet falling on a sphere: the hanging, folding hems of cloth from other tools,
 # which the nets flattened) runs DROP_FRAMES frames, its fall and settling: with 150 frames (a
 # fifth of the data, mostly a sheet at rest) the nets gave up 3–20 % RMSE on the validation runs
-# of the other scenes. Chosen on validation (weights/README.md, "choices made after training").
+# of the other scenes. Chosen on validation (docs/research/model-history.md).
 DROP_FRAMES=${DROP_FRAMES:-40}
 # simulate_runs DIR MODE: the training runs, HR tracking its LR twin per vertex or coarsely.
 simulate_runs() {
@@ -77,7 +77,7 @@ simulate_runs "$WORK/runs" vertex
 "$BIN" train --data "$WORK/data-benefit.npz" "${TRAIN[@]}" --seed 1 --net all --steps "$MAP_STEPS" --resume --out "$WORK/train"
 # A second GeometryNet, trained the same way from another seed; the shipped bundle averages the
 # two residuals (an ensemble: what one training invents and the other does not is averaged
-# down). Chosen on the seed-6 validation runs (weights/README.md, "choices made after training").
+# down). Chosen on the seed-6 validation runs (docs/research/model-history.md).
 "$BIN" train --data "$WORK/data.npz" "${TRAIN[@]}" --seed 2 --net geometry --steps "$GEO_STEPS" --out "$WORK/train2/geometry"
 "$BIN" bundle --geometry "$WORK/train/weights.npz" --geometry "$WORK/train2/geometry/weights.npz" \
   --boundary "$WORK/train/weights.npz" --enhance "$WORK/train/weights.npz" --out "$OUT/anisocb-x2.npz"
@@ -86,8 +86,8 @@ cp "$WORK/linear/weights.npz" "$OUT/linear-x2.npz"
 "$BIN" train --data "$WORK/data-domain.npz" "${TRAIN[@]}" --seed 1 --net geometry --steps "$GEO_STEPS" --out "$WORK/domain"
 cp "$WORK/domain/weights.npz" "$OUT/domain-x2.npz"
 # The opt-in wrinkle model (`upscale --weights weights/anisocb-x2-wrinkles.npz --mirrors false`,
-# docs/wrinkles.md): one GeometryNet trained on coarse-tracked truth, whose HR runs keep their
-# own folds, with the wrinkle-energy term (normal component, weight 200) beside the same loss,
+# docs/research/wrinkles.md): one GeometryNet trained on coarse-tracked truth, whose HR runs keep
+# their own folds, with the wrinkle-energy term (normal component, weight 200) beside the same loss,
 # bundled with the map nets above. Chosen on the seed-6 validation runs over weights 0, 10, 40
 # (all three components) and 40 (normal only) by a rule written before training.
 WRINKLE_DETAIL=${WRINKLE_DETAIL:-200}
@@ -99,7 +99,7 @@ simulate_runs "$WORK/runs-coarse" coarse
 # Its EnhanceNet marks where the truth folds (`dataset --edges wrinkle-energy`: the local
 # amplitude of the HR detail beyond the LR grid), so that η deepens the predicted folds there;
 # adopted on the seed-6 validation runs by a rule written before it was evaluated
-# (docs/wrinkles.md). At η = 0, the default, EnhanceNet does not run.
+# (docs/research/wrinkles.md). At η = 0, the default, EnhanceNet does not run.
 "$BIN" dataset --runs "$WORK"/runs-coarse/* --out "$WORK/data-coarse-edges.npz" "${MAPS[@]}" --input-frame cloth-frame \
   --edges wrinkle-energy
 "$BIN" train --data "$WORK/data-coarse-edges.npz" "${TRAIN[@]}" --seed 1 --net enhance --steps "$MAP_STEPS" \
