@@ -1,6 +1,6 @@
 //! The physics pass driven by any HR frames of a run pair: the nets' output (`upscale
 //! --format npy`), or the truth's own HR frames, which asks how well the pass places the folds
-//! when its coarse targets are the truth's (docs/wrinkles.md, "The physics pass",
+//! when its coarse targets are the truth's (docs/research/wrinkles.md, "The physics pass",
 //! "Targets"). Each run's gravity, frame rate, material, held edges and colliders come from its
 //! meta.json (`FollowParams::for_run`, as `eval --physics`).
 //!

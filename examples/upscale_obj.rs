@@ -16,7 +16,7 @@ fn main() -> anisocb::Result<()> {
         std::process::exit(2);
     };
     let model = embedded_model()?;
-    let job = UpscaleJob::new(vec![input.into()], out);
+    let job = UpscaleJob::new(vec![input.into()], out).check()?;
     let done = upscale_files(&anisocb::ops::Cpu, &model, &job, &mut Quiet)?;
     println!("{} frames {:?} -> {:?} in {:.2} s -> {out}", done.frames, done.lr, done.hr, done.seconds);
     Ok(())

@@ -48,7 +48,7 @@ typedef struct anisocb_options {
     int keep_outline;         /* 1: the border never shorter than the LR one (default) */
     int pin_border;           /* 1: outermost ring where interpolation puts it (default 0) */
     int gate_coarse_only;     /* 1: BoundaryNet gates only the coarse detail (default 0) */
-    /* The physics pass (`anisocb upscale --physics`, docs/wrinkles.md): an HR cloth held to the
+    /* The physics pass (`anisocb upscale --physics`, docs/research/wrinkles.md): an HR cloth held to the
      * frames at the LR grid's scale adds the folds an HR simulation forms. Frames are read as
      * metres; a shot starts at its first frame and ends with anisocb_flush. With it a frame
      * allocates (the simulation's buffers). */

@@ -83,7 +83,7 @@ fn status_of(e: &Error) -> c_int {
         Error::Io { .. } => ANISOCB_ERR_IO,
         Error::Format { .. } | Error::Malformed(_) => ANISOCB_ERR_FORMAT,
         Error::Shape(_) => ANISOCB_ERR_SHAPE,
-        Error::Config(_) => ANISOCB_ERR_CONFIG,
+        Error::Config(_) | Error::Invalid { .. } => ANISOCB_ERR_CONFIG,
         Error::Numeric(_) => ANISOCB_ERR_NUMERIC,
         Error::Device(_) => ANISOCB_ERR_DEVICE,
     }
@@ -94,7 +94,19 @@ struct Fail(c_int, String);
 
 impl From<Error> for Fail {
     fn from(e: Error) -> Fail {
-        Fail(status_of(&e), e.to_string())
+        Fail(status_of(&e), e.renamed(c_field).to_string())
+    }
+}
+
+/// The `anisocb_options` field (include/anisocb.h) that sets the library's field `field`.
+fn c_field(field: &'static str) -> &'static str {
+    match field {
+        "pins" => "physics_pin",
+        "drift_seconds" => "physics_drift",
+        "ground" => "physics_ground",
+        "sphere" => "physics_sphere",
+        "cuboid" => "physics_box",
+        f => f,
     }
 }
 

@@ -14,6 +14,10 @@ pub enum Error {
     Shape(String),
     /// Bad parameters or options.
     Config(String),
+    /// One field of a parameter struct or job out of range, named as the library names it
+    /// (`eta`, `fps`, `chunk`); a front end renames it to its own spelling ([`Error::renamed`]:
+    /// the command line's `--eta`, the C ABI's struct fields).
+    Invalid { field: &'static str, msg: String },
     /// A numeric failure (NaN/Inf loss, a solver that did not converge …).
     Numeric(String),
     /// The CUDA path is unavailable or failed.
@@ -37,6 +41,18 @@ impl Error {
     }
     pub fn config(msg: impl Into<String>) -> Self {
         Error::Config(msg.into())
+    }
+    /// Field `field` of a parameter struct or job is out of range: `msg` says what it must be.
+    pub fn invalid(field: &'static str, msg: impl Into<String>) -> Self {
+        Error::Invalid { field, msg: msg.into() }
+    }
+    /// An [`Error::Invalid`]'s field under a front end's name for it (`name(field)`); any other
+    /// error as it is.
+    pub fn renamed(self, name: impl Fn(&'static str) -> &'static str) -> Self {
+        match self {
+            Error::Invalid { field, msg } => Error::Invalid { field: name(field), msg },
+            e => e,
+        }
     }
     pub fn numeric(msg: impl Into<String>) -> Self {
         Error::Numeric(msg.into())
@@ -62,6 +78,7 @@ impl fmt::Display for Error {
             Error::Format { path, msg } => write!(f, "{}: {}", path.display(), msg),
             Error::Shape(m) => write!(f, "shape mismatch: {m}"),
             Error::Config(m) => write!(f, "invalid option: {m}"),
+            Error::Invalid { field, msg } => write!(f, "invalid option {field}: {msg}"),
             Error::Numeric(m) => write!(f, "numeric failure: {m}"),
             Error::Device(m) => write!(f, "device: {m}"),
             Error::Malformed(m) => write!(f, "malformed data: {m}"),

@@ -46,7 +46,9 @@ fn library_job_writes_the_cli_bytes() {
     cli(&[&d.arg("in"), "--out", &d.arg("cli"), "--temporal", "1"]);
     let mut job = UpscaleJob::new(vec![d.join("in")], d.join("lib"));
     job.params.temporal = 1;
-    let done = upscale_files(&anisocb::ops::Cpu, &embedded_model().unwrap(), &job, &mut Quiet).unwrap();
+    let done =
+        upscale_files(&anisocb::ops::Cpu, &embedded_model().unwrap(), &job.check().unwrap(), &mut Quiet)
+            .unwrap();
     assert_eq!((done.frames, done.lr, done.hr), (6, (12, 12), (24, 24)));
     for k in 0..6 {
         let name = format!("f_{k:03}.obj");
@@ -114,7 +116,7 @@ fn upscaler_with_physics_gives_the_cli_physics_bits_shot_after_shot() {
     let cli7 = read_obj_grid(&Path::new(&out).join("f_007.obj")).unwrap();
     assert_ne!(plain.pos, cli7.pos, "the physics pass changed nothing");
     let bad = FollowParams { fps: 0.0, ..FollowParams::default() };
-    assert!(Upscaler::embedded().unwrap().with_physics(bad).err().unwrap().to_string().contains("--fps"));
+    assert!(Upscaler::embedded().unwrap().with_physics(bad).err().unwrap().to_string().contains("fps"));
 }
 
 #[test]
@@ -220,7 +222,7 @@ impl Ops for FailingDevice {
 fn a_device_failure_mid_shot_is_an_error_naming_the_device_not_nan_frames() {
     let d = TempDir::new("lib-device");
     drape_frames(&d.join("in"), 4);
-    let job = UpscaleJob::new(vec![d.join("in")], d.join("out"));
+    let job = UpscaleJob::new(vec![d.join("in")], d.join("out")).check().unwrap();
     let model = embedded_model().unwrap();
     let dev = FailingDevice { convs: 0.into(), fail_after: 40 };
     let e = upscale_files(&dev, &model, &job, &mut Quiet).unwrap_err();

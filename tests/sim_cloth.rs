@@ -207,7 +207,7 @@ fn geometry_images_of_a_run_round_trip() {
     }
 }
 
-/// The HR-twin studies of docs/wrinkles.md (`simulate --hr-jitter / --hr-restart / --hr-blind`)
+/// The HR-twin studies of docs/research/wrinkles.md (`simulate --hr-jitter / --hr-restart / --hr-blind`)
 /// change the HR run only, and only where they say: the LR run stays bit for bit, a restart at
 /// frame F leaves frames 0..=F alone, a blind run starts from the LR surface.
 #[test]

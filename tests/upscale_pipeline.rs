@@ -593,12 +593,14 @@ fn frame_slices_concatenate_to_the_whole_shot_byte_for_byte() {
 
 #[test]
 fn bad_frame_ranges_are_usage_errors_naming_the_range() {
-    use anisocb::pipeline::job::parse_frames;
-    assert_eq!(parse_frames(None, 5).unwrap(), 0..5);
-    assert_eq!(parse_frames(Some("1:3"), 5).unwrap(), 1..3);
-    assert_eq!(parse_frames(Some("2:"), 5).unwrap(), 2..5);
-    for bad in ["3:3", "4:2", "0:6", "x:2", "3", ":"] {
-        let e = parse_frames(Some(bad), 5).unwrap_err().to_string();
+    use anisocb::pipeline::job::FrameSpan;
+    let range = |s: &str| FrameSpan::parse(s).and_then(|f| f.range(5));
+    assert_eq!(range("1:3").unwrap(), 1..3);
+    assert_eq!(range("2:").unwrap(), 2..5);
+    for bad in ["3:3", "4:2", "0:6", "x:2", "3", ":", "5:"] {
+        let e = range(bad).unwrap_err();
+        assert!(matches!(e, anisocb::Error::Invalid { field: "frames", .. }), "{bad}: {e}");
+        let e = e.to_string();
         assert!(e.contains(bad) && e.contains("A:B"), "{bad}: {e}");
     }
 }
@@ -666,7 +668,7 @@ fn point_cache_with_rest_obj_upscales_to_an_hr_rest_obj_and_cache() {
     }
 }
 
-/// The opt-in wrinkle model (weights/anisocb-x2-wrinkles.npz, docs/wrinkles.md) exists to add
+/// The opt-in wrinkle model (weights/anisocb-x2-wrinkles.npz, docs/research/wrinkles.md) exists to add
 /// the folds finer than the LR grid that the shipped model averages away: on a dropped sheet
 /// whose coarse-tracked HR truth folds, it must add clearly more wrinkle detail than the
 /// shipped model, stay within 1.1× Catmull-Rom's vertex error, and keep its border.

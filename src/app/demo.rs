@@ -134,7 +134,7 @@ pub fn run(a: Args) -> Result<()> {
 
     // 3. Metrics against the HR run.
     let mask = border_mask(hr[0].w, hr[0].h);
-    // Wrinkle detail is what the LR grid cannot hold (docs/wrinkles.md).
+    // Wrinkle detail is what the LR grid cannot hold (docs/research/wrinkles.md).
     let metrics_of = |seq: &[GridMesh]| -> Result<SequenceMetrics> {
         let mut m = sequence_metrics(seq, &hr, Some(&mask))?;
         m.wrinkle = Some(wrinkle_stats(seq, &hr, lr[0].w, lr[0].h)?);

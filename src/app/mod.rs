@@ -111,8 +111,37 @@ where
     match r {
         Ok(()) => 0,
         Err(e) => {
-            eprintln!("anisocb: error: {e}");
+            eprintln!("anisocb: error: {}", e.renamed(flag));
             1
         }
+    }
+}
+
+/// The command-line flag that sets the library's field `field` ([`crate::Error::Invalid`]).
+fn flag(field: &'static str) -> &'static str {
+    match field {
+        "eta" => "--eta",
+        "temporal" => "--temporal",
+        "batch" => "--batch",
+        "strain_iters" => "--strain-iters",
+        "margin" => "--margin",
+        "frames" => "--frames",
+        "chunk" => "--chunk",
+        "rest" => "--rest",
+        "out" => "--out",
+        "device" => "--device",
+        "gravity" => "--gravity",
+        "fps" => "--fps",
+        "material" => "--material",
+        "strength" => "--physics-strength",
+        "damping" => "--physics-damping",
+        "ground" => "--physics-ground",
+        "sphere" => "--physics-sphere",
+        "cuboid" => "--physics-box",
+        "drift_seconds" => "--physics-drift",
+        "substeps_per_second" => "--physics-substeps",
+        "pins" => "--physics-pin",
+        "val_frac" => "--val-frac",
+        f => f,
     }
 }

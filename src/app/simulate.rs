@@ -49,17 +49,17 @@ pub struct Args {
     pub track: String,
     /// Add up to this many metres of seeded noise to the tracked HR run's rest positions
     /// (--pair): a twin of the HR truth under the same LR run, to measure how much of its
-    /// fine detail the LR run fixes (docs/wrinkles.md). 0 = none.
+    /// fine detail the LR run fixes (docs/research/wrinkles.md). 0 = none.
     #[arg(long, default_value_t = 0.0)]
     pub hr_jitter: f32,
     /// At this frame, put the tracked HR run (--pair) back on the LR run's surface and let its
-    /// folds form again: how long a window of LR frames fixes the HR detail (docs/wrinkles.md).
+    /// folds form again: how long a window of LR frames fixes the HR detail (docs/research/wrinkles.md).
     /// 0 = never.
     #[arg(long, default_value_t = 0)]
     pub hr_restart: usize,
     /// Let the tracked HR run (--pair) know only its LR run: no colliders, no wind, started on
     /// the LR surface; gravity, material and pins as the scenario's. What a physics upscaler of
-    /// someone else's cloth could reach (docs/wrinkles.md).
+    /// someone else's cloth could reach (docs/research/wrinkles.md).
     #[arg(long)]
     pub hr_blind: bool,
     /// XPBD substeps per frame.

@@ -9,8 +9,10 @@ use crate::cloth::collision::{Cuboid, Sphere};
 use crate::cloth::follow::{FollowOutput, FollowParams, PinnedEdges};
 use crate::cloth::run_io::DOMAIN_MARGIN;
 use crate::cloth::Material;
+use crate::cuda::Device;
 use crate::error::Error;
 use crate::error::Result;
+use crate::pipeline::job::{CheckedJob, FrameSpan, Precision};
 use crate::pipeline::stream::DEFAULT_CHUNK;
 use crate::pipeline::{upscale_files, OutputFormat, Report, UpscaleJob};
 use crate::sr::compose::DEFAULT_ETA;
@@ -51,14 +53,14 @@ pub struct Args {
     pub input: Vec<PathBuf>,
     /// Output directory (created if missing; existing frames with the same names are replaced).
     /// Never the input's own folder: the input is never overwritten.
-    #[arg(long)]
+    #[arg(help_heading = "Input and output", long)]
     pub out: PathBuf,
     /// Wrinkle enhancement η from -1 to 10 (Eq 12): 0 = plain predicted detail (the default,
     /// chosen on validation runs; EnhanceNet is then not run), larger = deeper wrinkles where
     /// EnhanceNet sees edges (up to 1 + η times the predicted detail), below 0 = softer (-1
     /// removes them there). With the wrinkle model and --gate-coarse-only it scales the folds
-    /// finer than the LR grid (docs/wrinkles.md). Smooth cloth and the border are unaffected.
-    #[arg(long, default_value_t = DEFAULT_ETA, allow_negative_numbers = true)]
+    /// finer than the LR grid (docs/research/wrinkles.md). Smooth cloth and the border are unaffected.
+    #[arg(help_heading = "Detail", long, default_value_t = DEFAULT_ETA, allow_negative_numbers = true)]
     pub eta: f32,
     /// Temporal smoothing radius in frames of the predicted detail and of the boundary and
     /// wrinkle maps that gate it, in the cloth's own frame (1 = weights ¼ ½ ¼ over the
@@ -66,19 +68,19 @@ pub struct Args {
     /// default because mirror averaging already removes the detail's frame-to-frame noise and
     /// smoothing then measured worse (most on cloth that keeps turning); it can still calm a
     /// one-pass (`--mirrors false`) result. At most 64.
-    #[arg(long, default_value_t = crate::sr::params::DEFAULT_TEMPORAL)]
+    #[arg(help_heading = "Detail", long, default_value_t = crate::sr::params::DEFAULT_TEMPORAL)]
     pub temporal: usize,
     /// Strain limit: iterations pulling the output's edge lengths toward those of the input
     /// frame (0 = off). About 10 removes swimming and frame-to-frame edge flicker on cloth that
     /// barely stretches (flags, drapes: also −6 % error); do not use it on cloth that stretches
     /// a lot (rubber, strongly twisted strips), where it makes the result worse.
-    #[arg(long, default_value_t = crate::sr::params::DEFAULT_STRAIN_ITERS)]
+    #[arg(help_heading = "Detail", long, default_value_t = crate::sr::params::DEFAULT_STRAIN_ITERS)]
     pub strain_iters: usize,
     /// Average the nets over the grid's four mirror images (as given, flipped left-right,
     /// top-bottom, both; each in its own cloth frame): the detail no longer depends on which
     /// way the grid runs, and what one view invents is averaged out (smoother shading, less
     /// flicker). 4× the network time; `--mirrors false` for one pass.
-    #[arg(long, default_value_t = crate::sr::params::DEFAULT_MIRRORS, action = clap::ArgAction::Set)]
+    #[arg(help_heading = "Detail", long, default_value_t = crate::sr::params::DEFAULT_MIRRORS, action = clap::ArgAction::Set)]
     pub mirrors: bool,
     /// Outline floor: the output's border is never shorter than the LR frame's own border
     /// polyline; where the nets' correction would shorten it, its part along the surface
@@ -88,117 +90,145 @@ pub struct Args {
     /// shorten by up to 0.7 %. On by default (chosen on validation scenes); `false` saves
     /// 1–2 % vertex error on cloth whose true outline is shorter than the LR one (strongly
     /// twisted strips) and gives the nets' border as it is.
-    #[arg(long, default_value_t = crate::sr::params::DEFAULT_KEEP_OUTLINE, action = clap::ArgAction::Set)]
+    #[arg(help_heading = "Detail", long, default_value_t = crate::sr::params::DEFAULT_KEEP_OUTLINE, action = clap::ArgAction::Set)]
     pub keep_outline: bool,
     /// BoundaryNet gates only the coarse part of the predicted detail (what the LR grid can
     /// hold); folds finer than the LR grid are kept as GeometryNet predicts them. For the
-    /// wrinkle model (docs/wrinkles.md), whose BoundaryNet would otherwise flatten them.
-    #[arg(long)]
+    /// wrinkle model (docs/research/wrinkles.md), whose BoundaryNet would otherwise flatten them.
+    #[arg(help_heading = "Detail", long)]
     pub gate_coarse_only: bool,
     /// Keep the outermost ring of vertices exactly where the interpolated input puts them
     /// (the outline is then the LR outline's interpolation, whatever the nets predict there).
     /// Off by default: the nets correct the border too, which measured closer to the truth.
-    #[arg(long)]
+    #[arg(help_heading = "Detail", long)]
     pub pin_border: bool,
     /// Weights file (.npz bundle of the three nets) instead of the embedded ×2 model.
-    #[arg(long)]
+    #[arg(help_heading = "Model and engine", long)]
     pub weights: Option<PathBuf>,
     /// Frames per network pass (more = faster, more memory).
-    #[arg(long, default_value_t = 8)]
+    #[arg(help_heading = "Model and engine", long, default_value_t = 8)]
     pub batch: usize,
     /// Worker threads, 1 to 1024 (default: all cores).
-    #[arg(long, value_parser = parse_threads)]
+    #[arg(help_heading = "Model and engine", long, value_parser = parse_threads)]
     pub threads: Option<usize>,
     /// Compute device: cpu or cuda.
-    #[arg(long, default_value = "cpu")]
+    #[arg(help_heading = "Model and engine", long, default_value = "cpu")]
     pub device: String,
+    /// The nets' arithmetic: fp32 (today the only one; the audited path).
+    #[arg(help_heading = "Model and engine", long, default_value = "fp32", value_parser = ["fp32"])]
+    pub precision: String,
     /// Output format: auto (same as input), obj or npy.
-    #[arg(long, default_value = "auto", value_parser = ["auto", "obj", "npy"])]
+    #[arg(help_heading = "Input and output", long, default_value = "auto", value_parser = ["auto", "obj", "npy"])]
     pub format: String,
     /// Domain margin for OBJ and point-cache input, as a fraction of the sequence's largest
     /// extent, from 0 to 1.
-    #[arg(long, default_value_t = DOMAIN_MARGIN)]
+    #[arg(help_heading = "Model and engine", long, default_value_t = DOMAIN_MARGIN)]
     pub margin: f32,
     /// Also write the predicted boundary and wrinkle-edge maps (boundary.npy, enhance.npy).
-    #[arg(long)]
+    #[arg(help_heading = "Input and output", long)]
     pub maps: bool,
     /// Rest mesh of a point-cache input (.pc2/.mdd): the OBJ whose vertices the cache moves,
     /// in the same order (export both from the same object). Its connectivity, UVs and
     /// material are used; the output gets an HR rest OBJ of the same name beside the HR cache.
-    #[arg(long, value_name = "OBJ")]
+    #[arg(help_heading = "Input and output", long, value_name = "OBJ")]
     pub rest: Option<PathBuf>,
     /// Upscale only frames A to B−1 of the shot (0-based, `A:B`, `A:` = to the end). Slices
     /// upscaled separately give exactly the files (bytes) the whole shot gives, so a farm can
     /// split a shot by frame range; .npy output of a slice is named geometry.A-B.npy.
-    #[arg(long, value_name = "A:B")]
+    #[arg(help_heading = "Input and output", long, value_name = "A:B")]
     pub frames: Option<String>,
     /// Frames read, upscaled and written at a time: memory is bounded by this, not by the
     /// shot's length.
-    #[arg(long, default_value_t = DEFAULT_CHUNK)]
+    #[arg(help_heading = "Model and engine", long, default_value_t = DEFAULT_CHUNK)]
     pub chunk: usize,
     /// Physics pass (opt-in): an HR cloth simulated alongside the shot, held to the nets' frames
     /// at the LR grid's scale only, so folds finer than the LR grid form where an HR simulation
-    /// forms them (docs/wrinkles.md, "The physics pass"). Reads the shot as metres; set
+    /// forms them (docs/research/wrinkles.md, "The physics pass"). Reads the shot as metres; set
     /// --gravity, --fps and --material to match it, and --physics-pin where the cloth is held.
     /// Needs the whole shot from frame 0.
-    #[arg(long)]
+    #[arg(help_heading = "Physics pass (--physics)", long)]
     pub physics: bool,
     /// With --physics: gravity in the shot's axes, m/s² (y-up OBJ: 0,-9.81,0; a z-up scene:
     /// 0,0,-9.81).
-    #[arg(long, value_name = "X,Y,Z", default_value = "0,-9.81,0", allow_hyphen_values = true)]
+    #[arg(
+        help_heading = "Physics pass (--physics)",
+        long,
+        value_name = "X,Y,Z",
+        default_value = "0,-9.81,0",
+        allow_hyphen_values = true
+    )]
     pub gravity: String,
     /// With --physics: the shot's frame rate (frames per second).
-    #[arg(long, default_value_t = 30.0)]
+    #[arg(help_heading = "Physics pass (--physics)", long, default_value_t = 30.0)]
     pub fps: f32,
+    /// With --physics: settings chosen for a kind of shot. `blender`: cloth simulated by
+    /// Blender, = --material silk --physics-damping 1 (chosen on the five Blender validation
+    /// scenes: Blender's sheets fold finer than cotton and its cloth is damped more than ours).
+    /// A --material or --physics-damping given as well wins over the preset's.
+    #[arg(help_heading = "Physics pass (--physics)", long, value_parser = ["blender"])]
+    pub preset: Option<String>,
     /// With --physics: the cloth's material (silk, cotton, denim, rubber); its bending
-    /// stiffness sets how fine the folds are. For a Blender shot, silk with
-    /// --physics-damping 1 (Blender's sheets fold finer than cotton).
-    #[arg(long, default_value = "cotton")]
-    pub material: String,
+    /// stiffness sets how fine the folds are. Default cotton (silk with --preset blender).
+    #[arg(help_heading = "Physics pass (--physics)", long)]
+    pub material: Option<String>,
     /// With --physics: what the pass hands on: `cloth` = the simulated cloth itself, its slow
     /// drift from the shot taken out (--physics-drift; the default: its folds stay put and it
     /// filters the nets' frame-to-frame jitter), `detail` = the nets' frame plus the simulated
     /// cloth's folds finer than the LR grid (the nets' coarse shape, jitter included).
-    #[arg(long, default_value = "cloth", value_parser = ["cloth", "detail"])]
+    #[arg(help_heading = "Physics pass (--physics)", long, default_value = "cloth", value_parser = ["cloth", "detail"])]
     pub physics_output: String,
     /// With --physics and `cloth` output: time constant (s) over which the cloth's coarse
     /// drift from the shot (the part the pass's springs, without the shot's wind and
     /// colliders, leave) is taken out; 0 = every frame in full, inf = never.
-    #[arg(long, value_name = "SECONDS", default_value_t = crate::cloth::follow::DRIFT_SECONDS)]
+    #[arg(help_heading = "Physics pass (--physics)", long, value_name = "SECONDS", default_value_t = crate::cloth::follow::DRIFT_SECONDS)]
     pub physics_drift: f32,
     /// With --physics: the height (m, along −gravity: `y` in a y-up shot) of a floor under the
     /// cloth; no output vertex goes below it. The pass does not see the shot's colliders, so
     /// without it folds may dip into the floor by centimetres.
-    #[arg(long, value_name = "HEIGHT", allow_hyphen_values = true)]
+    #[arg(
+        help_heading = "Physics pass (--physics)",
+        long,
+        value_name = "HEIGHT",
+        allow_hyphen_values = true
+    )]
     pub physics_ground: Option<f32>,
     /// With --physics: a static sphere in the shot, X,Y,Z,R (m, the shot's axes): the pass's
     /// cloth collides with it and the output stays out of it.
-    #[arg(long, value_name = "X,Y,Z,R", allow_hyphen_values = true)]
+    #[arg(
+        help_heading = "Physics pass (--physics)",
+        long,
+        value_name = "X,Y,Z,R",
+        allow_hyphen_values = true
+    )]
     pub physics_sphere: Option<String>,
     /// With --physics: a static box in the shot, aligned with its axes, X,Y,Z,HX,HY,HZ (centre
     /// and half extents, m): a table top is its upper face.
-    #[arg(long, value_name = "X,Y,Z,HX,HY,HZ", allow_hyphen_values = true)]
+    #[arg(
+        help_heading = "Physics pass (--physics)",
+        long,
+        value_name = "X,Y,Z,HX,HY,HZ",
+        allow_hyphen_values = true
+    )]
     pub physics_box: Option<String>,
     /// With --physics: how hard the simulated cloth is held to the shot at the LR grid's scale
     /// (1/s², the square of the attachment's angular frequency; higher = closer to the shot,
     /// folds finer than the LR grid stay free either way).
-    #[arg(long, default_value_t = crate::cloth::follow::FollowParams::default().strength)]
+    #[arg(help_heading = "Physics pass (--physics)", long, default_value_t = crate::cloth::follow::FollowParams::default().strength)]
     pub physics_strength: f32,
-    /// With --physics: damping of that attachment as a fraction of critical. 0 = none, as the
-    /// training truth's runs (chosen on our simulator's runs); use 1 for a Blender shot (with
-    /// --material silk), whose more damped cloth the undamped pass follows with a ring after it
-    /// lands (chosen on the five Blender validation scenes: docs/wrinkles.md, "Blender shots").
-    #[arg(long, default_value_t = crate::cloth::follow::FollowParams::default().damping)]
-    pub physics_damping: f32,
+    /// With --physics: damping of that attachment as a fraction of critical. Default 0 = none,
+    /// as the training truth's runs (chosen on our simulator's runs); 1 with --preset blender,
+    /// whose more damped cloth the undamped pass follows with a ring after it lands.
+    #[arg(help_heading = "Physics pass (--physics)", long)]
+    pub physics_damping: Option<f32>,
     /// With --physics: edges of the grid the shot's cloth is held by (pinned, hooked, in a
     /// hand), comma-separated: top, bottom, left, right (row 0 of the input is `top`, column 0
     /// `left`), corners, or none. Those vertices follow the shot exactly and pull the cloth
     /// into the folds the hold makes; a flag is `top`, a towel held at both ends `left,right`.
-    #[arg(long, default_value = "none", value_name = "EDGES")]
+    #[arg(help_heading = "Physics pass (--physics)", long, default_value = "none", value_name = "EDGES")]
     pub physics_pin: String,
     /// With --physics: XPBD substeps per second of shot time (at least one per frame). More
     /// makes the cloth stiffer against stretching and costs time in proportion.
-    #[arg(long, default_value_t = crate::cloth::follow::FollowParams::default().substeps_per_second)]
+    #[arg(help_heading = "Physics pass (--physics)", long, default_value_t = crate::cloth::follow::FollowParams::default().substeps_per_second)]
     pub physics_substeps: f32,
 }
 
@@ -230,38 +260,26 @@ impl Report for Stderr {
     }
 }
 
-pub fn run(a: Args) -> Result<()> {
-    let job = UpscaleJob {
-        inputs: a.input,
-        out: a.out,
-        rest: a.rest,
-        format: match a.format.as_str() {
-            "obj" => OutputFormat::Obj,
-            "npy" => OutputFormat::Npy,
-            _ => OutputFormat::Auto,
-        },
-        frames: a.frames,
-        margin: a.margin,
-        chunk: a.chunk,
-        maps: a.maps,
-        params: UpscaleParams {
-            eta: a.eta,
-            enhance_map: a.maps,
-            batch: a.batch,
-            temporal: a.temporal,
-            strain_iters: a.strain_iters,
-            pin_border: a.pin_border,
-            mirrors: a.mirrors,
-            keep_outline: a.keep_outline,
-            gate_coarse_only: a.gate_coarse_only,
-        },
-        physics: if a.physics {
+/// The options as a typed job, checked once ([`UpscaleJob::check`]).
+fn job(a: &Args) -> Result<CheckedJob> {
+    let physics = match (a.physics, &a.preset) {
+        (false, Some(p)) => {
+            return Err(Error::config(format!(
+                "--preset {p} sets the physics pass's material and damping: add --physics"
+            )))
+        }
+        (false, None) => None,
+        (true, preset) => {
+            let base = match preset.as_deref() {
+                Some("blender") => FollowParams::blender_shot(),
+                _ => FollowParams::default(),
+            };
             Some(FollowParams {
                 gravity: parse_gravity(&a.gravity)?,
                 fps: a.fps,
-                material: Material::from_name(&a.material)?,
+                material: a.material.as_deref().map_or(Ok(base.material), Material::from_name)?,
                 strength: a.physics_strength,
-                damping: a.physics_damping,
+                damping: a.physics_damping.unwrap_or(base.damping),
                 output: if a.physics_output == "cloth" { FollowOutput::Cloth } else { FollowOutput::Detail },
                 drift_seconds: a.physics_drift,
                 ground: a.physics_ground,
@@ -280,18 +298,44 @@ pub fn run(a: Args) -> Result<()> {
                 pins: PinnedEdges::parse(&a.physics_pin)?,
                 substeps_per_second: a.physics_substeps,
             })
-        } else {
-            None
-        },
+        }
     };
-    // Every option checked before a file is read or a net runs.
-    job.params.validate()?;
-    if let Some(p) = &job.physics {
-        p.validate()?;
+    UpscaleJob {
+        inputs: a.input.clone(),
+        out: a.out.clone(),
+        rest: a.rest.clone(),
+        format: match a.format.as_str() {
+            "obj" => OutputFormat::Obj,
+            "npy" => OutputFormat::Npy,
+            _ => OutputFormat::Auto,
+        },
+        frames: a.frames.as_deref().map(FrameSpan::parse).transpose()?,
+        margin: a.margin,
+        chunk: a.chunk,
+        maps: a.maps,
+        params: UpscaleParams {
+            eta: a.eta,
+            enhance_map: a.maps,
+            batch: a.batch,
+            temporal: a.temporal,
+            strain_iters: a.strain_iters,
+            pin_border: a.pin_border,
+            mirrors: a.mirrors,
+            keep_outline: a.keep_outline,
+            gate_coarse_only: a.gate_coarse_only,
+        },
+        physics,
+        precision: Precision::Fp32,
     }
-    crate::pipeline::job::check_margin(job.margin)?;
+    .check()
+}
+
+pub fn run(a: Args) -> Result<()> {
+    // Every option checked before a file is read or a net runs.
+    let job = job(&a)?;
+    let device = Device::parse(&a.device)?;
     set_threads(a.threads)?;
-    let ops = crate::cuda::ops_for_device(&a.device)?;
+    let ops = device.ops()?;
     let model = load_model(a.weights.as_deref())?;
     let done = upscale_files(ops.as_ref(), &model, &job, &mut Stderr::default())?;
     let (n, secs) = (done.frames, done.seconds);

@@ -1,10 +1,10 @@
-//! The physics pass of `anisocb upscale --physics` (docs/wrinkles.md, "The physics pass"): an
+//! The physics pass of `anisocb upscale --physics` (docs/research/wrinkles.md, "The physics pass"): an
 //! HR cloth simulated alongside a shot it did not make, coarse-tracked to the nets' HR frames,
 //! so the folds finer than the LR grid form as they would in an HR run of the same cloth.
 //!
 //! Why a simulation: the LR run does fix where the HR run's folds go — one frame after the HR
 //! run is put back on the bare LR surface its folds are back (correlation 0.53–0.66 with the
-//! original's, docs/wrinkles.md, "How much of the detail the LR run fixes") — but the nets do
+//! original's, docs/research/wrinkles.md, "How much of the detail the LR run fixes") — but the nets do
 //! not learn that map, even on their training runs (≤ 0.13). An HR cloth held to the LR
 //! surface's coarse shape buckles where the real one did.
 //!
@@ -48,18 +48,18 @@ pub struct FollowParams {
     /// XPBD substeps per second of shot time (at least 1 per frame). With one solver
     /// iteration per substep the cloth is stiffer against stretching the more substeps it
     /// takes: 600 (the default, what the training truth's HR runs take: 20 per 30 fps frame)
-    /// was chosen on the seed-6 validation runs over 300 and 1200 (docs/wrinkles.md, "The
+    /// was chosen on the seed-6 validation runs over 300 and 1200 (docs/research/wrinkles.md, "The
     /// physics pass").
     pub substeps_per_second: f32,
     /// Damping of the tracking as a fraction of critical. The default is none, as the
     /// training truth's HR runs track their LR runs: the cloth's coarse shape then swings
     /// about the shot as the truth's swings about its LR run, and the folds form where the
     /// truth's do (at 2000 1/s² on the seed-6 validation runs, mean correlation 0.369 at 0.1
-    /// of critical, 0.380 at 0.3, 0.447 undamped; docs/wrinkles.md, "The physics pass"). An
+    /// of critical, 0.380 at 0.3, 0.447 undamped; docs/research/wrinkles.md, "The physics pass"). An
     /// undamped attachment rings at √strength rad/s (7.1 Hz at 2000 1/s²) after a jolt, which
     /// a more damped solver's cloth does not: on the Blender sheet landing on a sphere, STED
     /// temporal 1.01× Catmull-Rom's undamped, 0.78× at 1 (critical; 0.81× in silk), the
-    /// value for Blender shots chosen on the five Blender validation scenes (docs/wrinkles.md,
+    /// value for Blender shots chosen on the five Blender validation scenes (docs/research/wrinkles.md,
     /// "Blender shots").
     pub damping: f32,
     /// What the pass hands on.
@@ -70,7 +70,7 @@ pub struct FollowParams {
     /// of the lag (wind or a collider the pass does not know push the shot's cloth where the
     /// springs alone would not) and leaves out the frame-to-frame jitter of the nets' coarse
     /// shape, which the simulated cloth filters. `f32::INFINITY` turns it off, 0 corrects
-    /// every frame in full. 3 s was chosen on the seed-6 validation runs (docs/wrinkles.md,
+    /// every frame in full. 3 s was chosen on the seed-6 validation runs (docs/research/wrinkles.md,
     /// "The physics pass", Output).
     pub drift_seconds: f32,
     /// The edges of the grid that follow the shot's frames exactly (the artist's pins).
@@ -99,7 +99,7 @@ pub enum FollowOutput {
     /// The simulated cloth itself, its slow coarse drift from the shot taken out
     /// ([`FollowParams::drift_seconds`]). The default: chosen over `Detail` on the seed-6
     /// validation runs (mean correlation 0.306 → 0.316, STED temporal below Catmull-Rom's on
-    /// all six instead of four; docs/wrinkles.md, "The physics pass", Output).
+    /// all six instead of four; docs/research/wrinkles.md, "The physics pass", Output).
     Cloth,
 }
 
@@ -123,68 +123,89 @@ impl Default for FollowParams {
 }
 
 impl FollowParams {
+    /// The setting for cloth simulated by Blender (`upscale --preset blender`): silk, damped
+    /// at critical, the rest the defaults. Chosen on the five Blender validation scenes
+    /// (research/wrinkles/blender_setting.sh): damping 1 gave the lowest flicker against
+    /// Catmull-Rom's (mean STED 0.895×, undamped 1.083×), silk at it the wrinkle ratio closest
+    /// to 1 (0.51) with flicker below interpolation's (0.952×).
+    pub fn blender_shot() -> FollowParams {
+        FollowParams { material: Material::SILK, damping: 1.0, ..FollowParams::default() }
+    }
+
     pub fn validate(&self) -> Result<()> {
         if !self.gravity.iter().all(|g| g.is_finite() && g.abs() <= 1000.0) {
-            return Err(Error::config(format!(
-                "--gravity must be three finite numbers of at most 1000 m/s² each, got {:?}",
-                self.gravity
-            )));
+            return Err(Error::invalid(
+                "gravity",
+                format!("must be three finite numbers of at most 1000 m/s² each, got {:?}", self.gravity),
+            ));
         }
         if !(self.fps.is_finite() && (1.0..=1000.0).contains(&self.fps)) {
-            return Err(Error::config(format!(
-                "--fps must be 1 to 1000 frames per second, got {}",
-                self.fps
-            )));
+            return Err(Error::invalid(
+                "fps",
+                format!("must be 1 to 1000 frames per second, got {}", self.fps),
+            ));
         }
         if !(self.strength.is_finite() && (1.0..=1e6).contains(&self.strength)) {
-            return Err(Error::config(format!(
-                "the physics pass's tracking strength must be 1 to 1e6 1/s², got {}",
-                self.strength
-            )));
+            return Err(Error::invalid(
+                "strength",
+                format!("the physics pass's tracking strength must be 1 to 1e6 1/s², got {}", self.strength),
+            ));
         }
         if !(self.damping.is_finite() && (0.0..=100.0).contains(&self.damping)) {
-            return Err(Error::config(format!(
-                "the physics pass's damping must be 0 to 100 (× critical), got {}",
-                self.damping
-            )));
+            return Err(Error::invalid(
+                "damping",
+                format!("the physics pass's damping must be 0 to 100 (× critical), got {}", self.damping),
+            ));
         }
         if let Some(g) = self.ground {
             if !g.is_finite() || self.gravity.iter().all(|&c| c == 0.0) {
-                return Err(Error::config(format!(
-                    "--physics-ground must be a finite height in metres and needs a --gravity to say \
+                return Err(Error::invalid(
+                    "ground",
+                    format!(
+                        "the floor must be a finite height in metres and needs a gravity to say \
                      which way is down, got {g} with gravity {:?}",
-                    self.gravity
-                )));
+                        self.gravity
+                    ),
+                ));
             }
         }
         let sphere_ok =
             |s: &Sphere| s.center.iter().all(|c| c.is_finite()) && s.radius.is_finite() && s.radius > 0.0;
         if !self.sphere.as_ref().is_none_or(sphere_ok) {
-            return Err(Error::config(format!(
-                "--physics-sphere must be X,Y,Z,R in metres with a finite centre and R > 0, got {:?}",
-                self.sphere
-            )));
+            return Err(Error::invalid(
+                "sphere",
+                format!(
+                    "the sphere must be X,Y,Z,R in metres with a finite centre and R > 0, got {:?}",
+                    self.sphere
+                ),
+            ));
         }
         let box_ok = self.cuboid.is_none_or(|b| {
             b.center.iter().all(|c| c.is_finite()) && b.half.iter().all(|h| h.is_finite() && *h > 0.0)
         });
         if !box_ok {
-            return Err(Error::config(format!(
-                "--physics-box must be X,Y,Z,HX,HY,HZ in metres (centre, half extents > 0), got {:?}",
-                self.cuboid
-            )));
+            return Err(Error::invalid(
+                "cuboid",
+                format!(
+                    "the box must be X,Y,Z,HX,HY,HZ in metres (centre, half extents > 0), got {:?}",
+                    self.cuboid
+                ),
+            ));
         }
         if self.drift_seconds.is_nan() || self.drift_seconds < 0.0 {
-            return Err(Error::config(format!(
-                "--physics-drift must be a time in seconds ≥ 0 (inf turns the correction off), got {}",
+            return Err(Error::invalid("drift_seconds", format!(
+                "the drift correction's time constant must be a time in seconds ≥ 0 (inf turns the correction off), got {}",
                 self.drift_seconds
             )));
         }
         if !(self.substeps_per_second.is_finite() && (1.0..=1e5).contains(&self.substeps_per_second)) {
-            return Err(Error::config(format!(
-                "--physics-substeps must be 1 to 1e5 per second, got {}",
-                self.substeps_per_second
-            )));
+            return Err(Error::invalid(
+                "substeps_per_second",
+                format!(
+                    "the physics pass's substeps must be 1 to 1e5 per second, got {}",
+                    self.substeps_per_second
+                ),
+            ));
         }
         Ok(())
     }
@@ -234,7 +255,7 @@ impl FollowParams {
     /// free vertex no farther from its nearest pin than in the first frame, plus the slack: the
     /// first frame should be the cloth laid out or hanging, not crumpled). Tethers with the pins
     /// raised the mean correlation on the seed-6 validation runs with held edges from 0.253 to
-    /// 0.290 (pins alone 0.255; docs/wrinkles.md, "The physics pass", Pins).
+    /// 0.290 (pins alone 0.255; docs/research/wrinkles.md, "The physics pass", Pins).
     pub fn sim_params(&self) -> SimParams {
         let substeps = ((self.substeps_per_second / self.fps).ceil() as usize).clamp(1, 1000);
         SimParams {
@@ -253,7 +274,7 @@ impl FollowParams {
 /// STED temporal ≤ Catmull-Rom's on every run). Undamped, targets from the frame's LR-grid
 /// resampling, the targets not raised: 1500 0.431 (the drop's STED 1.39× Catmull-Rom's: not
 /// eligible), **2000 0.447**, 3000 0.392. Earlier, critically damped with raised targets:
-/// 0.220 at 30 000, 0.269 at 10 000, 0.306 at 3000, 0.291 at 1000 (docs/wrinkles.md, "The
+/// 0.220 at 30 000, 0.269 at 10 000, 0.306 at 3000, 0.291 at 1000 (docs/research/wrinkles.md, "The
 /// physics pass").
 pub const FOLLOW_STRENGTH: f32 = 2_000.0;
 
@@ -361,7 +382,7 @@ impl Follower {
     /// validation runs' mean correlation from 0.356 to 0.386 (drop-table 0.37 → 0.42, drape
     /// 0.50 → 0.55), but on its own it put the held-out flag's vertex error at 1.30×
     /// Catmull-Rom's; with the attachment undamped and the LR-grid targets it is 0.94×
-    /// (docs/wrinkles.md, "The physics pass"). `cloth` output's drift correction takes the sag
+    /// (docs/research/wrinkles.md, "The physics pass"). `cloth` output's drift correction takes the sag
     /// out of the output from the first frame.
     fn settle(&mut self, first: &GridMesh) {
         let (time, t) = (self.cloth.time, self.targets(first));
@@ -408,7 +429,7 @@ impl Follower {
     /// a smooth surface where the truth's targets come from a faceted one, lie a curvature's
     /// worth apart from those, and the folds form elsewhere: on the seed-6 validation runs
     /// the mean correlation was 0.427 that way, 0.447 this way (drape 0.61 → 0.69; with the
-    /// true LR frames 0.456; docs/wrinkles.md, "The physics pass").
+    /// true LR frames 0.456; docs/research/wrinkles.md, "The physics pass").
     fn targets(&self, frame: &GridMesh) -> Vec<[f32; 3]> {
         let img = sequence_to_images(std::slice::from_ref(frame), &Domain::UNIT);
         let lr = resize(&img, self.lr.1, self.lr.0, Interp::CatmullRom);
@@ -521,7 +542,7 @@ impl Follower {
 /// none on the border ring, half on the next, all inside. The simulated hem, held by fewer
 /// coarse constraints than the inside, crumples in its own plane: with all of it the border
 /// came out 2.5–6 % longer than the truth's on the seed-6 drops and twists (the nets' within
-/// 2 %); the shot's border is the nets' (docs/wrinkles.md, "The physics pass").
+/// 2 %); the shot's border is the nets' (docs/research/wrinkles.md, "The physics pass").
 fn border_taper(i: usize, j: usize, w: usize, h: usize) -> f32 {
     match i.min(j).min(w - 1 - i).min(h - 1 - j) {
         0 => 0.0,

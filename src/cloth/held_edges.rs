@@ -32,10 +32,13 @@ impl PinnedEdges {
                 "right" => &mut e.right,
                 "corners" => &mut e.corners,
                 _ => {
-                    return Err(Error::config(format!(
-                        "--physics-pin takes a comma-separated list of {} (or none), got {w:?}",
-                        Self::NAMES.join(", ")
-                    )))
+                    return Err(Error::invalid(
+                        "pins",
+                        format!(
+                            "the held edges are a comma-separated list of {} (or none), got {w:?}",
+                            Self::NAMES.join(", ")
+                        ),
+                    ))
                 }
             } = true;
         }

@@ -146,17 +146,17 @@ pub struct ScenarioSpec {
     /// Metres of seeded noise (uniform in ±`hr_jitter` per coordinate, seed `seed`) added to
     /// the tracked HR run's free vertices at rest; 0 = none. Two runs that differ only in it
     /// are twins of one HR truth under the same LR run: how far their detail agrees is how much
-    /// of it the LR run fixes (docs/wrinkles.md, "How much of the detail the LR run fixes").
+    /// of it the LR run fixes (docs/research/wrinkles.md, "How much of the detail the LR run fixes").
     pub hr_jitter: f32,
     /// Frame at which the tracked HR run forgets its own history: its free vertices are put on
     /// the LR run's bilinear surface, moving with the LR run's velocity, and the folds form
     /// again from there; 0 = never. Compared with the run that kept its history, it says how
-    /// long a window of LR frames fixes the HR detail (docs/wrinkles.md).
+    /// long a window of LR frames fixes the HR detail (docs/research/wrinkles.md).
     pub hr_restart: usize,
     /// The tracked HR run knows only its LR run, as a physics upscaler of someone else's cloth
     /// would: no colliders, no wind, started on the LR run's surface (a restart at frame 1);
     /// gravity, material and pins stay the scenario's. A study of what such an upscaler could
-    /// reach (docs/wrinkles.md), not training data.
+    /// reach (docs/research/wrinkles.md), not training data.
     pub hr_blind: bool,
     pub params: SimParams,
 }
@@ -221,8 +221,8 @@ impl Variation {
 }
 
 /// Default tracking strength (1/s²): attachment natural frequency ≈ 5 Hz, soft enough for
-/// wrinkles to form, strong enough to keep the HR run on its LR twin. Measured (docs/results.md, "What
-/// there is to learn"): at 100 1/s² most of HR − U on a held-out flag is the HR run drifting
+/// wrinkles to form, strong enough to keep the HR run on its LR twin. Measured
+/// (docs/research/results-notebook.md, "What there is to learn"): at 100 1/s² most of HR − U on a held-out flag is the HR run drifting
 /// away (3.6 mm), at 1000 it is 2.1 mm and at 10 000 2.0 mm, so 1000 keeps the wrinkles and
 /// drops the drift no upscaler could predict. The shipped model is trained at this strength.
 pub const DEFAULT_TRACKING: f32 = 1000.0;

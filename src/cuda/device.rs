@@ -147,7 +147,7 @@ impl Cuda {
             Ok(()) => {}
             Err(DriverError(CUresult::CUDA_ERROR_NO_DEVICE)) => {
                 return Err(Error::device(
-                    "no CUDA device: the driver is installed but finds no GPU; use --device cpu",
+                    "no CUDA device: the driver is installed but finds no GPU; run on the cpu device",
                 ))
             }
             Err(e) => return Err(driver_err("cannot initialise the CUDA driver (cuInit)", e)),
@@ -155,7 +155,7 @@ impl Cuda {
         let count = dr::device::get_count().map_err(|e| driver_err("cannot count CUDA devices", e))?;
         if count <= 0 {
             return Err(Error::device(
-                "no CUDA device: the driver is installed but finds no GPU; use --device cpu",
+                "no CUDA device: the driver is installed but finds no GPU; run on the cpu device",
             ));
         }
         if ordinal >= count as usize {

@@ -83,18 +83,50 @@ pub(crate) const KERNELS: [(&str, &str, &[&str]); 6] = [
 /// The devices [`ops_for_device`] knows, for option help texts.
 pub const DEVICES: &[&str] = &["cpu", "cuda"];
 
-/// The op table for a `--device` option value: `"cpu"` (the default everywhere) or `"cuda"`
-/// (first GPU). Errors: an unknown name ([`Error::Config`]); `cuda` in a build without the
-/// feature, without a driver, or without a device ([`Error::Device`], saying which and how to
-/// fix it).
-pub fn ops_for_device(name: &str) -> Result<Box<dyn Ops>> {
-    match name.trim().to_ascii_lowercase().as_str() {
-        "cpu" => Ok(Box::new(Cpu)),
-        "cuda" | "gpu" => Ok(Box::new(Cuda::new()?)),
-        other => {
-            Err(Error::config(format!("unknown device `{other}`: expected one of {}", DEVICES.join(", "))))
+/// Where the nets run.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Device {
+    /// The CPU op table ([`Cpu`]): the default everywhere.
+    #[default]
+    Cpu,
+    /// The first GPU (feature `cuda`).
+    Cuda,
+}
+
+impl Device {
+    /// Its name in [`DEVICES`].
+    pub fn name(self) -> &'static str {
+        match self {
+            Device::Cpu => "cpu",
+            Device::Cuda => "cuda",
         }
     }
+
+    /// `cpu` or `cuda` (`gpu` too), any case, spaces around ignored.
+    pub fn parse(name: &str) -> Result<Device> {
+        match name.trim().to_ascii_lowercase().as_str() {
+            "cpu" => Ok(Device::Cpu),
+            "cuda" | "gpu" => Ok(Device::Cuda),
+            other => Err(Error::invalid(
+                "device",
+                format!("unknown device `{other}`: expected one of {}", DEVICES.join(", ")),
+            )),
+        }
+    }
+
+    /// Its op table. Errors: `cuda` in a build without the feature, without a driver, or
+    /// without a device ([`Error::Device`], saying which and how to fix it).
+    pub fn ops(self) -> Result<Box<dyn Ops>> {
+        match self {
+            Device::Cpu => Ok(Box::new(Cpu)),
+            Device::Cuda => Ok(Box::new(Cuda::new()?)),
+        }
+    }
+}
+
+/// The op table for a device named `name` ([`Device::parse`], [`Device::ops`]).
+pub fn ops_for_device(name: &str) -> Result<Box<dyn Ops>> {
+    Device::parse(name)?.ops()
 }
 
 #[cfg(test)]
@@ -121,9 +153,9 @@ mod tests {
     }
 
     #[test]
-    fn unknown_device_is_a_config_error() {
+    fn unknown_device_is_an_invalid_device_option() {
         let e = ops_for_device("tpu").err().expect("tpu is not a device");
-        assert!(matches!(e, Error::Config(_)), "{e}");
+        assert!(matches!(e, Error::Invalid { field: "device", .. }), "{e}");
         assert!(e.to_string().contains("cpu, cuda"), "{e}");
     }
 }

@@ -1,4 +1,4 @@
-//! The wrinkle-detail metric (issue 30, docs/wrinkles.md): D(X) = (X − S(X))·n, the part of
+//! The wrinkle-detail metric (issue 30, docs/research/wrinkles.md): D(X) = (X − S(X))·n, the part of
 //! an HR frame its Catmull-Rom round trip through the LR grid does not hold, along the normals
 //! of that round trip; its RMS, correlation with the truth's and frame-to-frame change.
 

@@ -159,10 +159,13 @@ fn process_alive(pid: u32) -> bool {
 /// Create `dir` (and parents), with an error that names it and says what to do.
 pub fn ensure_dir(dir: &Path) -> Result<()> {
     if dir.exists() && !dir.is_dir() {
-        return Err(Error::format(dir, "output path exists and is not a directory; choose a writable --out"));
+        return Err(Error::format(
+            dir,
+            "output path exists and is not a directory; choose a writable output folder",
+        ));
     }
     fs::create_dir_all(dir).map_err(|e| {
-        Error::format(dir, format!("cannot create output directory ({e}); choose a writable --out"))
+        Error::format(dir, format!("cannot create output directory ({e}); choose a writable output folder"))
     })
 }
 

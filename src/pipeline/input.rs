@@ -193,8 +193,8 @@ fn refuse_colliding_names(files: &[PathBuf]) -> Result<()> {
             format!("{} is given twice; give each frame once", f.display())
         } else if prev.file_name() == f.file_name() {
             format!(
-                "{} and {} would both be written as {name} in --out, one shot overwriting the other; \
-                 upscale each folder into its own --out",
+                "{} and {} would both be written as {name} in the output folder, one shot overwriting the \
+                 other; upscale each folder into its own output folder",
                 prev.display(),
                 f.display()
             )
@@ -382,11 +382,14 @@ pub fn open_input(
     }
     if inputs.len() == 1 && CacheFormat::from_path(first).is_some() {
         let Some(rest) = rest else {
-            return Err(Error::config(format!(
-                "{}: a point cache holds positions only; give the mesh they move with --rest MESH.obj \
+            return Err(Error::invalid(
+                "rest",
+                format!(
+                "{}: a point cache holds positions only; give the mesh they move as its rest mesh (an OBJ) \
                  (exported from the same object, same vertex order)",
                 first.display()
-            )));
+            ),
+            ));
         };
         let cache = PointCacheReader::open(first)?;
         let seq = ObjSequence::open(&[rest.to_path_buf()])?;
@@ -443,7 +446,7 @@ pub fn open_input(
         )));
     }
     if rest.is_some() {
-        return Err(Error::config("--rest is for point-cache input (.pc2 / .mdd) only"));
+        return Err(Error::invalid("rest", "a rest mesh is for point-cache input (.pc2 / .mdd) only"));
     }
     let files = obj_files(inputs)?;
     refuse_colliding_names(&files)?;

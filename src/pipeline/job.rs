@@ -37,7 +37,69 @@ pub enum OutputFormat {
     Npy,
 }
 
-/// What to upscale, where to, and how.
+/// The arithmetic the nets run in.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Precision {
+    /// f32 throughout: the audited path, and today the only one.
+    #[default]
+    Fp32,
+}
+
+impl Precision {
+    /// Its name on the command line and in reports.
+    pub fn name(self) -> &'static str {
+        match self {
+            Precision::Fp32 => "fp32",
+        }
+    }
+}
+
+/// Frames `start..end` of a shot (0-based, `end` exclusive; `None`: to the shot's end).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct FrameSpan {
+    pub start: usize,
+    pub end: Option<usize>,
+}
+
+impl FrameSpan {
+    /// `A:B` or `A:`.
+    pub fn parse(spec: &str) -> Result<FrameSpan> {
+        let bad = || Error::invalid("frames", format!("{spec}: expected A:B (0-based, B exclusive) or A:"));
+        let (a, b) = spec.split_once(':').ok_or_else(bad)?;
+        let start = a.trim().parse().map_err(|_| bad())?;
+        let end = if b.trim().is_empty() { None } else { Some(b.trim().parse().map_err(|_| bad())?) };
+        let span = FrameSpan { start, end };
+        span.check()?;
+        Ok(span)
+    }
+
+    /// Refuse a span that is empty whatever the shot (B ≤ A).
+    fn check(self) -> Result<()> {
+        match self.end {
+            Some(b) if b <= self.start => Err(Error::invalid(
+                "frames",
+                format!("{}:{b} is empty: expected A:B with A < B (0-based, B exclusive)", self.start),
+            )),
+            _ => Ok(()),
+        }
+    }
+
+    /// The frames of a shot of `t` frames.
+    pub fn range(self, t: usize) -> Result<Range<usize>> {
+        let end = self.end.unwrap_or(t);
+        if self.start >= end || end > t {
+            let b = self.end.map_or(String::new(), |b| b.to_string());
+            return Err(Error::invalid(
+                "frames",
+                format!("{}:{b} is not in the shot: expected A:B or A: with 0 ≤ A < B ≤ {t}", self.start),
+            ));
+        }
+        Ok(self.start..end)
+    }
+}
+
+/// What to upscale, where to, and how: [`UpscaleJob::check`] makes it a [`CheckedJob`], which
+/// [`upscale_files`] runs.
 #[derive(Clone, Debug)]
 pub struct UpscaleJob {
     /// OBJ files, folders of OBJ files, a run folder or geometry.npy, or one point cache
@@ -48,9 +110,9 @@ pub struct UpscaleJob {
     /// Rest mesh of a point-cache input.
     pub rest: Option<PathBuf>,
     pub format: OutputFormat,
-    /// Frames `A:B` (0-based, B exclusive; `A:` to the end) of the shot, or all of them. A slice
-    /// gives exactly the bytes the whole shot gives for its frames.
-    pub frames: Option<String>,
+    /// Frames of the shot, or all of them. A slice gives exactly the bytes the whole shot
+    /// gives for its frames.
+    pub frames: Option<FrameSpan>,
     /// Domain margin for OBJ and point-cache input, a fraction of the shot's largest extent
     /// (0 to [`MAX_MARGIN`]).
     pub margin: f32,
@@ -59,9 +121,11 @@ pub struct UpscaleJob {
     /// Also write the boundary and wrinkle-edge maps (boundary.npy, enhance.npy).
     pub maps: bool,
     pub params: UpscaleParams,
-    /// The physics pass (`--physics`): the nets' frames pass through an HR cloth
-    /// coarse-tracked to them ([`crate::cloth::follow`]); `None` = off (the default).
+    /// The physics pass: the nets' frames pass through an HR cloth coarse-tracked to them
+    /// ([`crate::cloth::follow`]); `None` = off (the default). Needs the shot from frame 0.
     pub physics: Option<FollowParams>,
+    /// The nets' arithmetic.
+    pub precision: Precision,
 }
 
 impl UpscaleJob {
@@ -78,7 +142,50 @@ impl UpscaleJob {
             maps: false,
             params: UpscaleParams::default(),
             physics: None,
+            precision: Precision::Fp32,
         }
+    }
+
+    /// Check every option once, before a file is read or a net runs: the job as a
+    /// [`CheckedJob`], or the first field out of range ([`Error::Invalid`]).
+    pub fn check(self) -> Result<CheckedJob> {
+        self.params.validate()?;
+        check_margin(self.margin)?;
+        if let Some(p) = &self.physics {
+            p.validate()?;
+        }
+        if self.chunk == 0 {
+            return Err(Error::invalid(
+                "chunk",
+                "must be ≥ 1 frame (frames read, upscaled and written at a time)",
+            ));
+        }
+        if let Some(span) = self.frames {
+            span.check()?;
+            if self.physics.is_some() && span.start > 0 {
+                let end = span.end.map_or(String::new(), |b| b.to_string());
+                return Err(Error::invalid(
+                    "frames",
+                    format!(
+                        "the physics pass simulates the cloth from the shot's first frame: a slice \
+                         with it must start at 0 (got {}:{end}); upscale 0:{end} instead",
+                        span.start
+                    ),
+                ));
+            }
+        }
+        Ok(CheckedJob(self))
+    }
+}
+
+/// An [`UpscaleJob`] whose options passed [`UpscaleJob::check`]: what [`upscale_files`] runs.
+#[derive(Clone, Debug)]
+pub struct CheckedJob(UpscaleJob);
+
+impl std::ops::Deref for CheckedJob {
+    type Target = UpscaleJob;
+    fn deref(&self) -> &UpscaleJob {
+        &self.0
     }
 }
 
@@ -116,51 +223,29 @@ pub struct Summary {
 /// the geometry image and f32 loses its detail (at 1e30 every pixel reads 0.5).
 pub const MAX_MARGIN: f32 = 1.0;
 
-/// Refuse `--margin` outside 0 ..= [`MAX_MARGIN`] (NaN included).
+/// Refuse a margin outside 0 ..= [`MAX_MARGIN`] (NaN included).
 pub fn check_margin(margin: f32) -> Result<()> {
     if !(margin.is_finite() && (0.0..=MAX_MARGIN).contains(&margin)) {
-        return Err(Error::config(format!(
-            "--margin must be a fraction of the shot's extent from 0 to {MAX_MARGIN}, got {margin} \
-             (the default {DOMAIN_MARGIN} suits any shot)"
-        )));
+        return Err(Error::invalid(
+            "margin",
+            format!(
+                "must be a fraction of the shot's extent from 0 to {MAX_MARGIN}, got {margin} \
+                 (the default {DOMAIN_MARGIN} suits any shot)"
+            ),
+        ));
     }
     Ok(())
 }
 
-/// Parse `--frames A:B` against a shot of `t` frames.
-pub fn parse_frames(spec: Option<&str>, t: usize) -> Result<Range<usize>> {
-    let Some(spec) = spec else { return Ok(0..t) };
-    let bad = || {
-        Error::config(format!(
-            "--frames {spec}: expected A:B (0-based, B exclusive) or A: with 0 ≤ A < B ≤ {t}"
-        ))
-    };
-    let (a, b) = spec.split_once(':').ok_or_else(bad)?;
-    let a: usize = a.trim().parse().map_err(|_| bad())?;
-    let b: usize = if b.trim().is_empty() { t } else { b.trim().parse().map_err(|_| bad())? };
-    if a >= b || b > t {
-        return Err(bad());
-    }
-    Ok(a..b)
-}
-
-/// Run `job` with the `model` on `ops` (see the module docs); every option is checked before a
-/// file is read or a net runs, and every file is written atomically.
+/// Run `job` with the `model` on `ops` (see the module docs); its options were checked when it
+/// became a [`CheckedJob`], and every file is written atomically.
 pub fn upscale_files(
     ops: &dyn Ops,
     model: &AnisoCb,
-    job: &UpscaleJob,
+    job: &CheckedJob,
     report: &mut dyn Report,
 ) -> Result<Summary> {
     let params = &job.params;
-    params.validate()?;
-    check_margin(job.margin)?;
-    if let Some(p) = &job.physics {
-        p.validate()?;
-    }
-    if job.chunk == 0 {
-        return Err(Error::config("--chunk must be ≥ 1 frame (frames read, upscaled and written at a time)"));
-    }
     let r = model.scale();
     let mut messages = Vec::new();
     let opened = open_input(&job.inputs, job.rest.as_deref(), r, &mut messages);
@@ -175,13 +260,6 @@ pub fn upscale_files(
     let (domain, domain_note) = settle_domain(model, job, &plan, npy_domain, &mut shot, report)?;
     ensure_dir(&job.out)?;
     let range = plan.range.clone();
-    if job.physics.is_some() && range.start > 0 {
-        return Err(Error::config(format!(
-            "--physics simulates the cloth from the shot's first frame: a --frames slice must start \
-             at 0 (got {}:{}); upscale 0:{} instead",
-            range.start, range.end, range.end
-        )));
-    }
     report.message(&format!(
         "upscaling frames {}..{} of {t}, {w}x{h} -> {}x{} ({}), η = {}",
         range.start,
@@ -306,7 +384,7 @@ impl Plan {
             (OutputFormat::Auto, true, None) | (OutputFormat::Obj, ..) => "obj".to_string(),
             _ => "npy".to_string(),
         };
-        let range = parse_frames(job.frames.as_deref(), t)?;
+        let range = job.frames.map_or(Ok(0..t), |s| s.range(t))?;
         // Outputs of a slice carry its range in their names (OBJ frames keep their own names).
         let suffix = if range.len() != t { format!(".{}-{}", range.start, range.end) } else { String::new() };
         let cache_name = cache_in.map(|c| {

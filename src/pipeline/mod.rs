@@ -12,7 +12,7 @@
 //! use anisocb::nn::weights::embedded_model;
 //!
 //! let model = embedded_model()?;
-//! let job = UpscaleJob::new(vec!["frames/".into()], "hr/");
+//! let job = UpscaleJob::new(vec!["frames/".into()], "hr/").check()?;
 //! let done = upscale_files(&anisocb::ops::Cpu, &model, &job, &mut Quiet)?;
 //! println!("{} frames, {:?} -> {:?}", done.frames, done.lr, done.hr);
 //! # Ok::<(), anisocb::Error>(())

@@ -141,21 +141,27 @@ pub fn refuse_out_over_input(out: &Path, inputs: &[PathBuf], outputs: &[PathBuf]
     for f in inputs {
         let real_folder = f.canonicalize().ok().and_then(|c| c.parent().map(Path::to_path_buf));
         if [folder_of(f).canonicalize().ok(), real_folder].iter().flatten().any(|d| *d == out_c) {
-            return Err(Error::config(format!(
-                "--out {} is the folder of the input {}: the HR files would replace the input's; \
-                 give a new folder as --out (the input is left as it is)",
-                out.display(),
-                f.display()
-            )));
+            return Err(Error::invalid(
+                "out",
+                format!(
+                    "{} is the folder of the input {}: the HR files would replace the input's; \
+                 give a new output folder (the input is left as it is)",
+                    out.display(),
+                    f.display()
+                ),
+            ));
         }
         if let Some(o) = outputs.iter().find(|o| same_file(o, f)) {
-            return Err(Error::config(format!(
-                "--out {}: {} is the input {} under another name (a link), and would be \
-                 overwritten; give a new folder as --out",
-                out.display(),
-                o.display(),
-                f.display()
-            )));
+            return Err(Error::invalid(
+                "out",
+                format!(
+                    "{}: {} is the input {} under another name (a link), and would be \
+                 overwritten; give a new output folder",
+                    out.display(),
+                    o.display(),
+                    f.display()
+                ),
+            ));
         }
     }
     Ok(())

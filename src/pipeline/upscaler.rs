@@ -97,7 +97,7 @@ impl Upscaler {
     }
 
     /// Send every HR frame through the physics pass (`anisocb upscale --physics`,
-    /// docs/wrinkles.md): an HR cloth held to the frames at the LR grid's scale, so folds finer
+    /// docs/research/wrinkles.md): an HR cloth held to the frames at the LR grid's scale, so folds finer
     /// than the LR grid form. The shot must start at its first frame; [`Upscaler::flush`] ends
     /// it. Frames are read as metres.
     pub fn with_physics(mut self, params: FollowParams) -> Result<Upscaler> {

@@ -54,7 +54,7 @@ pub const MAX_BATCH: usize = 1024;
 /// (smooth flag), but +0.9 % (drape), +4.0 % (twist) and +2.8 % (twist-materials), whose
 /// training clips twist one way, so a mirrored view is less familiar to the nets. Training
 /// with mirrored samples (`train --mirror-augment`) raised GeometryNet's validation loss by
-/// 59 % and did not beat this (weights/README.md).
+/// 59 % and did not beat this (docs/research/model-history.md).
 pub const DEFAULT_MIRRORS: bool = true;
 
 /// Default [`UpscaleParams::pin_border`]: off. Measured on the validation runs (seed 6) with
@@ -68,7 +68,7 @@ pub const DEFAULT_PIN_BORDER: bool = false;
 /// trained on our simulator's cloth, whose hems rarely fold; on draped sheets from Blender
 /// they flatten the hanging hem's folds and the outline comes out shorter than the LR frame's
 /// own. Chosen by a rule written down before the three draped Blender validation scenes
-/// stool-drape, oval-table and bench-drape were simulated (weights/README.md): over the five
+/// stool-drape, oval-table and bench-drape were simulated (docs/research/model-history.md): over the five
 /// Blender validation scenes the border's distance from the truth's length falls from 0.27 %
 /// to 0.11 % on average (stool-drape 0.9951 → 0.9984 of the truth's, oval-table 0.9957 →
 /// 0.9992), vertex RMSE +0.00 to +0.05 %. The cost is on our simulator's twisted strips, whose
@@ -140,32 +140,41 @@ impl UpscaleParams {
     /// above [`MAX_STRAIN_ITERS`]. Checked before any network runs.
     pub fn validate(&self) -> Result<()> {
         if !(self.eta.is_finite() && (MIN_ETA..=MAX_ETA).contains(&self.eta)) {
-            return Err(Error::config(format!(
-                "enhancement factor η (--eta) must be a number from {MIN_ETA} to {MAX_ETA}, got {}; \
+            return Err(Error::invalid(
+                "eta",
+                format!(
+                    "the enhancement factor η must be a number from {MIN_ETA} to {MAX_ETA}, got {}; \
                  0 = the nets' detail as predicted, 1 = up to twice as deep on wrinkle edges, \
                  -0.5 = half as deep",
-                self.eta
-            )));
+                    self.eta
+                ),
+            ));
         }
         if self.temporal > MAX_TEMPORAL {
-            return Err(Error::config(format!(
-                "temporal smoothing radius (--temporal) must be at most {MAX_TEMPORAL} frames, got {}; \
+            return Err(Error::invalid(
+                "temporal",
+                format!(
+                    "the temporal smoothing radius must be at most {MAX_TEMPORAL} frames, got {}; \
                  1 or 2 calm flicker, 0 = off",
-                self.temporal
-            )));
+                    self.temporal
+                ),
+            ));
         }
         if self.batch == 0 || self.batch > MAX_BATCH {
-            return Err(Error::config(format!(
-                "batch (--batch) must be 1 to {MAX_BATCH} frames per network pass, got {}",
-                self.batch
-            )));
+            return Err(Error::invalid(
+                "batch",
+                format!("must be 1 to {MAX_BATCH} frames per network pass, got {}", self.batch),
+            ));
         }
         if self.strain_iters > MAX_STRAIN_ITERS {
-            return Err(Error::config(format!(
-                "strain-limit iterations (--strain-iters) must be at most {MAX_STRAIN_ITERS}, got {}; \
+            return Err(Error::invalid(
+                "strain_iters",
+                format!(
+                    "the strain-limit iterations must be at most {MAX_STRAIN_ITERS}, got {}; \
                  about 10 removes swimming, 0 = off",
-                self.strain_iters
-            )));
+                    self.strain_iters
+                ),
+            ));
         }
         Ok(())
     }

@@ -133,7 +133,7 @@ impl TrainingData {
 /// frame stays in training. `val_frac = 0` gives no validation.
 pub fn split(n: usize, val_frac: f32) -> Result<(Vec<usize>, Vec<usize>)> {
     if !(0.0..1.0).contains(&val_frac) {
-        return Err(Error::config(format!("--val-frac must be in [0, 1), got {val_frac}")));
+        return Err(Error::invalid("val_frac", format!("must be in [0, 1), got {val_frac}")));
     }
     // (−1e-6: 0.1f32 is 0.10000000149, and 10% of 800 frames should be 80, not 81.)
     let n_val = ((val_frac as f64 * n as f64 - 1e-6).ceil().max(0.0) as usize).min(n.saturating_sub(1));
