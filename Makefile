@@ -1,7 +1,7 @@
 # anisocb — `make demo` runs the main job, `make test` runs every check.
 CARGO ?= cargo
 
-.PHONY: all build test lint c-example c-example-if-cc rust-example fmt-check clippy check-features bench bench-peers demo weights dist fixtures onnx clean
+.PHONY: all build test lint c-example c-example-if-cc rust-example fmt-check clippy check-features cuda-parity dist-test bench bench-peers demo weights dist fixtures onnx clean
 
 all: build
 
@@ -9,11 +9,14 @@ build:
 	$(CARGO) build --release
 
 ## test: format check + clippy (-D warnings) + every test in release mode + feature builds +
-## the C ABI example where a C compiler exists
+## the CUDA parity tests compiled with the feature + the C ABI example where a C compiler
+## exists (required under CI, whose .ci/run installs one) + the portable build's tests
 test: fmt-check clippy check-features
 	$(CARGO) test --release
+	$(MAKE) cuda-parity
 	$(MAKE) rust-example
 	$(MAKE) c-example-if-cc
+	$(MAKE) dist-test
 
 ## examples/upscale_obj.rs, built on the library alone (--no-default-features: the five core
 ## crates), upscales OBJ frames to the bytes `anisocb upscale` writes.
@@ -54,7 +57,25 @@ c-example:
 
 c-example-if-cc:
 	@if command -v $(CC) >/dev/null 2>&1; then $(MAKE) c-example; \
+	elif [ -n "$$CI" ]; then echo "✗ no C compiler ($(CC)) under CI: .ci/run should have installed one"; exit 1; \
 	else echo "✗ no C compiler ($(CC)): make c-example skipped"; fi
+
+## tests/cuda_parity.rs built with `--features cuda` (cudarc loads the driver at run time, so no
+## CUDA toolkit is needed): on a machine with an NVIDIA GPU every check runs on it; without one
+## each prints "skipped: no CUDA device (…)" and passes, and this target says which it was.
+cuda-parity:
+	$(CARGO) test --release --features cuda --test cuda_parity -- --nocapture --test-threads 1 2>&1 | tee target/cuda-parity.log
+	@if grep -q "^test result: ok" target/cuda-parity.log; then \
+		if grep -q "skipped: no CUDA device" target/cuda-parity.log; then \
+			echo "✗ CUDA parity tests compiled with --features cuda; no CUDA device here, so they were skipped"; \
+		else echo "✓ CUDA parity tests ran on the GPU"; fi; \
+	else echo "✗ CUDA parity tests failed"; exit 1; fi
+
+## The portable build's tests, once: the whole suite compiled for x86-64-v3 (AVX2 + FMA, no
+## AVX-512: `wide` then runs its 256-bit paths), as `make dist` builds the shipped binary.
+## ≈ 10 min on 2 cores (a second build of every crate).
+dist-test:
+	RUSTFLAGS="-C target-cpu=x86-64-v3" $(CARGO) test --release --target-dir target/dist-test
 
 fmt-check:
 	$(CARGO) fmt --all -- --check

@@ -353,7 +353,11 @@ fn writing_under_a_regular_file_fails_naming_the_path_and_leaves_nothing() {
     let target = file.join("out.npy");
     expect_err(write_npy(&target, &ramp(&[2])), &target, &["Not a directory"]);
     let sub = file.join("sub");
-    expect_err(anisocb::io::atomic::ensure_dir(&sub), &sub, &["cannot create output directory", "--out"]);
+    expect_err(
+        anisocb::io::atomic::ensure_dir(&sub),
+        &sub,
+        &["cannot create output directory", "output folder"],
+    );
     expect_err(anisocb::io::atomic::ensure_dir(&file), &file, &["not a directory"]);
     assert_eq!(file_names(&d), ["a_file"]);
     assert_eq!(std::fs::read(&file).unwrap(), b"I am a file, not a directory");
@@ -1027,7 +1031,7 @@ fn upscale_refuses_absurd_option_values_and_physics_settings_before_reading_or_w
         (&["--batch", "0"], &["--batch", "1 to 1024"]),
         (&["--batch", "100000000"], &["--batch", "1 to 1024"]),
         (&["--strain-iters", "1000000000"], &["--strain-iters", "at most 1000"]),
-        (&["--chunk", "0"], &["--chunk must be ≥ 1"]),
+        (&["--chunk", "0"], &["--chunk", "must be ≥ 1"]),
         (&["--physics", "--physics-pin", "top,middle"], &["--physics-pin", "middle", "corners"]),
         (&["--physics", "--material", "velvet"], &["velvet", "silk"]),
         (&["--physics", "--fps", "0"], &["--fps", "1 to 1000"]),
@@ -1171,7 +1175,7 @@ fn upscale_refuses_inputs_whose_output_names_collide_and_writes_nothing() {
     upscale_refused(
         &[&s(&a), &s(&b), "--out", &s(&out)],
         1,
-        &[&s(&a.join("frame_0.obj")), &s(&b.join("frame_0.obj")), "own --out"],
+        &[&s(&a.join("frame_0.obj")), &s(&b.join("frame_0.obj")), "its own output folder"],
     );
     assert!(!out.exists(), "a refused run created --out");
     // The same folder or file given twice.
@@ -1484,8 +1488,11 @@ fn upscale_messages_say_what_is_wrong_with_what_was_given() {
         &["2 of them point caches", "a.pc2", "b.pc2", "one point cache per run"],
     );
     // A cache without its rest mesh: the message reads as one sentence.
-    let err =
-        upscale_refused(&[&s(&a), "--out", &out], 1, &["--rest MESH.obj (exported from the same object"]);
+    let err = upscale_refused(
+        &[&s(&a), "--out", &out],
+        1,
+        &["--rest", "rest mesh: an OBJ exported from the same object"],
+    );
     assert!(!err.contains("  "), "stray spaces: {err:?}");
 }
 

@@ -385,8 +385,8 @@ pub fn open_input(
             return Err(Error::invalid(
                 "rest",
                 format!(
-                "{}: a point cache holds positions only; give the mesh they move as its rest mesh (an OBJ) \
-                 (exported from the same object, same vertex order)",
+                "{}: a point cache holds positions only; give the mesh they move as its rest mesh: an OBJ \
+                 exported from the same object, same vertex order",
                 first.display()
             ),
             ));

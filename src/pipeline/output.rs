@@ -145,7 +145,7 @@ pub fn refuse_out_over_input(out: &Path, inputs: &[PathBuf], outputs: &[PathBuf]
                 "out",
                 format!(
                     "{} is the folder of the input {}: the HR files would replace the input's; \
-                 give a new output folder (the input is left as it is)",
+                 give a new folder for the output (the input is left as it is)",
                     out.display(),
                     f.display()
                 ),
@@ -156,7 +156,7 @@ pub fn refuse_out_over_input(out: &Path, inputs: &[PathBuf], outputs: &[PathBuf]
                 "out",
                 format!(
                     "{}: {} is the input {} under another name (a link), and would be \
-                 overwritten; give a new output folder",
+                 overwritten; give a new folder for the output",
                     out.display(),
                     o.display(),
                     f.display()
