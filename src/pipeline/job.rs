@@ -303,7 +303,7 @@ pub fn upscale_files(
     let mut physics;
     let sink: &mut dyn super::stream::HrSink = match &job.physics {
         Some(p) => {
-            physics = PhysicsSink::new(&mut out, domain, p.clone(), (w, h))?;
+            physics = PhysicsSink::new(&mut out, domain, p.clone(), (w, h));
             &mut physics
         }
         None => &mut out,

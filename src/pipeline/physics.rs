@@ -20,9 +20,11 @@ pub struct PhysicsPass {
 }
 
 impl PhysicsPass {
-    pub fn new(params: FollowParams) -> Result<PhysicsPass> {
-        params.validate()?;
-        Ok(PhysicsPass { params, follower: None })
+    /// A pass with `params`, checked by the caller ([`FollowParams::validate`]; the job's
+    /// check, [`crate::pipeline::Upscaler::with_physics`]) and again by [`Follower::new`] on
+    /// the shot's first frame.
+    pub fn new(params: FollowParams) -> PhysicsPass {
+        PhysicsPass { params, follower: None }
     }
 
     /// Replace frame `f` of `hr` ((N, 3, rH, rW) geometry images encoded with `domain`) by the
@@ -73,13 +75,8 @@ pub struct PhysicsSink<'a> {
 }
 
 impl<'a> PhysicsSink<'a> {
-    pub fn new(
-        inner: &'a mut dyn HrSink,
-        domain: Domain,
-        params: FollowParams,
-        lr: (usize, usize),
-    ) -> Result<Self> {
-        Ok(PhysicsSink { inner, domain, pass: PhysicsPass::new(params)?, lr })
+    pub fn new(inner: &'a mut dyn HrSink, domain: Domain, params: FollowParams, lr: (usize, usize)) -> Self {
+        PhysicsSink { inner, domain, pass: PhysicsPass::new(params), lr }
     }
 }
 

@@ -101,7 +101,8 @@ impl Upscaler {
     /// than the LR grid form. The shot must start at its first frame; [`Upscaler::flush`] ends
     /// it. Frames are read as metres.
     pub fn with_physics(mut self, params: FollowParams) -> Result<Upscaler> {
-        self.physics = Some(PhysicsPass::new(params)?);
+        params.validate()?;
+        self.physics = Some(PhysicsPass::new(params));
         Ok(self)
     }
 
