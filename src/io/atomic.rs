@@ -59,6 +59,28 @@ fn temp_prefix(name: &std::ffi::OsStr) -> String {
     format!(".{}.tmp.", name.to_string_lossy())
 }
 
+/// Most names [`create_temp`] tries before it gives up.
+const TEMP_TRIES: u64 = 1000;
+
+/// A new temporary file `.NAME.tmp.<pid>.<n>` in `dir`, created exclusively (`O_CREAT |
+/// O_EXCL`): never an existing file, and never through a symbolic link planted at that name
+/// (its target would be overwritten); a name that exists is skipped for the next `n`.
+fn create_temp(dir: &Path, name: &std::ffi::OsStr) -> std::io::Result<(PathBuf, File)> {
+    for _ in 0..TEMP_TRIES {
+        let n = COUNTER.fetch_add(1, Ordering::Relaxed);
+        let tmp = dir.join(format!("{}{}.{n}", temp_prefix(name), std::process::id()));
+        match fs::OpenOptions::new().write(true).create_new(true).open(&tmp) {
+            Ok(f) => return Ok((tmp, f)),
+            Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => continue,
+            Err(e) => return Err(e),
+        }
+    }
+    Err(std::io::Error::new(
+        std::io::ErrorKind::AlreadyExists,
+        format!("{TEMP_TRIES} temporary names beside it are all taken; remove the .*.tmp.* files there"),
+    ))
+}
+
 /// A file written in pieces that appears at `path` only when [`AtomicFile::commit`] succeeds
 /// (temp + fsync + rename, as [`write_atomic`]); dropped uncommitted — an error, a panic — it
 /// leaves nothing. For outputs too large to build in memory (streamed point caches, `.npy`).
@@ -74,13 +96,11 @@ impl AtomicFile {
         let dir = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
         let name =
             path.file_name().ok_or_else(|| Error::config(format!("{}: not a file name", path.display())))?;
-        let n = COUNTER.fetch_add(1, Ordering::Relaxed);
-        let tmp = dir.join(format!("{}{}.{n}", temp_prefix(name), std::process::id()));
-        let file = {
+        let (tmp, file) = {
             let mut l = live();
-            let file = File::create(&tmp).map_err(|e| Error::io(path, e))?;
+            let (tmp, file) = create_temp(dir, name).map_err(|e| Error::io(path, e))?;
             l.push(tmp.clone());
-            file
+            (tmp, file)
         };
         Ok(AtomicFile {
             path: path.to_path_buf(),
