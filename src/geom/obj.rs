@@ -64,7 +64,7 @@ pub struct ObjAttrs {
 /// The text of an OBJ file; a byte that is not UTF-8 (a Latin-1 name) is refused with its line
 /// number.
 pub fn read_obj_text(path: &Path) -> Result<String> {
-    obj_text_from_bytes(&std::fs::read(path).map_err(|e| Error::io(path, e))?, path)
+    obj_text_from_bytes(&crate::io::read_bytes(path)?, path)
 }
 
 /// [`read_obj_text`] on bytes already read (`path` names the file in errors).

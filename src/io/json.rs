@@ -256,7 +256,8 @@ pub fn write_json(path: &Path, v: &Value, layout: Layout) -> Result<()> {
 
 /// Read and parse the JSON file `path`; errors name the file.
 pub fn read_json(path: &Path) -> Result<Value> {
-    let text = std::fs::read_to_string(path).map_err(|e| crate::Error::io(path, e))?;
+    let text = String::from_utf8(super::read_bytes(path)?)
+        .map_err(|_| crate::Error::format(path, "not UTF-8 text: a JSON file is UTF-8"))?;
     Value::parse(&text).map_err(|e| e.in_file(path))
 }
 

@@ -15,7 +15,7 @@ use std::path::{Path, PathBuf};
 pub const MAX_ELEMENTS: u64 = 1 << 30;
 
 pub fn read_npy(path: &Path) -> Result<Tensor> {
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let bytes = super::read_bytes(path)?;
     tensor_from_npy_bytes(&bytes).map_err(|e| e.in_file(path))
 }
 
@@ -148,7 +148,7 @@ pub struct NpyFrames {
 
 impl NpyFrames {
     pub fn open(path: &Path) -> Result<NpyFrames> {
-        let mut file = File::open(path).map_err(|e| Error::io(path, e))?;
+        let mut file = super::open_regular(path)?;
         let len = file.metadata().map_err(|e| Error::io(path, e))?.len();
         let mut head = Vec::new();
         (&mut file)

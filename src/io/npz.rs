@@ -110,7 +110,7 @@ pub fn write_npz(path: &Path, entries: &NpzEntries) -> Result<()> {
 }
 
 pub fn read_npz(path: &Path) -> Result<NpzEntries> {
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let bytes = super::read_bytes(path)?;
     npz_from_bytes(&bytes).map_err(|e| e.in_file(path))
 }
 

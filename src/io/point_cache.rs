@@ -341,7 +341,7 @@ pub struct PointCacheReader<R = File> {
 impl PointCacheReader<File> {
     /// Open a `.pc2` or `.mdd` file and check its header against its length.
     pub fn open(path: &Path) -> Result<Self> {
-        let file = File::open(path).map_err(|e| Error::io(path, e))?;
+        let file = super::open_regular(path)?;
         Self::from_reader(file, path)
     }
 }
