@@ -11,6 +11,7 @@ use crate::cloth::collision::{Cuboid, Sphere};
 use crate::cloth::follow::{FollowParams, PinnedEdges};
 use crate::cloth::params::Material;
 use crate::error::Error;
+use crate::geom::layout::MAX_LR_VERTICES;
 use crate::nn::bundle::AnisoCb;
 use crate::nn::weights::embedded_model;
 use crate::pipeline::Upscaler;
@@ -320,16 +321,24 @@ pub unsafe extern "C" fn anisocb_push(
         if lr.is_null() {
             return Err(argument("anisocb_push: lr is null"));
         }
-        let r = up.scale();
-        if hr.is_null() || hr_cap < 3 * r * r * w * h {
+        // The caller's sizes, checked before a slice is made of its pointers or anything is
+        // allocated for them (a product that overflows is no frame a buffer can hold).
+        if w.checked_mul(h).is_none_or(|n| n > MAX_LR_VERTICES) {
             return Err(argument(&format!(
-                "anisocb_push: the output buffer holds {hr_cap} floats; a {w}×{h} frame needs {}",
-                3 * r * r * w * h
+                "anisocb_push: a {w}×{h} frame is larger than the {MAX_LR_VERTICES} vertices an LR \
+                 frame may have"
+            )));
+        }
+        let r = up.scale();
+        let need = 3 * r * r * w * h;
+        if hr.is_null() || hr_cap < need {
+            return Err(argument(&format!(
+                "anisocb_push: the output buffer holds {hr_cap} floats; a {w}×{h} frame needs {need}"
             )));
         }
         // Straight from the caller's buffers into the caller's buffer: no allocation per frame.
         let pos: &[[f32; 3]] = bytemuck::cast_slice(std::slice::from_raw_parts(lr, 3 * w * h));
-        let out = hr_buffer(hr, hr_cap, 3 * r * r * w * h)?;
+        let out = hr_buffer(hr, hr_cap, need)?;
         Ok(if up.push_into(w, h, pos, out)? { ANISOCB_OK } else { ANISOCB_PENDING })
     })
 }

@@ -86,3 +86,20 @@ fn c_abi_physics_options_are_checked_and_run_the_pass() {
         anisocb_free(plain);
     }
 }
+
+#[test]
+fn c_abi_push_refuses_frame_sizes_no_buffer_can_hold_before_touching_the_pointers() {
+    let (s, msg, up) = new_with(|o| o.threads = 1);
+    assert_eq!(s, ANISOCB_OK, "{msg}");
+    let lr = [0.0f32; 12];
+    let mut hr = [0.0f32; 48];
+    // u32::MAX² · 12 floats overflows a 64-bit size; 4097 × 4097 is past the LR limit. Both
+    // are refused from the sizes alone (the 12-float buffers would otherwise be overrun).
+    for (w, h) in [(u32::MAX, u32::MAX), (4097, 4097)] {
+        // SAFETY: a live handle; the call must not read or write past the buffers' 12 / 48 floats.
+        let s = unsafe { anisocb_push(up, w, h, lr.as_ptr(), hr.as_mut_ptr(), usize::MAX) };
+        let msg = unsafe { CStr::from_ptr(anisocb_last_error()) }.to_string_lossy().into_owned();
+        assert!(s == ANISOCB_ERR_ARGUMENT && msg.contains("larger than"), "{w}×{h}: {s}: {msg}");
+    }
+    unsafe { anisocb_free(up) };
+}

@@ -27,6 +27,11 @@ pub trait Layout {
     fn to_vertices(&self, hr: &Tensor, frame: usize, domain: &Domain, out: &mut [[f32; 3]]);
 }
 
+/// Most vertices of an LR frame (2048 × 2048): the nets' widest activation holds ≈ 2 KB per LR
+/// vertex at the paper's 64 channels, so this is ≈ 8 GB per frame already; a larger mesh is
+/// refused before anything is allocated for it.
+pub const MAX_LR_VERTICES: usize = 1 << 22;
+
 /// A regular grid of `w` × `h` vertices, row-major: the image is the grid itself.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct GridLayout {
@@ -41,6 +46,12 @@ impl GridLayout {
     pub fn new(w: usize, h: usize) -> Result<GridLayout> {
         if w < 2 || h < 2 {
             return Err(Error::shape(format!("a grid of {w}×{h} vertices is too small: at least 2×2")));
+        }
+        if w.checked_mul(h).is_none_or(|n| n > MAX_LR_VERTICES) {
+            return Err(Error::shape(format!(
+                "a grid of {w}×{h} vertices is larger than the {MAX_LR_VERTICES} an LR frame may have: \
+                 upscale the cloth in pieces"
+            )));
         }
         Ok(GridLayout { w, h })
     }
@@ -97,5 +108,8 @@ mod tests {
         }
         assert!(g.to_image(&pos[..5], &d).is_err());
         assert!(GridLayout::new(1, 5).is_err());
+        assert!(GridLayout::new(usize::MAX, 3).is_err());
+        assert!(GridLayout::new(2049, 2048).is_err());
+        assert!(GridLayout::new(2048, 2048).is_ok());
     }
 }
