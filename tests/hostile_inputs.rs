@@ -1216,24 +1216,26 @@ fn upscale_refuses_inputs_whose_output_names_collide_and_writes_nothing() {
 fn upscale_stopped_part_way_leaves_upscale_json_marked_incomplete() {
     let d = scratch("upscale_incomplete");
     let good = obj_shot(&d, "good", 4);
-    let bad = obj_shot(&d, "bad", 4);
+    let frame2 = std::fs::read(good.join("frame_2.obj")).unwrap();
     let nan = grid_obj(4, 4).replacen("v 0.1 0 0", "v nan 0 0", 1);
-    write(&bad, "frame_2.obj", nan.as_bytes());
     let s = |p: &Path| p.to_str().unwrap().to_string();
     let out = d.join("out");
     let summary = || std::fs::read_to_string(out.join("upscale.json")).unwrap();
     let o = anisocb(&["upscale", &s(&good), "--out", &s(&out)]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert!(summary().contains("\"complete\": true"), "{}", summary());
-    // A rerun with another η that fails on frame 2 after writing frames 0 and 1: the folder now
-    // mixes both runs' frames, and its summary must say so, not keep the first run's.
-    let o = anisocb(&["upscale", &s(&bad), "--out", &s(&out), "--eta", "1", "--chunk", "1"]);
+    // A rerun with another η that fails on frame 2 (broken since) after writing frames 0 and
+    // 1: the folder now mixes both runs' frames, and its summary must say so, not keep the
+    // first run's.
+    write(&good, "frame_2.obj", nan.as_bytes());
+    let o = anisocb(&["upscale", &s(&good), "--out", &s(&out), "--eta", "1", "--chunk", "1"]);
     assert_eq!(o.status.code(), Some(1), "{}", String::from_utf8_lossy(&o.stderr));
     assert!(String::from_utf8_lossy(&o.stderr).contains("frame_2.obj"));
     let text = summary();
     assert!(text.contains("\"complete\": false") && !text.contains("\"complete\": true"), "{text}");
     assert!(text.contains("rerun"), "{text}");
     // Completing the run marks the folder finished again.
+    write(&good, "frame_2.obj", &frame2);
     let o = anisocb(&["upscale", &s(&good), "--out", &s(&out), "--eta", "1"]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert!(summary().contains("\"complete\": true"), "{}", summary());
@@ -1448,17 +1450,26 @@ fn upscale_interrupted_by_sigint_or_sigterm_removes_its_temp_files() {
 }
 
 #[test]
-fn a_second_run_into_the_same_out_leaves_the_first_runs_temp_files_alone() {
+fn a_second_run_into_an_out_being_written_is_refused_and_the_first_finishes_untouched() {
     let d = scratch("upscale_concurrent");
     let (pc2, rest) = long_cache(&d.join("in"), 30);
     let out = d.join("out");
     let first = start_cache_upscale(&pc2, &rest, &out);
-    // The second run (a short shot with the same output name) clears stale temp files of the
-    // outputs it writes before it starts: not the first run's, which is still writing.
+    // Wait until the first run holds its folder (its summary says it started).
+    let t0 = std::time::Instant::now();
+    while !out.join("upscale.json").exists() && t0.elapsed().as_secs() < 60 {
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    // The second run (the same shot, or another with the same output names) is refused while
+    // the first writes: the folder would mix the two. It touches none of the first's files.
     let (pc2b, restb) = long_cache(&d.join("in2"), 2);
     let s = |p: &Path| p.to_str().unwrap().to_string();
-    let o = anisocb(&["upscale", &s(&pc2b), "--rest", &s(&restb), "--out", &s(&out)]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    for (c, r) in [(&pc2, &rest), (&pc2b, &restb)] {
+        let o = anisocb(&["upscale", &s(c), "--rest", &s(r), "--out", &s(&out)]);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{err}");
+        assert!(err.contains("being written by another run") && err.contains("process"), "{err}");
+    }
     let o = first.wait_with_output().unwrap();
     assert!(o.status.success(), "the first run failed: {}", String::from_utf8_lossy(&o.stderr));
     assert!(temp_files(&out).is_empty(), "{:?}", temp_files(&out));

@@ -129,6 +129,7 @@ fn flag(field: &'static str) -> &'static str {
         "chunk" => "--chunk",
         "rest" => "--rest",
         "out" => "--out",
+        "overwrite" => "--overwrite",
         "device" => "--device",
         "gravity" => "--gravity",
         "fps" => "--fps",

@@ -51,10 +51,17 @@ pub struct Args {
     /// or a point cache (.pc2 / .mdd, with --rest).
     #[arg(required = true)]
     pub input: Vec<PathBuf>,
-    /// Output directory (created if missing; existing frames with the same names are replaced).
-    /// Never the input's own folder: the input is never overwritten.
+    /// Output directory: created if missing, or empty, or one that earlier runs of the same
+    /// shot (same inputs) own — their summaries list every file they wrote; another shot's
+    /// files there are refused (see --overwrite). Never the input's own folder: the input is
+    /// never overwritten. One run at a time writes each summary of it (a lock).
     #[arg(help_heading = "Input and output", long)]
     pub out: PathBuf,
+    /// Write into --out even though it holds files no run of this shot wrote (those this run
+    /// writes are replaced, the rest left), or another slice's frames made with other settings
+    /// (removed).
+    #[arg(help_heading = "Input and output", long)]
+    pub overwrite: bool,
     /// Wrinkle enhancement η from -1 to 10 (Eq 12): 0 = plain predicted detail (the default,
     /// chosen on validation runs; EnhanceNet is then not run), larger = deeper wrinkles where
     /// EnhanceNet sees edges (up to 1 + η times the predicted detail), below 0 = softer (-1
@@ -326,6 +333,7 @@ fn job(a: &Args) -> Result<CheckedJob> {
         },
         physics,
         precision: Precision::Fp32,
+        overwrite: a.overwrite,
     }
     .check()
 }

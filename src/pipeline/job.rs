@@ -3,6 +3,7 @@
 //! the outputs, and write the run's summary (`upscale.json`). The command line is a thin layer
 //! over [`upscale_files`]; a Rust program calls it the same way and gets the same bytes.
 
+use super::folder::{self, Ownership};
 use super::input::{open_input, shot_bounds, CacheIn, FrameAttrs, Input, MeshOut, Shot};
 use super::output::{refuse_duplicate_outputs, refuse_out_over_input, CacheSink, ObjSink, Outputs};
 use super::physics::PhysicsSink;
@@ -11,7 +12,7 @@ use crate::cloth::run_io::DOMAIN_MARGIN;
 use crate::error::{Error, Result};
 use crate::geom::cloth_frame::InputFrame;
 use crate::geom::Domain;
-use crate::io::atomic::{ensure_dir, remove_stale_temps, write_atomic_bytes, AtomicFile};
+use crate::io::atomic::{remove_stale_temps, write_atomic_bytes, AtomicFile};
 use crate::io::json::{write_json, Layout, Object, Value};
 use crate::io::npy::NpyWriter;
 use crate::io::point_cache::{write_header, CacheHeader};
@@ -126,6 +127,10 @@ pub struct UpscaleJob {
     pub physics: Option<FollowParams>,
     /// The nets' arithmetic.
     pub precision: Precision,
+    /// Write into a folder that holds files no earlier run of this shot wrote (replacing those
+    /// this run writes), and remove another slice's files made with other settings, instead of
+    /// refusing ([`super::folder`]).
+    pub overwrite: bool,
 }
 
 impl UpscaleJob {
@@ -143,6 +148,7 @@ impl UpscaleJob {
             params: UpscaleParams::default(),
             physics: None,
             precision: Precision::Fp32,
+            overwrite: false,
         }
     }
 
@@ -258,7 +264,11 @@ pub fn upscale_files(
     let mesh_out = mesh_out.unwrap_or_else(|| MeshOut::plain(t));
     let plan = Plan::new(job, t, mesh_given, &mesh_out, cache_in.as_ref(), &files)?;
     let (domain, domain_note) = settle_domain(model, job, &plan, npy_domain, &mut shot, report)?;
-    ensure_dir(&job.out)?;
+    let own = ownership(ops, model, job, &plan)?;
+    let claim = folder::claim(&job.out, &own, job.overwrite)?;
+    for n in &claim.removed {
+        report.message(&format!("note: removed {n}, an earlier run's output that this run does not write"));
+    }
     let range = plan.range.clone();
     report.message(&format!(
         "upscaling frames {}..{} of {t}, {w}x{h} -> {}x{} ({}), η = {}",
@@ -283,6 +293,7 @@ pub fn upscale_files(
         .val("range", vec![Value::num(range.start), Value::num(range.end)])
         .num("eta", params.eta)
         .str("note", "unfinished: this run was stopped part-way or failed; rerun the same command");
+    let started = with_ownership(started, &own);
     write_json(&plan.summary_path, &started.into(), Layout::Compact)?;
     let start = Instant::now();
     if let Some(c) = &cache_in {
@@ -332,24 +343,86 @@ pub fn upscale_files(
             Object::new().val("bmin", Value::reals(&domain.bmin)).val("bmax", Value::reals(&domain.bmax)),
         );
     let summary = match &job.physics {
-        Some(p) => summary.val(
-            "physics",
-            Object::new()
-                .val("gravity_m_per_s2", Value::reals(&p.gravity))
-                .num("fps", p.fps)
-                .str("material", p.material.name)
-                .num("strength_per_s2", p.strength)
-                .num("damping", p.damping)
-                .num("substeps_per_second", p.substeps_per_second)
-                .str("output", if p.output == FollowOutput::Detail { "detail" } else { "cloth" })
-                .val("drift_seconds", Value::finite(p.drift_seconds))
-                .val("ground_m", p.ground.map_or(Value::Null, Value::finite))
-                .str("pins", &p.pins.names()),
-        ),
+        Some(p) => summary.val("physics", physics_json(p)),
         None => summary,
     };
-    write_json(&plan.summary_path, &summary.into(), Layout::Compact)?;
+    write_json(&plan.summary_path, &with_ownership(summary, &own).into(), Layout::Compact)?;
+    drop(claim);
     Ok(Summary { frames: n, lr: (w, h), hr: (r * w, r * h), seconds: secs, format: plan.fmt })
+}
+
+/// The physics pass's settings as the summary records them.
+fn physics_json(p: &FollowParams) -> Object {
+    Object::new()
+        .val("gravity_m_per_s2", Value::reals(&p.gravity))
+        .num("fps", p.fps)
+        .str("material", p.material.name)
+        .num("strength_per_s2", p.strength)
+        .num("damping", p.damping)
+        .num("substeps_per_second", p.substeps_per_second)
+        .str("output", if p.output == FollowOutput::Detail { "detail" } else { "cloth" })
+        .val("drift_seconds", Value::finite(p.drift_seconds))
+        .val("ground_m", p.ground.map_or(Value::Null, Value::finite))
+        .str("pins", &p.pins.names())
+}
+
+/// Who this run is for its output folder ([`folder::claim`]): its inputs, every setting that
+/// decides the output's bytes (the weights by a checksum of their values), the files it writes.
+fn ownership(ops: &dyn Ops, model: &AnisoCb, job: &UpscaleJob, plan: &Plan) -> Result<Ownership> {
+    let p = &job.params;
+    let mut inputs = job.inputs.clone();
+    inputs.extend(job.rest.iter().cloned());
+    let settings = Object::new()
+        .num("eta", p.eta)
+        .val("maps", Value::Bool(job.maps))
+        .num("temporal", p.temporal)
+        .num("strain_iters", p.strain_iters)
+        .val("mirrors", Value::Bool(p.mirrors))
+        .val("keep_outline", Value::Bool(p.keep_outline))
+        .val("pin_border", Value::Bool(p.pin_border))
+        .val("gate_coarse_only", Value::Bool(p.gate_coarse_only))
+        .str("format", &plan.fmt)
+        .num("margin", job.margin)
+        .str("device", ops.name())
+        .str("precision", job.precision.name())
+        .str("weights", &format!("{:016x}", weights_checksum(model)))
+        .val("physics", job.physics.as_ref().map_or(Value::Null, |f| physics_json(f).into()));
+    let name = |p: &PathBuf| p.file_name().unwrap_or_default().to_string_lossy().into_owned();
+    Ok(Ownership {
+        job: "upscale",
+        inputs: folder::canonical(&inputs),
+        settings: settings.into(),
+        summary: name(&plan.summary_path),
+        files: plan.writes.iter().filter(|w| **w != plan.summary_path).map(name).collect(),
+    })
+}
+
+/// FNV-1a over every weight's bits, in the bundle's order: two weights files that give other
+/// bytes have other checksums.
+fn weights_checksum(model: &AnisoCb) -> u64 {
+    let mut h = 0xcbf2_9ce4_8422_2325u64;
+    for (name, trunk) in model.named_trunks() {
+        for b in name.bytes() {
+            h = (h ^ b as u64).wrapping_mul(0x0100_0000_01b3);
+        }
+        for (_, t) in trunk.params() {
+            for v in &t.data {
+                for b in v.to_bits().to_le_bytes() {
+                    h = (h ^ b as u64).wrapping_mul(0x0100_0000_01b3);
+                }
+            }
+        }
+    }
+    h
+}
+
+/// `o` with the run's identity: the job's inputs, its settings and the files it writes (the
+/// summary lists exactly what the run leaves in the folder).
+fn with_ownership(o: Object, own: &Ownership) -> Object {
+    let strings = |v: &[String]| Value::from(v.iter().map(|s| Value::from(s.as_str())).collect::<Vec<_>>());
+    o.val("inputs", strings(&own.inputs))
+        .val("settings", own.settings.clone())
+        .val("files", strings(&own.files))
 }
 
 /// What a job writes where, settled and checked before anything is written.
@@ -366,6 +439,8 @@ struct Plan {
     summary_path: PathBuf,
     /// Every file this run may write (their stale temps are cleared before it starts).
     outputs: Vec<PathBuf>,
+    /// The files this run writes, its summary included.
+    writes: Vec<PathBuf>,
 }
 
 impl Plan {
@@ -393,7 +468,16 @@ impl Plan {
         });
         let out = job.out.clone();
         let summary_path = out.join(format!("upscale{suffix}.json"));
-        let mut plan = Plan { fmt, range, suffix, out, cache_name, summary_path, outputs: Vec::new() };
+        let mut plan = Plan {
+            fmt,
+            range,
+            suffix,
+            out,
+            cache_name,
+            summary_path,
+            outputs: Vec::new(),
+            writes: Vec::new(),
+        };
         let (out, range) = (&plan.out, plan.range.clone());
         let frames = || mesh_out.names[range.clone()].iter().map(|n| out.join(n));
         let rest = || cache_in.and_then(|c| c.rest.file_name()).map(|n| out.join(n));
@@ -418,6 +502,7 @@ impl Plan {
         writes.extend(rest());
         refuse_duplicate_outputs(&writes)?;
         plan.outputs = outputs;
+        plan.writes = writes;
         Ok(plan)
     }
 

@@ -18,6 +18,7 @@
 //! # Ok::<(), anisocb::Error>(())
 //! ```
 
+pub mod folder;
 pub mod input;
 pub mod job;
 pub mod output;

@@ -1,0 +1,217 @@
+//! The rule for output folders: a run writes into a new or empty folder, or into one that
+//! earlier runs of the same job own, and holds a lock on its part of it for its whole life.
+//!
+//! A job is known by its inputs; its runs' summaries (`upscale.json`, `upscale.A-B.json` for a
+//! slice) name the inputs, the settings that decide the output's bytes and every file the run
+//! writes. [`claim`] reads the folder before anything is written:
+//! - a file that no summary of this job lists is foreign (another shot's frames, someone's
+//!   notes): refused, naming it, unless the caller overwrites;
+//! - files that this run's own earlier summary lists and this run will not write (the input
+//!   shrank, `--maps` dropped) are stale and removed;
+//! - another slice's files made with other settings would leave a folder of two settings:
+//!   refused unless the caller overwrites, which removes them and their summary.
+//!
+//! Names starting with `.` (temporary files, locks, a desktop's own files) are not looked at.
+
+use crate::error::{Error, Result};
+use crate::io::atomic::ensure_dir;
+use crate::io::json::{read_json, Value};
+use std::collections::{HashMap, HashSet};
+use std::fs::{self, File, TryLockError};
+use std::io::{Read, Seek, Write};
+use std::path::{Path, PathBuf};
+
+/// Who a run is and what it leaves in its folder, as its summary records it.
+pub struct Ownership {
+    /// The summaries' name stem (`upscale`): `upscale*.json` are this kind of job's summaries.
+    pub job: &'static str,
+    /// The job's identity: its inputs, canonical paths.
+    pub inputs: Vec<String>,
+    /// Everything that decides the output's bytes: runs with the same settings write the same
+    /// bytes for the same frame.
+    pub settings: Value,
+    /// This run's summary file name (`upscale.json`, `upscale.0-100.json`).
+    pub summary: String,
+    /// The names of the files this run writes besides its summary.
+    pub files: Vec<String>,
+}
+
+/// A folder a run may write: the lock on its summary, held until dropped.
+pub struct Claim {
+    _lock: File,
+    /// Stale files removed, by name.
+    pub removed: Vec<String>,
+}
+
+/// What an earlier summary in the folder says.
+struct Earlier {
+    name: String,
+    same_job: bool,
+    same_settings: bool,
+    files: Vec<String>,
+}
+
+/// Claim `dir` for the run `own` (see the module docs). `overwrite`: foreign files the run
+/// writes are replaced and other settings' files removed instead of refused.
+pub fn claim(dir: &Path, own: &Ownership, overwrite: bool) -> Result<Claim> {
+    ensure_dir(dir)?;
+    let lock_path = dir.join(format!(".{}.lock", own.summary));
+    let created = !lock_path.exists();
+    let lock = lock(&lock_path, dir, &own.summary)?;
+    match check(dir, own, overwrite) {
+        Ok(removed) => Ok(Claim { _lock: lock, removed }),
+        Err(e) => {
+            // A refused run leaves the folder as it found it.
+            if created {
+                let _ = fs::remove_file(&lock_path);
+            }
+            Err(e)
+        }
+    }
+}
+
+/// [`claim`]'s reading of the folder, under the lock: the stale files it removed.
+fn check(dir: &Path, own: &Ownership, overwrite: bool) -> Result<Vec<String>> {
+    let mut earlier = Vec::new();
+    let mut others = Vec::new();
+    for e in fs::read_dir(dir).map_err(|e| Error::io(dir, e))? {
+        let e = e.map_err(|e| Error::io(dir, e))?;
+        let name = e.file_name().to_string_lossy().into_owned();
+        if name.starts_with('.') {
+            continue;
+        }
+        if name.starts_with(own.job) && name.ends_with(".json") {
+            earlier.push(read_earlier(&dir.join(&name), name, own));
+        } else {
+            others.push(name);
+        }
+    }
+    let writes: HashSet<&str> = own.files.iter().map(String::as_str).collect();
+    // Every file a summary of this job lists, and which summaries list it.
+    let mut listed: HashMap<&str, Vec<&str>> = HashMap::new();
+    for s in earlier.iter().filter(|s| s.same_job) {
+        for f in &s.files {
+            listed.entry(f).or_default().push(&s.name);
+        }
+    }
+    let mut removed = Vec::new();
+    // Another run's summary (another job, or one this version cannot read): its folder.
+    if let Some(s) = earlier.iter().find(|s| !s.same_job) {
+        if !overwrite {
+            return Err(foreign(dir, &s.name, "the summary of another shot's run"));
+        }
+    }
+    for s in earlier.iter().filter(|s| s.same_job && !s.same_settings && s.name != own.summary) {
+        if !overwrite {
+            return Err(Error::invalid(
+                "out",
+                format!(
+                    "{} holds {} (another slice of this shot, upscaled with other settings): the \
+                     folder would mix two settings; upscale that slice again with these settings, \
+                     choose another folder, or overwrite to remove it",
+                    dir.display(),
+                    s.name
+                ),
+            ));
+        }
+        for f in s.files.iter().filter(|f| !writes.contains(f.as_str())).chain([&s.name]) {
+            remove(dir, f, &mut removed)?;
+        }
+    }
+    for name in &others {
+        match listed.get(name.as_str()) {
+            // This run's own earlier output that it will not write again: stale.
+            Some(by) if by.iter().all(|s| *s == own.summary) && !writes.contains(name.as_str()) => {
+                remove(dir, name, &mut removed)?
+            }
+            Some(_) => {}
+            None if overwrite => {}
+            None => return Err(foreign(dir, name, "a file no upscale of these inputs wrote")),
+        }
+    }
+    Ok(removed)
+}
+
+/// The error for a file of `dir` that is not this job's.
+fn foreign(dir: &Path, name: &str, what: &str) -> Error {
+    Error::invalid(
+        "out",
+        format!(
+            "{} holds {name} ({what}): a run writes into a new or empty folder, or one that \
+             earlier runs of the same shot own; choose another folder, or overwrite to write \
+             into this one anyway",
+            dir.display()
+        ),
+    )
+}
+
+fn remove(dir: &Path, name: &str, removed: &mut Vec<String>) -> Result<()> {
+    let p = dir.join(name);
+    match fs::remove_file(&p) {
+        Ok(()) => removed.push(name.to_string()),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
+        Err(e) => return Err(Error::io(p, e)),
+    }
+    Ok(())
+}
+
+/// Read the summary `path` (named `name`) against `own`; one that cannot be read is another
+/// job's.
+fn read_earlier(path: &Path, name: String, own: &Ownership) -> Earlier {
+    let v = read_json(path).ok();
+    let strings = |key: &str| -> Option<Vec<String>> {
+        let a = v.as_ref()?.get(key)?.as_array()?;
+        a.iter().map(|s| s.as_str().map(str::to_string)).collect()
+    };
+    let same_job = strings("inputs").is_some_and(|i| i == own.inputs);
+    let same_settings =
+        v.as_ref().and_then(|v| v.get("settings")).is_some_and(|s| s.to_json() == own.settings.to_json());
+    Earlier { name, same_job, same_settings, files: strings("files").unwrap_or_default() }
+}
+
+/// Lock `path` (`dir/.SUMMARY.lock`) for this process (released by the OS when it ends, a kill
+/// included); refused, naming the holder, while another run holds it.
+fn lock(path: &Path, dir: &Path, summary: &str) -> Result<File> {
+    // Never through a link planted at the lock's name (its target would be truncated).
+    if fs::symlink_metadata(path).is_ok_and(|m| !m.is_file()) {
+        return Err(Error::format(path, "not a regular file: remove it (anisocb keeps its lock here)"));
+    }
+    let mut file = fs::OpenOptions::new()
+        .read(true)
+        .write(true)
+        .create(true)
+        .truncate(false)
+        .open(path)
+        .map_err(|e| Error::io(path, e))?;
+    match file.try_lock() {
+        Ok(()) => {}
+        Err(TryLockError::WouldBlock) => {
+            let mut holder = String::new();
+            let _ = file.read_to_string(&mut holder);
+            return Err(Error::invalid(
+                "out",
+                format!(
+                    "{} is being written by another run ({}) of the same output ({summary}); \
+                     wait for it to finish, or choose another folder",
+                    dir.display(),
+                    holder.trim()
+                ),
+            ));
+        }
+        Err(TryLockError::Error(e)) => return Err(Error::io(path, e)),
+    }
+    let host = fs::read_to_string("/proc/sys/kernel/hostname").unwrap_or_default();
+    let me = format!("process {} on {}", std::process::id(), host.trim());
+    let written = file.set_len(0).and_then(|()| file.rewind()).and_then(|()| file.write_all(me.as_bytes()));
+    written.map_err(|e| Error::io(path, e))?;
+    Ok(file)
+}
+
+/// Canonical paths of `paths` (as given where they cannot be resolved), for
+/// [`Ownership::inputs`].
+pub fn canonical(paths: &[PathBuf]) -> Vec<String> {
+    paths
+        .iter()
+        .map(|p| p.canonicalize().unwrap_or_else(|_| p.clone()).to_string_lossy().into_owned())
+        .collect()
+}
