@@ -4,6 +4,7 @@
 //! `cargo bench --bench train [-- small|paper]`. Side by side with JAX/XLA and ONNX Runtime: `make bench-peers`.
 
 use anisocb::nn::{AnisoCb, GeometryNet, NetConfig, NetKind};
+use anisocb::ops::loss::DetailEnergy;
 use anisocb::ops::{AdamParams, Cpu, Interp, Ops, Padding};
 use anisocb::train::adam::Adam;
 use anisocb::Tensor;
@@ -84,6 +85,25 @@ impl Ops for Timed<'_> {
     }
     fn bce_with_logits(&self, z: &Tensor, t: &Tensor, w: f32) -> (f32, Tensor) {
         self.time("bce_with_logits", || self.inner.bce_with_logits(z, t, w))
+    }
+    fn edge_mse(&self, p: &Tensor, t: &Tensor) -> (f32, Tensor) {
+        self.time("edge_mse", || self.inner.edge_mse(p, t))
+    }
+    fn edge_length_mse(&self, p: &Tensor, t: &Tensor) -> (f32, Tensor) {
+        self.time("edge_length_mse", || self.inner.edge_length_mse(p, t))
+    }
+    fn laplacian_mse(&self, p: &Tensor, t: &Tensor) -> (f32, Tensor) {
+        self.time("laplacian_mse", || self.inner.laplacian_mse(p, t))
+    }
+    fn detail_energy_mse(
+        &self,
+        p: &Tensor,
+        t: &Tensor,
+        h: usize,
+        w: usize,
+        d: DetailEnergy,
+    ) -> (f32, Tensor) {
+        self.time("detail_energy_mse", || self.inner.detail_energy_mse(p, t, h, w, d))
     }
     fn adam_update(&self, p: &mut [f32], g: &[f32], m: &mut [f32], v: &mut [f32], s: u64, hp: &AdamParams) {
         self.time("adam_update", || self.inner.adam_update(p, g, m, v, s, hp))

@@ -12,6 +12,7 @@ use close::{assert_close, assert_close_f32};
 mod random;
 use anisocb::cuda::ops_for_device;
 use anisocb::ops::conv2d::{conv2d_backward_ref, conv2d_ref};
+use anisocb::ops::loss::DetailEnergy;
 use anisocb::ops::{AdamParams, Cpu, Interp, Ops, Padding};
 use anisocb::{Error, Tensor};
 use random::TestData;
@@ -140,6 +141,31 @@ fn check_losses(dev: &dyn Ops) {
         let ((lg, gg), (lc, gc)) = (dev.bce_with_logits(&z, &tt, 3.5), Cpu.bce_with_logits(&z, &tt, 3.5));
         assert_close_f32(&format!("bce loss {len}"), lg, lc, 1e-6, 1e-5);
         assert_close(&format!("bce grad {len}"), &gg, &gc, 1e-8, 1e-5);
+    }
+}
+
+/// The geometry losses (GeometryNet's extra terms) have no kernels: the table computes them on
+/// the host with the CPU table's code, so the same bits.
+fn check_geometry_losses(dev: &dyn Ops) {
+    let mut rng = Rng::new(17);
+    for (n, c, h, w) in [(1, 3, 1, 5), (2, 3, 7, 9), (1, 2, 12, 11)] {
+        let (p, t) = (rng.tensor(&[n, c, h, w], -1.0, 1.0), rng.tensor(&[n, c, h, w], -1.0, 1.0));
+        let tag = |op: &str| format!("{op} {:?}", p.shape);
+        for (op, (lg, gg), (lc, gc)) in [
+            ("edge_mse", dev.edge_mse(&p, &t), Cpu.edge_mse(&p, &t)),
+            ("edge_length_mse", dev.edge_length_mse(&p, &t), Cpu.edge_length_mse(&p, &t)),
+            ("laplacian_mse", dev.laplacian_mse(&p, &t), Cpu.laplacian_mse(&p, &t)),
+        ] {
+            assert_close_f32(&tag(op), lg, lc, 0.0, 0.0);
+            assert_close(&format!("{} grad", tag(op)), &gg, &gc, 0.0, 0.0);
+        }
+        let d = DetailEnergy { normal_only: c == 3, ..DetailEnergy::default() };
+        let ((lg, gg), (lc, gc)) = (
+            dev.detail_energy_mse(&p, &t, h.div_ceil(2), w.div_ceil(2), d),
+            Cpu.detail_energy_mse(&p, &t, h.div_ceil(2), w.div_ceil(2), d),
+        );
+        assert_close_f32(&tag("detail_energy_mse"), lg, lc, 0.0, 0.0);
+        assert_close(&format!("{} grad", tag("detail_energy_mse")), &gg, &gc, 0.0, 0.0);
     }
 }
 
@@ -275,6 +301,7 @@ fn parity_harness_self_check_with_cpu_as_device() {
     check_pixel_shuffle(&Cpu);
     check_resize(&Cpu);
     check_losses(&Cpu);
+    check_geometry_losses(&Cpu);
     check_network(&Cpu);
     check_adam_training(&Cpu);
 }
@@ -311,6 +338,13 @@ fn cuda_resize_matches_cpu() {
 fn cuda_losses_match_cpu() {
     if let Some(dev) = device() {
         check_losses(dev.as_ref());
+    }
+}
+
+#[test]
+fn cuda_geometry_losses_are_the_cpu_bits() {
+    if let Some(dev) = device() {
+        check_geometry_losses(dev.as_ref());
     }
 }
 

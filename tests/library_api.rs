@@ -10,6 +10,7 @@ use anisocb::cloth::scenarios::{run_single, Scenario, ScenarioSpec};
 use anisocb::geom::obj::{read_obj_grid, write_obj_grid};
 use anisocb::geom::GridMesh;
 use anisocb::nn::weights::embedded_model;
+use anisocb::ops::loss::DetailEnergy;
 use anisocb::ops::{AdamParams, Cpu, Interp, Ops, Padding};
 use anisocb::pipeline::{upscale_files, Quiet, UpscaleJob, Upscaler};
 use anisocb::sr::params::UpscaleParams;
@@ -201,6 +202,25 @@ impl Ops for FailingDevice {
     }
     fn bce_with_logits(&self, logits: &Tensor, target: &Tensor, pos_weight: f32) -> (f32, Tensor) {
         Cpu.bce_with_logits(logits, target, pos_weight)
+    }
+    fn edge_mse(&self, pred: &Tensor, target: &Tensor) -> (f32, Tensor) {
+        Cpu.edge_mse(pred, target)
+    }
+    fn edge_length_mse(&self, pred: &Tensor, target: &Tensor) -> (f32, Tensor) {
+        Cpu.edge_length_mse(pred, target)
+    }
+    fn laplacian_mse(&self, pred: &Tensor, target: &Tensor) -> (f32, Tensor) {
+        Cpu.laplacian_mse(pred, target)
+    }
+    fn detail_energy_mse(
+        &self,
+        p: &Tensor,
+        t: &Tensor,
+        h: usize,
+        w: usize,
+        d: DetailEnergy,
+    ) -> (f32, Tensor) {
+        Cpu.detail_energy_mse(p, t, h, w, d)
     }
     fn adam_update(
         &self,

@@ -3,7 +3,8 @@
 //! the edge-vector, curvature (Laplacian) and edge-length losses and their gradients, the
 //! combined GeometryNet loss (MSE + w·edge, MSE + w_e·edge + w_l·laplacian,
 //! MSE + w_e·edge + w_n·length and MSE + w·detail), the wrinkle-energy loss, and
-//! the cloth frame (origin, unit, rotation as NumPy's SVD polar factor).
+//! the cloth frame (origin, unit, rotation as NumPy's SVD polar factor). Each loss is checked
+//! through two op tables: `RefOps` (the scalar `*_ref` specs) and `Cpu` (the nets' CPU path).
 //!
 //! Tolerances (references in f64): losses rtol 1e-5 (f64-accumulated means), gradients
 //! atol 1e-8 + rtol 1e-5 (magnitude ~1/count); the frame atol 1e-5 (f32 positions of
@@ -16,7 +17,7 @@ use anisocb::geom::GridMesh;
 use anisocb::io::read_npy;
 use anisocb::nn::geometry_net::{estimate_loss, GeometryLoss};
 use anisocb::ops::loss::DetailEnergy;
-use anisocb::ops::{loss, Cpu};
+use anisocb::ops::{loss, Cpu, Ops, RefOps};
 use anisocb::Tensor;
 use close::assert_close_slice as close;
 use std::path::PathBuf;
@@ -27,13 +28,18 @@ fn fx(name: &str) -> Tensor {
     read_npy(&p).unwrap_or_else(|e| panic!("{e}"))
 }
 
+fn tables() -> [&'static dyn Ops; 2] {
+    [&RefOps, &Cpu]
+}
+
 #[test]
 fn edge_loss_and_gradient_match_jax() {
-    for tag in ["a", "row", "col"] {
+    for (ops, tag) in tables().into_iter().flat_map(|o| ["a", "row", "col"].map(|t| (o, t))) {
         let (p, t) = (fx(&format!("edge_{tag}_pred")), fx(&format!("edge_{tag}_target")));
-        let (l, g) = loss::edge_mse(&p, &t);
-        close(&format!("edge {tag} loss"), &[l], &fx(&format!("edge_{tag}_loss")).data, 0.0, 1e-5);
-        close(&format!("edge {tag} grad"), &g.data, &fx(&format!("edge_{tag}_grad")).data, 1e-8, 1e-5);
+        let (l, g) = ops.edge_mse(&p, &t);
+        let what = |k: &str| format!("{} edge {tag} {k}", ops.name());
+        close(&what("loss"), &[l], &fx(&format!("edge_{tag}_loss")).data, 0.0, 1e-5);
+        close(&what("grad"), &g.data, &fx(&format!("edge_{tag}_grad")).data, 1e-8, 1e-5);
     }
 }
 
@@ -45,24 +51,30 @@ fn geometry_loss_with_edge_term_matches_jax() {
     for (e, r) in est.data.iter_mut().zip(&r.data) {
         *e += r;
     }
-    let (l, g) = estimate_loss(&Cpu, &est, &hr, (3, 4), GeometryLoss { edge: w, ..GeometryLoss::default() });
-    close("geometry loss", &[l], &fx("geo_loss").data, 0.0, 1e-5);
-    close("geometry grad", &g.data, &fx("geo_grad").data, 1e-8, 1e-5);
+    for ops in tables() {
+        let (l, g) =
+            estimate_loss(ops, &est, &hr, (3, 4), GeometryLoss { edge: w, ..GeometryLoss::default() });
+        close(&format!("{} geometry loss", ops.name()), &[l], &fx("geo_loss").data, 0.0, 1e-5);
+        close(&format!("{} geometry grad", ops.name()), &g.data, &fx("geo_grad").data, 1e-8, 1e-5);
+    }
 }
 
 #[test]
 fn laplacian_loss_and_gradient_match_jax() {
-    for tag in ["a", "min", "wide"] {
-        let (p, t) = (fx(&format!("lap_{tag}_pred")), fx(&format!("lap_{tag}_target")));
-        let (l, g) = loss::laplacian_mse(&p, &t);
-        close(&format!("laplacian {tag} loss"), &[l], &fx(&format!("lap_{tag}_loss")).data, 0.0, 1e-5);
-        // Gradients up to 2·20·|D|/count: atol scaled like the edge term's.
-        close(&format!("laplacian {tag} grad"), &g.data, &fx(&format!("lap_{tag}_grad")).data, 1e-7, 1e-5);
+    for ops in tables() {
+        for tag in ["a", "min", "wide"] {
+            let (p, t) = (fx(&format!("lap_{tag}_pred")), fx(&format!("lap_{tag}_target")));
+            let (l, g) = ops.laplacian_mse(&p, &t);
+            let what = |k: &str| format!("{} laplacian {tag} {k}", ops.name());
+            close(&what("loss"), &[l], &fx(&format!("lap_{tag}_loss")).data, 0.0, 1e-5);
+            // Gradients up to 2·20·|D|/count: atol scaled like the edge term's.
+            close(&what("grad"), &g.data, &fx(&format!("lap_{tag}_grad")).data, 1e-7, 1e-5);
+        }
+        // Under 3×3 there is no interior pixel: no loss, no gradient.
+        let p = Tensor::zeros(&[1, 3, 2, 9]);
+        let (l, g) = ops.laplacian_mse(&p, &Tensor::full(&[1, 3, 2, 9], 1.0));
+        assert_eq!((l, g.data.iter().all(|&v| v == 0.0)), (0.0, true), "{}", ops.name());
     }
-    // Under 3×3 there is no interior pixel: no loss, no gradient.
-    let p = Tensor::zeros(&[1, 3, 2, 9]);
-    let (l, g) = loss::laplacian_mse(&p, &Tensor::full(&[1, 3, 2, 9], 1.0));
-    assert_eq!((l, g.data.iter().all(|&v| v == 0.0)), (0.0, true));
 }
 
 #[test]
@@ -73,30 +85,30 @@ fn geometry_loss_with_edge_and_laplacian_terms_matches_jax() {
     for (e, r) in est.data.iter_mut().zip(&r.data) {
         *e += r;
     }
-    let (l, g) = estimate_loss(
-        &Cpu,
-        &est,
-        &hr,
-        (3, 4),
-        GeometryLoss { edge: w[0], laplacian: w[1], ..GeometryLoss::default() },
-    );
-    close("geometry2 loss", &[l], &fx("geo2_loss").data, 0.0, 1e-5);
-    close("geometry2 grad", &g.data, &fx("geo2_grad").data, 1e-8, 1e-5);
+    for ops in tables() {
+        let weights = GeometryLoss { edge: w[0], laplacian: w[1], ..GeometryLoss::default() };
+        let (l, g) = estimate_loss(ops, &est, &hr, (3, 4), weights);
+        close(&format!("{} geometry2 loss", ops.name()), &[l], &fx("geo2_loss").data, 0.0, 1e-5);
+        close(&format!("{} geometry2 grad", ops.name()), &g.data, &fx("geo2_grad").data, 1e-8, 1e-5);
+    }
 }
 
 #[test]
 fn edge_length_loss_and_gradient_match_jax() {
-    for tag in ["a", "row", "two"] {
-        let (p, t) = (fx(&format!("len_{tag}_pred")), fx(&format!("len_{tag}_target")));
-        let (l, g) = loss::edge_length_mse(&p, &t);
-        close(&format!("length {tag} loss"), &[l], &fx(&format!("len_{tag}_loss")).data, 0.0, 1e-5);
-        close(&format!("length {tag} grad"), &g.data, &fx(&format!("len_{tag}_grad")).data, 1e-8, 1e-5);
+    for ops in tables() {
+        for tag in ["a", "row", "two"] {
+            let (p, t) = (fx(&format!("len_{tag}_pred")), fx(&format!("len_{tag}_target")));
+            let (l, g) = ops.edge_length_mse(&p, &t);
+            let what = |k: &str| format!("{} length {tag} {k}", ops.name());
+            close(&what("loss"), &[l], &fx(&format!("len_{tag}_loss")).data, 0.0, 1e-5);
+            close(&what("grad"), &g.data, &fx(&format!("len_{tag}_grad")).data, 1e-8, 1e-5);
+        }
+        // A zero-length edge of pred has no direction: no gradient from it, and no NaN.
+        let p = Tensor::zeros(&[1, 3, 1, 2]);
+        let t = Tensor { shape: [1, 3, 1, 2].into(), data: vec![0., 1., 0., 0., 0., 0.] };
+        let (l, g) = ops.edge_length_mse(&p, &t);
+        assert_eq!((l, g.data.iter().all(|&v| v == 0.0)), (1.0, true), "{}", ops.name());
     }
-    // A zero-length edge of pred has no direction: no gradient from it, and no NaN.
-    let p = Tensor::zeros(&[1, 3, 1, 2]);
-    let (l, g) =
-        loss::edge_length_mse(&p, &Tensor { shape: [1, 3, 1, 2].into(), data: vec![0., 1., 0., 0., 0., 0.] });
-    assert_eq!((l, g.data.iter().all(|&v| v == 0.0)), (1.0, true));
 }
 
 #[test]
@@ -107,30 +119,28 @@ fn geometry_loss_with_edge_and_length_terms_matches_jax() {
     for (e, r) in est.data.iter_mut().zip(&r.data) {
         *e += r;
     }
-    let (l, g) = estimate_loss(
-        &Cpu,
-        &est,
-        &hr,
-        (3, 4),
-        GeometryLoss { edge: w[0], length: w[1], ..GeometryLoss::default() },
-    );
-    close("geometry3 loss", &[l], &fx("geo3_loss").data, 0.0, 1e-5);
-    close("geometry3 grad", &g.data, &fx("geo3_grad").data, 1e-8, 1e-5);
+    for ops in tables() {
+        let weights = GeometryLoss { edge: w[0], length: w[1], ..GeometryLoss::default() };
+        let (l, g) = estimate_loss(ops, &est, &hr, (3, 4), weights);
+        close(&format!("{} geometry3 loss", ops.name()), &[l], &fx("geo3_loss").data, 0.0, 1e-5);
+        close(&format!("{} geometry3 grad", ops.name()), &g.data, &fx("geo3_grad").data, 1e-8, 1e-5);
+    }
 }
 
 #[test]
 fn detail_energy_loss_and_gradient_match_jax() {
-    for tag in ["a", "r0", "odd", "normal"] {
+    for (ops, tag) in tables().into_iter().flat_map(|o| ["a", "r0", "odd", "normal"].map(|t| (o, t))) {
         let (p, t) = (fx(&format!("detail_{tag}_pred")), fx(&format!("detail_{tag}_target")));
         let k = fx(&format!("detail_{tag}_params")).into_data(); // lr_h, lr_w, r, ε
         let params = DetailEnergy { radius: k[2] as usize, eps: k[3], normal_only: k.get(4) == Some(&1.0) };
-        let (l, g) = loss::detail_energy_mse(&p, &t, k[0] as usize, k[1] as usize, params);
-        close(&format!("detail {tag} loss"), &[l], &fx(&format!("detail_{tag}_loss")).data, 0.0, 1e-5);
+        let (l, g) = ops.detail_energy_mse(&p, &t, k[0] as usize, k[1] as usize, params);
+        let what = |k: &str| format!("{} detail {tag} {k}", ops.name());
+        close(&what("loss"), &[l], &fx(&format!("detail_{tag}_loss")).data, 0.0, 1e-5);
         // f32 resizes and sums against f64: rtol 1e-4 (the gradient passes through 1/a and two
         // resizes of 4×4 taps); atol at 1e-4 of the largest entry (~1/count).
         let want = fx(&format!("detail_{tag}_grad"));
         let atol = 1e-4 * want.data.iter().fold(0.0f32, |m, v| m.max(v.abs()));
-        close(&format!("detail {tag} grad"), &g.data, &want.data, atol, 1e-4);
+        close(&what("grad"), &g.data, &want.data, atol, 1e-4);
     }
 }
 
@@ -147,9 +157,11 @@ fn geometry_loss_with_detail_term_matches_jax() {
         detail_params: DetailEnergy { radius: k[3] as usize, eps: k[4], normal_only: false },
         ..GeometryLoss::default()
     };
-    let (l, g) = estimate_loss(&Cpu, &est, &hr, (k[1] as usize, k[2] as usize), w);
-    close("geometry4 loss", &[l], &fx("geo4_loss").data, 0.0, 1e-5);
-    close("geometry4 grad", &g.data, &fx("geo4_grad").data, 1e-7, 1e-4);
+    for ops in tables() {
+        let (l, g) = estimate_loss(ops, &est, &hr, (k[1] as usize, k[2] as usize), w);
+        close(&format!("{} geometry4 loss", ops.name()), &[l], &fx("geo4_loss").data, 0.0, 1e-5);
+        close(&format!("{} geometry4 grad", ops.name()), &g.data, &fx("geo4_grad").data, 1e-7, 1e-4);
+    }
 }
 
 /// RMS of the detail beyond the (lr_h, lr_w) frame, away from a 2-pixel border (where the

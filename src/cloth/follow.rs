@@ -432,6 +432,7 @@ impl Follower {
     /// true LR frames 0.456; docs/research/wrinkles.md, "The physics pass").
     fn targets(&self, frame: &GridMesh) -> Vec<[f32; 3]> {
         let img = sequence_to_images(std::slice::from_ref(frame), &Domain::UNIT);
+        // The simulator's own resampling, not a net op: the CPU function, not the op table.
         let lr = resize(&img, self.lr.1, self.lr.0, Interp::CatmullRom);
         self.track.restriction.targets(&image_to_mesh(&lr, 0, &Domain::UNIT))
     }

@@ -1,6 +1,7 @@
 //! The CUDA backend in a build without the `cuda` feature: same API, cannot be constructed.
 
 use crate::error::{Error, Result};
+use crate::ops::loss::DetailEnergy;
 use crate::ops::{AdamParams, Interp, Ops, Padding};
 use crate::tensor::Tensor;
 
@@ -76,6 +77,25 @@ impl Ops for Cuda {
         match *self {}
     }
     fn bce_with_logits(&self, _: &Tensor, _: &Tensor, _: f32) -> (f32, Tensor) {
+        match *self {}
+    }
+    fn edge_mse(&self, _: &Tensor, _: &Tensor) -> (f32, Tensor) {
+        match *self {}
+    }
+    fn edge_length_mse(&self, _: &Tensor, _: &Tensor) -> (f32, Tensor) {
+        match *self {}
+    }
+    fn laplacian_mse(&self, _: &Tensor, _: &Tensor) -> (f32, Tensor) {
+        match *self {}
+    }
+    fn detail_energy_mse(
+        &self,
+        _: &Tensor,
+        _: &Tensor,
+        _: usize,
+        _: usize,
+        _: DetailEnergy,
+    ) -> (f32, Tensor) {
         match *self {}
     }
     fn adam_update(&self, _: &mut [f32], _: &[f32], _: &mut [f32], _: &mut [f32], _: u64, _: &AdamParams) {

@@ -1,7 +1,8 @@
 //! The [`Ops`] table of the GPU backend over host tensors.
 
 use super::device::{store, Cuda};
-use crate::ops::{AdamParams, Interp, Ops, Padding};
+use crate::ops::loss::DetailEnergy;
+use crate::ops::{AdamParams, Cpu, Interp, Ops, Padding};
 use crate::tensor::Tensor;
 
 /// The [`Ops`] table over host tensors: each call uploads its inputs, runs the kernels and
@@ -159,6 +160,33 @@ impl Ops for Cuda {
                 Ok((l, self.download(&g)?))
             },
         )
+    }
+
+    // The geometry losses have no kernels: the CPU table computes them on the host, as
+    // GeometryNet's loss did before they were ops (their inputs are host tensors already, and
+    // they run once a step, on small HR patches).
+
+    fn edge_mse(&self, pred: &Tensor, target: &Tensor) -> (f32, Tensor) {
+        Cpu.edge_mse(pred, target)
+    }
+
+    fn edge_length_mse(&self, pred: &Tensor, target: &Tensor) -> (f32, Tensor) {
+        Cpu.edge_length_mse(pred, target)
+    }
+
+    fn laplacian_mse(&self, pred: &Tensor, target: &Tensor) -> (f32, Tensor) {
+        Cpu.laplacian_mse(pred, target)
+    }
+
+    fn detail_energy_mse(
+        &self,
+        pred: &Tensor,
+        target: &Tensor,
+        lr_h: usize,
+        lr_w: usize,
+        p: DetailEnergy,
+    ) -> (f32, Tensor) {
+        Cpu.detail_energy_mse(pred, target, lr_h, lr_w, p)
     }
 
     fn adam_update(

@@ -171,6 +171,7 @@ pub fn sequence_to_images(frames: &[GridMesh], domain: &Domain) -> Tensor {
 pub fn lr_round_trip(frame: &GridMesh, lr_w: usize, lr_h: usize) -> GridMesh {
     // (1, 3, H, W): the geometry image of the unit domain holds metres unchanged.
     let img = sequence_to_images(std::slice::from_ref(frame), &Domain::UNIT);
+    // The metric's resampling, not a net op: the CPU function, not the op table.
     let lr = resize(&img, lr_h, lr_w, Interp::CatmullRom);
     image_to_mesh(&resize(&lr, frame.h, frame.w, Interp::CatmullRom), 0, &Domain::UNIT)
 }

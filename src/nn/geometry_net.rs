@@ -6,7 +6,7 @@ use super::config::{NetConfig, NetKind, IN_CHANNELS};
 use super::layers::Trunk;
 use crate::error::{Error, Result};
 use crate::ops::conv2d::PackedConv;
-use crate::ops::loss::{detail_energy_mse, edge_length_mse, edge_mse, laplacian_mse, DetailEnergy};
+use crate::ops::loss::DetailEnergy;
 use crate::ops::{Interp, Ops};
 use crate::tensor::Tensor;
 
@@ -92,16 +92,17 @@ impl GeometryNet {
 }
 
 /// Weights (dimensionless) of the terms GeometryNet's loss adds to the position MSE (Eq 3);
-/// all 0 = Eq 3 alone. The terms are computed on the host whatever the op table.
+/// all 0 = Eq 3 alone. The terms are ops of the table (the CUDA table computes them on the
+/// host).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct GeometryLoss {
-    /// Edge-vector term [`edge_mse`]: swimming edge lengths, noisy normals.
+    /// Edge-vector term [`Ops::edge_mse`]: swimming edge lengths, noisy normals.
     pub edge: f32,
-    /// Curvature term [`laplacian_mse`]: bumps and dents that show in shading.
+    /// Curvature term [`Ops::laplacian_mse`]: bumps and dents that show in shading.
     pub laplacian: f32,
-    /// Edge-length term [`edge_length_mse`]: the in-plane shrinking of an averaged surface.
+    /// Edge-length term [`Ops::edge_length_mse`]: the in-plane shrinking of an averaged surface.
     pub length: f32,
-    /// Wrinkle-energy term [`detail_energy_mse`]: the fold amplitude an averaged surface
+    /// Wrinkle-energy term [`Ops::detail_energy_mse`]: the fold amplitude an averaged surface
     /// lacks, priced without asking for the folds' phase.
     pub detail: f32,
     /// Window and amplitude floor of the wrinkle-energy term.
@@ -120,15 +121,17 @@ pub fn estimate_loss(
     w: GeometryLoss,
 ) -> (f32, Tensor) {
     let (mut loss, mut grad) = ops.mse(est, hr);
-    let detail = |p: &Tensor, t: &Tensor| detail_energy_mse(p, t, lr_hw.0, lr_hw.1, w.detail_params);
-    for (weight, term) in [
-        (w.edge, &edge_mse as &dyn Fn(&Tensor, &Tensor) -> (f32, Tensor)),
-        (w.laplacian, &laplacian_mse),
-        (w.length, &edge_length_mse),
-        (w.detail, &detail),
-    ] {
+    // A term: its weight and the op computing it, called only for a weight other than 0.
+    type Term<'a> = (f32, &'a dyn Fn() -> (f32, Tensor));
+    let terms: [Term; 4] = [
+        (w.edge, &|| ops.edge_mse(est, hr)),
+        (w.laplacian, &|| ops.laplacian_mse(est, hr)),
+        (w.length, &|| ops.edge_length_mse(est, hr)),
+        (w.detail, &|| ops.detail_energy_mse(est, hr, lr_hw.0, lr_hw.1, w.detail_params)),
+    ];
+    for (weight, term) in terms {
         if weight != 0.0 {
-            let (l, g) = term(est, hr);
+            let (l, g) = term();
             loss += weight * l;
             for (d, e) in grad.data.iter_mut().zip(&g.data) {
                 *d += weight * e;

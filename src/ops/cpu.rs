@@ -77,6 +77,25 @@ impl Ops for Cpu {
     fn bce_with_logits(&self, logits: &Tensor, target: &Tensor, pos_weight: f32) -> (f32, Tensor) {
         loss::bce_with_logits(logits, target, pos_weight)
     }
+    fn edge_mse(&self, pred: &Tensor, target: &Tensor) -> (f32, Tensor) {
+        loss::edge_mse(pred, target)
+    }
+    fn edge_length_mse(&self, pred: &Tensor, target: &Tensor) -> (f32, Tensor) {
+        loss::edge_length_mse(pred, target)
+    }
+    fn laplacian_mse(&self, pred: &Tensor, target: &Tensor) -> (f32, Tensor) {
+        loss::laplacian_mse(pred, target)
+    }
+    fn detail_energy_mse(
+        &self,
+        pred: &Tensor,
+        target: &Tensor,
+        lr_h: usize,
+        lr_w: usize,
+        p: loss::DetailEnergy,
+    ) -> (f32, Tensor) {
+        loss::detail_energy_mse(pred, target, lr_h, lr_w, p)
+    }
     fn enter(&self, f: &mut (dyn FnMut() + Send)) {
         // From a non-worker thread, rayon::scope hands the closure to the pool and blocks.
         rayon::scope(|_| f())

@@ -5,7 +5,7 @@
 //! gradients are the reference's expressions (bitwise equal), their loss agrees to rounding.
 
 use super::activation::{CHUNK, PAR_MIN};
-use super::resample::{resize, resize_backward};
+use super::resample::{resize, resize_backward, resize_backward_ref, resize_ref};
 use super::Interp;
 use crate::tensor::Tensor;
 use rayon::prelude::*;
@@ -78,7 +78,8 @@ pub fn mse(pred: &Tensor, target: &Tensor) -> (f32, Tensor) {
 /// column edges per channel) and its gradient w.r.t. pred. On a geometry image this is the
 /// error of every edge vector of the mesh: it punishes what MSE barely sees, the
 /// pixel-to-pixel noise that makes edge lengths swim and normals flicker. Plain loops: the
-/// HR patches it runs on are small (not a hot path); the sum is in f64.
+/// HR patches it runs on are small (not a hot path); the sum is in f64. [`Cpu`](super::Cpu)'s
+/// path of [`Ops::edge_mse`](super::Ops::edge_mse); its spec is [`edge_mse_ref`].
 pub fn edge_mse(pred: &Tensor, target: &Tensor) -> (f32, Tensor) {
     check(pred, target, "edge_mse");
     let (n, c, h, w) = pred.dims4();
@@ -103,6 +104,36 @@ pub fn edge_mse(pred: &Tensor, target: &Tensor) -> (f32, Tensor) {
     }
     ((sum / count as f64) as f32, g)
 }
+/// The spec of [`edge_mse`], written pixel by pixel: each pixel's gradient is gathered from the
+/// (up to four) grid edges that touch it, `+e` from an edge that ends there and `−e` from one
+/// that starts there, where [`edge_mse`] scatters each edge into its two ends. Same loss and
+/// count; agrees to rounding.
+pub fn edge_mse_ref(pred: &Tensor, target: &Tensor) -> (f32, Tensor) {
+    check(pred, target, "edge_mse");
+    let (n, c, h, w) = pred.dims4();
+    let count = (n * c * (h * w.saturating_sub(1) + h.saturating_sub(1) * w)).max(1);
+    let d = |p: usize, y: usize, x: usize| {
+        let i = (p * h + y) * w + x;
+        pred.data[i] - target.data[i]
+    };
+    // Errors of the edges (y, x) → (y, x + 1) and (y, x) → (y + 1, x); 0 past the grid.
+    let right = |p: usize, y: usize, x: usize| if x + 1 < w { d(p, y, x + 1) - d(p, y, x) } else { 0.0 };
+    let down = |p: usize, y: usize, x: usize| if y + 1 < h { d(p, y + 1, x) - d(p, y, x) } else { 0.0 };
+    let mut g = Tensor::zeros(&pred.shape);
+    let mut sum = 0.0f64;
+    for p in 0..n * c {
+        for y in 0..h {
+            for x in 0..w {
+                let (er, ed) = (right(p, y, x), down(p, y, x));
+                sum += (er as f64) * (er as f64) + (ed as f64) * (ed as f64);
+                let el = if x > 0 { right(p, y, x - 1) } else { 0.0 };
+                let eu = if y > 0 { down(p, y - 1, x) } else { 0.0 };
+                g.data[(p * h + y) * w + x] = 2.0 * (el + eu - er - ed) / count as f32;
+            }
+        }
+    }
+    ((sum / count as f64) as f32, g)
+}
 
 /// Edge-length error: with the C channels of a pixel as a point (xyz on a geometry image),
 /// `mean over the grid's edges of (|P[j] − P[i]| − |T[j] − T[i]|)²` (H·(W−1) row edges and
@@ -111,7 +142,8 @@ pub fn edge_mse(pred: &Tensor, target: &Tensor) -> (f32, Tensor) {
 /// a net that cannot place a wrinkle averages its possible phases, and the average of tilted
 /// edge vectors is shorter: the mesh contracts in its plane (area 2–3 % below the truth on a
 /// twisted strip, outlines shrinking on cloth from another solver). This term prices the
-/// shortening itself. Plain loops, f64 sum (small patches).
+/// shortening itself. Plain loops, f64 sum (small patches). [`Cpu`](super::Cpu)'s path of
+/// [`Ops::edge_length_mse`](super::Ops::edge_length_mse); its spec is [`edge_length_mse_ref`].
 pub fn edge_length_mse(pred: &Tensor, target: &Tensor) -> (f32, Tensor) {
     check(pred, target, "edge_length_mse");
     let (n, c, h, w) = pred.dims4();
@@ -147,6 +179,68 @@ pub fn edge_length_mse(pred: &Tensor, target: &Tensor) -> (f32, Tensor) {
     }
     ((sum / count as f64) as f32, g)
 }
+/// The spec of [`edge_length_mse`], written pixel by pixel: each pixel's gradient is gathered
+/// from the (up to four) grid edges that touch it, `+k·(P[b] − P[a])` at the edge's end b and
+/// `−k·(…)` at its start a, k = 2·e / (count·|P[b] − P[a]|), 0 for a zero-length edge of pred.
+/// Agrees with [`edge_length_mse`] to rounding.
+pub fn edge_length_mse_ref(pred: &Tensor, target: &Tensor) -> (f32, Tensor) {
+    check(pred, target, "edge_length_mse");
+    let (n, c, h, w) = pred.dims4();
+    let count = (n * (h * w.saturating_sub(1) + h.saturating_sub(1) * w)).max(1);
+    let at = |img: usize, ch: usize, y: usize, x: usize| ((img * c + ch) * h + y) * w + x;
+    let length = |v: &Tensor, img: usize, a: (usize, usize), b: (usize, usize)| {
+        let mut s = 0.0f32;
+        for ch in 0..c {
+            let e = v.data[at(img, ch, b.0, b.1)] - v.data[at(img, ch, a.0, a.1)];
+            s += e * e;
+        }
+        s.sqrt()
+    };
+    // Of the edge a → b: (length error e, pred's length).
+    let edge = |img: usize, a: (usize, usize), b: (usize, usize)| {
+        let lp = length(pred, img, a, b);
+        (lp - length(target, img, a, b), lp)
+    };
+    let mut g = Tensor::zeros(&pred.shape);
+    let mut sum = 0.0f64;
+    for img in 0..n {
+        for y in 0..h {
+            for x in 0..w {
+                let me = (y, x);
+                // The edges touching this pixel: (start, end); each edge's loss is counted at
+                // its start (the right and down edges).
+                let mut edges = Vec::with_capacity(4);
+                if x + 1 < w {
+                    edges.push((me, (y, x + 1)));
+                }
+                if y + 1 < h {
+                    edges.push((me, (y + 1, x)));
+                }
+                for &e in &edges {
+                    let (err, _) = edge(img, e.0, e.1);
+                    sum += (err as f64) * (err as f64);
+                }
+                if x > 0 {
+                    edges.push(((y, x - 1), me));
+                }
+                if y > 0 {
+                    edges.push(((y - 1, x), me));
+                }
+                for (a, b) in edges {
+                    let (err, lp) = edge(img, a, b);
+                    if lp > 0.0 {
+                        let sign = if b == me { 1.0 } else { -1.0 };
+                        for ch in 0..c {
+                            let dv = pred.data[at(img, ch, b.0, b.1)] - pred.data[at(img, ch, a.0, a.1)];
+                            g.data[at(img, ch, y, x)] += sign * 2.0 * err * dv / (count as f32 * lp);
+                        }
+                    }
+                }
+            }
+        }
+    }
+    ((sum / count as f64) as f32, g)
+}
 
 /// Curvature error (second differences): with `D = pred − target` (N, C, H, W) and the
 /// 5-point Laplacian `ΔD[y, x] = D[y−1, x] + D[y+1, x] + D[y, x−1] + D[y, x+1] − 4 D[y, x]` at
@@ -154,6 +248,8 @@ pub fn edge_length_mse(pred: &Tensor, target: &Tensor) -> (f32, Tensor) {
 /// gradient w.r.t. pred (0 for grids under 3×3). On a geometry image ΔD is the error of the
 /// discrete mean-curvature normal: what shows in shading as bumps and dents that are not in
 /// the truth, and what MSE and the edge term weigh least. Plain loops, f64 sum (small patches).
+/// [`Cpu`](super::Cpu)'s path of [`Ops::laplacian_mse`](super::Ops::laplacian_mse); its spec is
+/// [`laplacian_mse_ref`].
 pub fn laplacian_mse(pred: &Tensor, target: &Tensor) -> (f32, Tensor) {
     check(pred, target, "laplacian_mse");
     let (n, c, h, w) = pred.dims4();
@@ -176,6 +272,44 @@ pub fn laplacian_mse(pred: &Tensor, target: &Tensor) -> (f32, Tensor) {
                     g.data[j] += gl;
                 }
                 g.data[i] -= 4.0 * gl;
+            }
+        }
+    }
+    ((sum / count as f64) as f32, g)
+}
+/// The spec of [`laplacian_mse`], written pixel by pixel: with `L = ΔD` at the interior pixels
+/// and 0 on the border, the gradient is `2/count · ΔL` (the 5-point stencil is symmetric, so
+/// it is its own transpose), gathered at each pixel where [`laplacian_mse`] scatters each
+/// stencil into its five pixels. Agrees to rounding.
+pub fn laplacian_mse_ref(pred: &Tensor, target: &Tensor) -> (f32, Tensor) {
+    check(pred, target, "laplacian_mse");
+    let (n, c, h, w) = pred.dims4();
+    let mut g = Tensor::zeros(&pred.shape);
+    if h < 3 || w < 3 {
+        return (0.0, g);
+    }
+    let count = n * c * (h - 2) * (w - 2);
+    let d = |p: usize, y: usize, x: usize| {
+        let i = (p * h + y) * w + x;
+        pred.data[i] - target.data[i]
+    };
+    // ΔD at (y, x) if it is interior, else 0 (signed coordinates: the stencil of a border
+    // pixel reaches one step outside).
+    let lap = |p: usize, y: isize, x: isize| {
+        if y < 1 || x < 1 || y > h as isize - 2 || x > w as isize - 2 {
+            return 0.0;
+        }
+        let (y, x) = (y as usize, x as usize);
+        d(p, y - 1, x) + d(p, y + 1, x) + d(p, y, x - 1) + d(p, y, x + 1) - 4.0 * d(p, y, x)
+    };
+    let mut sum = 0.0f64;
+    for p in 0..n * c {
+        for y in 0..h as isize {
+            for x in 0..w as isize {
+                let l = lap(p, y, x);
+                sum += (l as f64) * (l as f64);
+                let around = lap(p, y - 1, x) + lap(p, y + 1, x) + lap(p, y, x - 1) + lap(p, y, x + 1);
+                g.data[(p * h + y as usize) * w + x as usize] = 2.0 * (around - 4.0 * l) / count as f32;
             }
         }
     }
@@ -366,6 +500,9 @@ pub fn detail_amplitude(x: &Tensor, lr_h: usize, lr_w: usize, p: DetailEnergy) -
 /// dE[p] = 2(aP − aT)/count · 1/(2aP); de[q] = Σ_{p: q ∈ win(p)} dE[p]/cnt(p) (the transpose
 /// of the clipped mean weighs by the *output* window's count); dHf = 2·Hf·de;
 /// d pred = dHf − downᵀ(upᵀ(dHf)).
+///
+/// [`Cpu`](super::Cpu)'s path of [`Ops::detail_energy_mse`](super::Ops::detail_energy_mse); its
+/// spec is [`detail_energy_mse_ref`].
 pub fn detail_energy_mse(
     pred: &Tensor,
     target: &Tensor,
@@ -417,6 +554,114 @@ pub fn detail_energy_mse(
     resize_backward(&g, Interp::CatmullRom, &mut d_lr);
     let mut back = Tensor::zeros(&pred.shape);
     resize_backward(&d_lr, Interp::CatmullRom, &mut back);
+    for (v, &b) in g.data.iter_mut().zip(&back.data) {
+        *v -= b;
+    }
+    ((total / count as f64) as f32, g)
+}
+/// The spec of [`detail_energy_mse`], term by term from its definition: the high pass through
+/// the scalar resizes ([`resize_ref`], [`resize_backward_ref`]), each window's mean and its
+/// transpose summed pixel by pixel over the clipped (2r+1)² window (where [`detail_energy_mse`]
+/// runs a separable box sum), and with `normal_only` the gradient projected back onto the
+/// normals explicitly (where [`detail_energy_mse`] uses that the projection is idempotent).
+/// pred, target: (N, C, H, W); agrees to rounding.
+pub fn detail_energy_mse_ref(
+    pred: &Tensor,
+    target: &Tensor,
+    lr_h: usize,
+    lr_w: usize,
+    p: DetailEnergy,
+) -> (f32, Tensor) {
+    check(pred, target, "detail_energy_mse");
+    assert!(lr_h > 0 && lr_w > 0, "detail_energy_mse: empty LR size {lr_h}×{lr_w}");
+    let (n, c, h, w) = pred.dims4();
+    let (px, r) = (h * w, p.radius);
+    let count = (n * px).max(1);
+    let high_pass = |x: &Tensor| {
+        let up = resize_ref(&resize_ref(x, lr_h, lr_w, Interp::CatmullRom), h, w, Interp::CatmullRom);
+        let mut hf = x.clone();
+        for (v, &u) in hf.data.iter_mut().zip(&up.data) {
+            *v -= u;
+        }
+        hf
+    };
+    let (mut hp, mut ht) = (high_pass(pred), high_pass(target));
+    // The normals of the target's smooth part S(target) = target − Hf(target); no gradient.
+    let nrm = p.normal_only.then(|| {
+        let mut smooth = target.clone();
+        for (s, &d) in smooth.data.iter_mut().zip(&ht.data) {
+            *s -= d;
+        }
+        image_normals(&smooth)
+    });
+    if let Some(nrm) = &nrm {
+        project_on_normals(&mut hp, nrm);
+        project_on_normals(&mut ht, nrm);
+    }
+    // The clipped window around pixel (y, x): (rows, columns).
+    let window = |y: usize, x: usize| {
+        (y.saturating_sub(r)..(y + r + 1).min(h), x.saturating_sub(r)..(x + r + 1).min(w))
+    };
+    // Per pixel of each image (N·H·W): a = √(mean over the window of Σ_c Hf² + ε²).
+    let amplitude = |hf: &Tensor| -> Vec<f32> {
+        let e = |img: usize, y: usize, x: usize| {
+            (0..c).map(|ch| hf.data[((img * c + ch) * h + y) * w + x].powi(2)).sum::<f32>()
+        };
+        let mut a = vec![0.0f32; n * px];
+        for img in 0..n {
+            for y in 0..h {
+                for x in 0..w {
+                    let (ys, xs) = window(y, x);
+                    let cnt = (ys.len() * xs.len()) as f32;
+                    let mut s = 0.0f32;
+                    for yy in ys {
+                        for xx in xs.clone() {
+                            s += e(img, yy, xx);
+                        }
+                    }
+                    a[img * px + y * w + x] = (s / cnt + p.eps * p.eps).sqrt();
+                }
+            }
+        }
+        a
+    };
+    let (ap, at) = (amplitude(&hp), amplitude(&ht));
+    let mut total = 0.0f64;
+    // dL/dE at each pixel: 2(aP − aT)/count · 1/(2aP).
+    let mut d_mean = vec![0.0f32; n * px];
+    for i in 0..n * px {
+        let d = ap[i] - at[i];
+        total += (d as f64) * (d as f64);
+        d_mean[i] = d / (count as f32 * ap[i]);
+    }
+    // dL/dHf[ch, q] = 2·Hf[ch, q] · Σ over the windows p holding q of dL/dE[p] / cnt(p).
+    let mut g = Tensor::zeros(&pred.shape);
+    for img in 0..n {
+        for y in 0..h {
+            for x in 0..w {
+                let (ys, xs) = window(y, x); // the windows holding (y, x): those it holds
+                let mut de = 0.0f32;
+                for yy in ys {
+                    for xx in xs.clone() {
+                        let (wy, wx) = window(yy, xx);
+                        de += d_mean[img * px + yy * w + xx] / (wy.len() * wx.len()) as f32;
+                    }
+                }
+                for ch in 0..c {
+                    let i = ((img * c + ch) * h + y) * w + x;
+                    g.data[i] = 2.0 * hp.data[i] * de;
+                }
+            }
+        }
+    }
+    // Through the projection (n nᵀ, symmetric) back to Hf, then through Hf = X − up(down(X)).
+    if let Some(nrm) = &nrm {
+        project_on_normals(&mut g, nrm);
+    }
+    let mut d_lr = Tensor::zeros(&[n, c, lr_h, lr_w]);
+    resize_backward_ref(&g, Interp::CatmullRom, &mut d_lr);
+    let mut back = Tensor::zeros(&pred.shape);
+    resize_backward_ref(&d_lr, Interp::CatmullRom, &mut back);
     for (v, &b) in g.data.iter_mut().zip(&back.data) {
         *v -= b;
     }
@@ -488,6 +733,98 @@ mod tests {
                 assert!((la - lb).abs() <= 1e-6 * lb.abs(), "bce n={n} w={w}: {la} vs {lb}");
                 assert_eq!(ga, gb, "bce grad n={n} w={w}");
             }
+        }
+    }
+
+    /// Largest |a − b| over the largest |b| (0 for two zero tensors).
+    fn rel_diff(a: &Tensor, b: &Tensor) -> f32 {
+        assert_eq!(a.shape, b.shape);
+        let top = b.data.iter().fold(0.0f32, |m, v| m.max(v.abs()));
+        let d = a.data.iter().zip(&b.data).fold(0.0f32, |m, (x, y)| m.max((x - y).abs()));
+        if top > 0.0 {
+            d / top
+        } else {
+            d
+        }
+    }
+
+    #[test]
+    fn geometry_losses_match_their_refs_on_odd_shapes() {
+        // 1-pixel rows and columns, grids under 3×3 (no Laplacian interior), odd channel counts;
+        // the same edge lengths in pred and target somewhere (e = 0) and a zero-length edge.
+        let mut rng = TestRng::new(8);
+        for case in 0..40 {
+            let (n, c) = (rng.range(1, 2), rng.range(1, 5));
+            let (h, w) = if case < 4 {
+                [(1, 1), (1, 7), (6, 1), (2, 2)][case]
+            } else {
+                (rng.range(1, 13), rng.range(1, 13))
+            };
+            let p = rng.tensor(&[n, c, h, w], -1.0, 1.0);
+            let mut t = rng.tensor(&[n, c, h, w], -1.0, 1.0);
+            if case % 5 == 0 {
+                t = p.clone();
+            }
+            let mut p = p;
+            if case % 7 == 1 && w > 1 {
+                for ch in 0..c {
+                    p.data[ch * h * w + 1] = p.data[ch * h * w];
+                }
+            }
+            let tag = format!("{:?}", p.shape);
+            type Loss = fn(&Tensor, &Tensor) -> (f32, Tensor);
+            for (name, fast, spec) in [
+                ("edge_mse", edge_mse as Loss, edge_mse_ref as Loss),
+                ("edge_length_mse", edge_length_mse, edge_length_mse_ref),
+                ("laplacian_mse", laplacian_mse, laplacian_mse_ref),
+            ] {
+                let ((la, ga), (lb, gb)) = (fast(&p, &t), spec(&p, &t));
+                assert!((la - lb).abs() <= 1e-6 * lb.abs(), "{name} {tag}: {la} vs {lb}");
+                let d = rel_diff(&ga, &gb);
+                assert!(d <= 1e-6, "{name} grad {tag}: off by {d:e} of its largest entry");
+            }
+        }
+    }
+
+    #[test]
+    fn detail_energy_mse_matches_its_ref_on_odd_shapes() {
+        // Odd HR and LR sizes (LR 1×k included), radius 0 (one pixel) to wider than the image,
+        // all three channels along the normals or not, 2 channels (no normals), flat
+        // regions where the amplitude floor ε holds.
+        let mut rng = TestRng::new(9);
+        for case in 0..24 {
+            let normal_only = case % 2 == 0;
+            let c = if normal_only { 3 } else { [1, 2, 3][case % 3] };
+            let (n, h, w) = (rng.range(1, 2), rng.range(2, 13), rng.range(2, 13));
+            let (lr_h, lr_w) = (rng.range(1, h), rng.range(1, w));
+            let p = DetailEnergy { radius: rng.range(0, 4), eps: [1e-5, 1e-3][case % 4 / 2], normal_only };
+            // A smooth sheet (so its normals are defined) plus detail of either sign.
+            let mut t = rng.tensor(&[n, c, h, w], -0.05, 0.05);
+            for img in 0..n {
+                for y in 0..h {
+                    for x in 0..w {
+                        let i = t.idx4(img, 0, y, x);
+                        t.data[i] += x as f32 / w as f32;
+                        if c > 1 {
+                            let i = t.idx4(img, 1, y, x);
+                            t.data[i] += y as f32 / h as f32;
+                        }
+                    }
+                }
+            }
+            let mut pr = t.clone();
+            for v in pr.data.iter_mut() {
+                *v += rng.uniform(-0.03, 0.03);
+            }
+            if case == 5 {
+                pr.data.iter_mut().for_each(|v| *v = 0.25); // no detail at all: a = ε
+            }
+            let tag = format!("{:?} lr {lr_h}×{lr_w} {p:?}", pr.shape);
+            let ((la, ga), (lb, gb)) =
+                (detail_energy_mse(&pr, &t, lr_h, lr_w, p), detail_energy_mse_ref(&pr, &t, lr_h, lr_w, p));
+            assert!((la - lb).abs() <= 1e-5 * lb.abs(), "detail_energy_mse {tag}: {la} vs {lb}");
+            let d = rel_diff(&ga, &gb);
+            assert!(d <= 1e-5, "detail_energy_mse grad {tag}: off by {d:e} of its largest entry");
         }
     }
 

@@ -2,9 +2,9 @@
 //! path (SIMD via `wide` + threads via `rayon`) with the same signature; tests compare them.
 //! Backward functions sit next to their forwards and ADD into gradient buffers (`+=`).
 //!
-//! [`Ops`] is the op table the networks are written against: [`Cpu`] fills it with the fast
-//! CPU kernels, `cuda::Cuda` (feature `cuda`) with GPU kernels. Shapes: NCHW activations,
-//! OIHW conv weights.
+//! [`Ops`] is the op table the networks and the trainer are written against: [`Cpu`] fills it
+//! with the fast CPU kernels, [`RefOps`] with the scalar references (the tests, the audits),
+//! `cuda::Cuda` (feature `cuda`) with GPU kernels. Shapes: NCHW activations, OIHW conv weights.
 
 pub mod activation;
 pub mod adam;
@@ -12,9 +12,11 @@ pub mod conv2d;
 pub mod cpu;
 pub mod loss;
 pub mod pixel_shuffle;
+pub mod reference;
 pub mod resample;
 
 pub use conv2d::Padding;
+pub use reference::RefOps;
 
 use crate::tensor::Tensor;
 
@@ -117,6 +119,25 @@ pub trait Ops: Sync {
     fn mse(&self, pred: &Tensor, target: &Tensor) -> (f32, Tensor);
     /// Mean of −[w·t·log σ(z) + (1−t)·log(1−σ(z))] (stable form) and its gradient w.r.t. z.
     fn bce_with_logits(&self, logits: &Tensor, target: &Tensor, pos_weight: f32) -> (f32, Tensor);
+    /// Edge-vector error of geometry images (GeometryNet's loss term) and its gradient w.r.t.
+    /// pred: [`loss::edge_mse`]. pred, target: (N, C, H, W).
+    fn edge_mse(&self, pred: &Tensor, target: &Tensor) -> (f32, Tensor);
+    /// Edge-length error of geometry images (each pixel's C channels a point) and its gradient
+    /// w.r.t. pred: [`loss::edge_length_mse`]. pred, target: (N, C, H, W).
+    fn edge_length_mse(&self, pred: &Tensor, target: &Tensor) -> (f32, Tensor);
+    /// Curvature (5-point Laplacian) error of geometry images and its gradient w.r.t. pred:
+    /// [`loss::laplacian_mse`]. pred, target: (N, C, H, W).
+    fn laplacian_mse(&self, pred: &Tensor, target: &Tensor) -> (f32, Tensor);
+    /// Wrinkle-energy error beyond the (lr_h, lr_w) grid and its gradient w.r.t. pred:
+    /// [`loss::detail_energy_mse`]. pred, target: (N, C, H, W) (C = 3 with `p.normal_only`).
+    fn detail_energy_mse(
+        &self,
+        pred: &Tensor,
+        target: &Tensor,
+        lr_h: usize,
+        lr_w: usize,
+        p: loss::DetailEnergy,
+    ) -> (f32, Tensor);
     /// One Adam step with bias correction; `step` counts from 1.
     #[allow(clippy::too_many_arguments)]
     fn adam_update(&self, p: &mut [f32], g: &[f32], m: &mut [f32], v: &mut [f32], step: u64, hp: &AdamParams);

@@ -19,7 +19,6 @@ use crate::geom::geometry_image::{images_to_sequence, sequence_to_images};
 use crate::geom::mesh::ring_vertices;
 use crate::geom::{Domain, GridMesh};
 use crate::nn::bundle::{AnisoCb, PackedAnisoCb};
-use crate::ops::resample::resize;
 use crate::ops::{Interp, Ops};
 use crate::pool;
 use crate::tensor::Tensor;
@@ -206,7 +205,9 @@ impl Upscaled {
             // η deepens the fine part (the folds) where EnhanceNet expects them.
             let (_, _, h, w) = n.lr_net.dims4();
             let (_, _, hh, hw) = n.residual.dims4();
-            let coarse = resize(&resize(&n.residual, h, w, Interp::CatmullRom), hh, hw, Interp::CatmullRom);
+            // The CPU table's resize: the composition has no ops handle (it runs after the nets).
+            let up = |x: &Tensor, oh, ow| crate::ops::Cpu.resize(x, oh, ow, Interp::CatmullRom);
+            let coarse = up(&up(&n.residual, h, w), hh, hw);
             let mut fine = n.residual.clone();
             for (f, c) in fine.data.iter_mut().zip(&coarse.data) {
                 *f -= c;

@@ -15,6 +15,7 @@ pub fn upscale_uv(uv: &[[f32; 2]], w: usize, h: usize, r: usize) -> Vec<[f32; 2]
         t.data[v] = p[0];
         t.data[h * w + v] = p[1];
     }
+    // UV post-processing, not a net op: the scalar function, not the op table.
     let up = crate::ops::resample::resize_ref(&t, r * h, r * w, crate::ops::Interp::Bilinear);
     let px = r * r * h * w;
     (0..px).map(|v| [up.data[v], up.data[px + v]]).collect()

@@ -248,6 +248,7 @@ pub fn wrinkle_energy_edges(ds: &mut Dataset, p: DetailEnergy, quantile: f32) ->
         )));
     }
     let (hl, wl) = (ds.lr.shape[2], ds.lr.shape[3]);
+    // Building a target from the data set, not a net op: the CPU function, not the op table.
     let a = detail_amplitude(&ds.hr, hl, wl, p);
     let mut sorted = a.data.clone();
     sorted.sort_by(f32::total_cmp);
