@@ -102,9 +102,9 @@ fn conv_fast_matches_ref_on_random_shapes() {
         let h = 1 + (rng.next_u64() % 14) as usize;
         let w = 1 + (rng.next_u64() % 14) as usize;
         let k = [1, 3, 3, 3, 5][(rng.next_u64() % 5) as usize];
-        let pad = if rng.next_u64() % 2 == 0 { Padding::Zero } else { Padding::Replicate };
-        let bias = rng.next_u64() % 2 == 0;
-        let with_dx = rng.next_u64() % 4 != 0;
+        let pad = if rng.next_u64().is_multiple_of(2) { Padding::Zero } else { Padding::Replicate };
+        let bias = rng.next_u64().is_multiple_of(2);
+        let with_dx = !rng.next_u64().is_multiple_of(4);
         check_case(&mut rng, n, c, o, h, w, k, k, pad, bias, with_dx);
     }
 }

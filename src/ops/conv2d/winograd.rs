@@ -37,7 +37,7 @@ const TW_CHUNK: usize = 32;
 /// Whether the Winograd path takes a convolution: 3×3 kernel, input channels a whole number of
 /// vectors, more output channels than the pixel-vector path takes.
 pub(super) fn eligible(c: usize, o: usize, kh: usize, kw: usize) -> bool {
-    kh == 3 && kw == 3 && c > 0 && c % L == 0 && o > SMALL_OUT_MAX
+    kh == 3 && kw == 3 && c > 0 && c.is_multiple_of(L) && o > SMALL_OUT_MAX
 }
 
 /// U = G g Gᵀ (row-major 4×4) of a 3×3 kernel g (row-major), for 16 kernels at once.
@@ -189,7 +189,7 @@ pub(super) fn correlate(
             (2 * th + 2, 2 * tw + 2)
         }
     };
-    assert!(c % L == 0 && hp >= 2 * th + 2 && wp >= 2 * tw + 2);
+    assert!(c.is_multiple_of(L) && hp >= 2 * th + 2 && wp >= 2 * tw + 2);
     let opad = pk.opad;
     assert!(pk.data.len() >= POS * c * opad && init.is_none_or(|b| b.len() >= opad));
     // One output row of the task, NHWC.
@@ -293,7 +293,7 @@ pub(super) fn correlate(
 
 /// Whether [`weight_grad`] takes a gradient: 3×3, input and output channels whole vectors.
 pub(super) fn eligible_weight_grad(c: usize, o: usize, kh: usize, kw: usize) -> bool {
-    kh == 3 && kw == 3 && c > 0 && c % L == 0 && o > 0 && o % L == 0
+    kh == 3 && kw == 3 && c > 0 && c.is_multiple_of(L) && o > 0 && o.is_multiple_of(L)
 }
 
 /// Tiles per part of the weight gradient's sum (V and Z of a part stay in L2).
