@@ -30,7 +30,7 @@
 use crate::cloth::run_io::RunPair;
 use crate::error::{Error, Result};
 use crate::geom::anisotropy::{boundary_map, BoundaryParams};
-use crate::geom::cloth_frame::InputFrame;
+use crate::geom::cloth_frame::{map_frames, to_cloth_frames, InputFrame};
 use crate::geom::geometry_image::image_to_mesh;
 use crate::geom::Domain;
 use crate::imgproc::{enhance_map, CannyParams};
@@ -96,13 +96,10 @@ pub fn frame_maps(
 /// Frame `f` of a run pair in the nets' coordinates: (LR (3, H, W), HR (3, sH, sW)), both
 /// mapped by the transform estimated from the LR frame.
 pub fn frame_in(run: &RunPair, f: usize, frame: InputFrame) -> (Vec<f32>, Vec<f32>) {
-    let (lrs, hrs) = (run.lr.len() / run.lr.shape[0], run.hr.len() / run.hr.shape[0]);
-    let (to_net, _) = frame.image_maps(&run.lr, f, &run.domain);
-    let mut lr = run.lr.data[f * lrs..(f + 1) * lrs].to_vec();
-    let mut hr = run.hr.data[f * hrs..(f + 1) * hrs].to_vec();
-    to_net.apply_image(&mut lr, true);
-    to_net.apply_image(&mut hr, true);
-    (lr, hr)
+    let (lr, maps) = to_cloth_frames(frame, &run.lr.slice_batch(f, 1), &run.domain);
+    let mut hr = run.hr.slice_batch(f, 1);
+    map_frames(&mut hr, maps.iter().map(|m| &m.0), true);
+    (lr.into_data(), hr.into_data())
 }
 
 /// One entry of `frames.json`.
