@@ -1,9 +1,11 @@
-//! Contact sheets: tiles in rows on a background, and the strip of a few frames of a
-//! geometry-image sequence (the `simulate` preview).
+//! Contact sheets: tiles in rows on a background, the strip of a few frames of a
+//! geometry-image sequence (the `simulate` preview), the training set's maps by eye (the
+//! `dataset` preview).
 
-use super::image::{hstack, image_rgb8, pad, upscale_nearest, vstack, Rgb8};
-use crate::error::Result;
+use super::image::{hstack, image_rgb8, pad, resize_nearest, upscale_nearest, vstack, Rgb8};
+use crate::error::{Error, Result};
 use crate::tensor::Tensor;
+use crate::train::dataset::Dataset;
 
 /// `count` (≥ 1) indices spread evenly over `0..total` (> 0), first and last included.
 pub fn evenly_spaced(count: usize, total: usize) -> Vec<usize> {
@@ -27,6 +29,28 @@ pub fn frame_strip(images: &Tensor, n: usize, min_height: usize) -> Result<Rgb8>
         .map(|k| Ok(upscale_nearest(&image_rgb8(&images.slice_batch(k, 1))?, s)))
         .collect::<Result<Vec<_>>>()?;
     Ok(sheet(&[tiles], 4, 0, [96; 3]))
+}
+
+/// Rows of (LR, HR, boundary map, edge map) for up to `count` evenly spaced frames of `ds`, to
+/// check the maps by eye: geometry images as RGB clamped to [0,1], maps white on black, nearest
+/// upscaling (LR to the HR size, then all to about 128 px).
+pub fn contact_sheet(ds: &Dataset, count: usize) -> Result<Rgb8> {
+    if ds.is_empty() || count == 0 {
+        return Err(Error::config("contact sheet needs at least one frame"));
+    }
+    let (hh, wh) = (ds.hr.shape[2], ds.hr.shape[3]);
+    let zoom = (128 / wh.max(hh)).max(1);
+    let rows = evenly_spaced(count.min(ds.len()), ds.len())
+        .into_iter()
+        .map(|f| {
+            let lr = resize_nearest(&image_rgb8(&ds.lr.slice_batch(f, 1))?, wh, hh);
+            let hr = image_rgb8(&ds.hr.slice_batch(f, 1))?;
+            let b = image_rgb8(&ds.boundary.slice_batch(f, 1))?;
+            let e = image_rgb8(&ds.edges.slice_batch(f, 1))?;
+            Ok([lr, hr, b, e].iter().map(|t| upscale_nearest(t, zoom)).collect())
+        })
+        .collect::<Result<Vec<Vec<Rgb8>>>>()?;
+    Ok(sheet(&rows, 4, 4, [40; 3]))
 }
 
 #[cfg(test)]
