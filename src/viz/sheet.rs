@@ -1,6 +1,6 @@
 //! Contact sheets: tiles in rows on a background, the strip of a few frames of a
 //! geometry-image sequence (the `simulate` preview), the training set's maps by eye (the
-//! `dataset` preview).
+//! `dataset` preview), and which frames of a run the pictures show.
 
 use super::image::{hstack, image_rgb8, pad, resize_nearest, upscale_nearest, vstack, Rgb8};
 use crate::error::{Error, Result};
@@ -10,6 +10,12 @@ use crate::train::dataset::Dataset;
 /// `count` (≥ 1) indices spread evenly over `0..total` (> 0), first and last included.
 pub fn evenly_spaced(count: usize, total: usize) -> Vec<usize> {
     (0..count).map(|k| if count == 1 { 0 } else { k * (total - 1) / (count - 1) }).collect()
+}
+
+/// `n` frames of a `t`-frame run spread over its second half (the first frames are near the
+/// rest state): the frames `demo` and `eval` show.
+pub fn pick_frames(t: usize, n: usize) -> Vec<usize> {
+    (0..n).map(|k| (t / 2 + (k + 1) * (t / 2) / (n + 1)).min(t - 1)).collect()
 }
 
 /// Rows of tiles, `gap` px apart both ways, inside a `margin` px border, all on `bg`. Tiles
@@ -68,5 +74,7 @@ mod tests {
         assert_eq!(s.get(6, 5), [0; 3]);
         assert_eq!(evenly_spaced(4, 10), vec![0, 3, 6, 9]);
         assert_eq!(evenly_spaced(1, 10), vec![0]);
+        assert_eq!(pick_frames(120, 3), vec![75, 90, 105]);
+        assert_eq!(pick_frames(2, 3), vec![1, 1, 1]);
     }
 }
