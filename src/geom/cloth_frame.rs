@@ -90,18 +90,31 @@ impl InputFrame {
 ///
 /// The one home of the round trip domain → nets' frame → domain: other images of the same
 /// frames (the HR truth, at any resolution) follow with [`map_frames`] and the maps' `to_net`,
-/// and what the nets give back returns with [`from_cloth_frames`]. The maps are identities
+/// and what the nets give back returns with [`from_cloth_frames`] ([`into_cloth_frames`]: the
+/// first step in place). The maps are identities
 /// for [`InputFrame::Domain`] (applied all the same, so both frames take one path).
 pub fn to_cloth_frames(
     frame: InputFrame,
     images: &Tensor,
     domain: &Domain,
 ) -> (Tensor, Vec<(Affine, Affine)>) {
-    let maps: Vec<(Affine, Affine)> =
-        (0..images.shape[0]).map(|k| frame.image_maps(images, k, domain)).collect();
-    let mut net = images.clone();
-    map_frames(&mut net, maps.iter().map(|m| &m.0), true);
+    let (mut net, mut maps) = (images.clone(), Vec::with_capacity(images.shape[0]));
+    into_cloth_frames(frame, &mut net, domain, &mut maps);
     (net, maps)
+}
+
+/// [`to_cloth_frames`] in place, the maps appended to `maps`: for a caller that keeps its
+/// buffers from frame to frame (the frame-by-frame upscaler allocates nothing per frame once
+/// `maps` has room).
+pub fn into_cloth_frames(
+    frame: InputFrame,
+    images: &mut Tensor,
+    domain: &Domain,
+    maps: &mut Vec<(Affine, Affine)>,
+) {
+    let first = maps.len();
+    maps.extend((0..images.shape[0]).map(|k| frame.image_maps(images, k, domain)));
+    map_frames(images, maps[first..].iter().map(|m| &m.0), true);
 }
 
 /// Images in the nets' coordinates (T, 3, ·, ·) back into the domain, in place: frame k by
@@ -439,6 +452,10 @@ mod tests {
             let mut other = images.clone();
             map_frames(&mut other, maps.iter().map(|m| &m.0), true);
             assert_eq!(other.data, net.data);
+            // In place, after the maps already there: the same images and maps.
+            let (mut inplace, mut more) = (images.clone(), vec![(Affine::IDENTITY, Affine::IDENTITY)]);
+            into_cloth_frames(frame, &mut inplace, &domain, &mut more);
+            assert_eq!((inplace.data.as_slice(), &more[1..]), (net.data.as_slice(), maps.as_slice()));
             from_cloth_frames(&mut net, &maps, true);
             let back = net.data.iter().zip(&images.data).map(|(a, b)| (a - b).abs()).fold(0.0, f32::max);
             assert!(back < 1e-5, "{} round trip: {back}", frame.name());

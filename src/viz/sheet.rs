@@ -38,7 +38,7 @@ pub fn frame_strip(images: &Tensor, n: usize, min_height: usize) -> Result<Rgb8>
 }
 
 /// Rows of (LR, HR, boundary map, edge map) for up to `count` evenly spaced frames of `ds`, to
-/// check the maps by eye: geometry images as RGB clamped to [0,1], maps white on black, nearest
+/// check the maps by eye: geometry images as RGB clamped to `[0, 1]`, maps white on black, nearest
 /// upscaling (LR to the HR size, then all to about 128 px).
 pub fn contact_sheet(ds: &Dataset, count: usize) -> Result<Rgb8> {
     if ds.is_empty() || count == 0 {
