@@ -150,7 +150,7 @@ pub fn run(a: Args) -> Result<()> {
         benefit_boundary(&mut ds, &crate::ops::Cpu, &net)?;
     }
     crate::io::write_npz(&a.out, &ds.to_npz())?;
-    super::ui::save_png(&png, &ds.contact_sheet(a.sheet_frames)?)?;
+    super::ui::save_png(&png, &crate::viz::sheet::contact_sheet(&ds, a.sheet_frames)?)?;
     let pos = |t: &Tensor| t.data.iter().filter(|&&v| v > 0.5).count() as f64 / t.data.len().max(1) as f64;
     eprintln!(
         "wrote {} ({} frames from {} runs, LR {}×{} → HR {}×{}; boundary {:.1}% / edges {:.1}% of pixels), {}",

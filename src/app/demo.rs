@@ -8,6 +8,7 @@ use crate::cloth::follow::{FollowParams, Follower};
 use crate::cloth::run_io::write_pair;
 use crate::cloth::scenarios::{paired_run_with_progress, Scenario, ScenarioSpec, SCENARIO_HELP};
 use crate::error::Result;
+use crate::eval::methods::PHYSICS;
 use crate::eval::metrics::{border_mask, sequence_metrics, vertex_errors, wrinkle_stats, SequenceMetrics};
 use crate::eval::report::{metrics_table, Column};
 use crate::geom::geometry_image::images_to_sequence;
@@ -26,6 +27,7 @@ use crate::viz::closeup;
 use crate::viz::heat::{render_heat_row, scale_max, ScalarColors};
 use crate::viz::image::{hstack, image_rgb8, upscale_nearest, vstack, Rgb8};
 use crate::viz::render::{render_row, Shading, Tile, View};
+use crate::viz::sheet::pick_frames;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -84,9 +86,6 @@ pub const COLUMNS: [Column; 9] = [
     Column::WrinkleRatio,
     Column::WrinkleCorr,
 ];
-
-/// The physics pass's row and label (demo and eval).
-pub(crate) const PHYSICS: &str = "anisocb --physics";
 
 pub fn run(a: Args) -> Result<()> {
     set_threads(a.threads)?;
@@ -224,11 +223,6 @@ pub fn run(a: Args) -> Result<()> {
     println!("  lr/ hr/ bicubic/ anisocb/ anisocb-physics/   OBJ sequences (frame_0000.obj ...); sim/ the simulated runs");
     println!("total {:.1} s", t0.elapsed().as_secs_f64());
     Ok(())
-}
-
-/// `n` frames spread over the second half of the run (the first frames are near the rest state).
-pub fn pick_frames(t: usize, n: usize) -> Vec<usize> {
-    (0..n).map(|k| (t / 2 + (k + 1) * (t / 2) / (n + 1)).min(t - 1)).collect()
 }
 
 #[allow(clippy::too_many_arguments)]

@@ -7,7 +7,8 @@ use crate::nn::config::{parse_padding, parse_upsample};
 use crate::nn::{NetConfig, NetKind};
 use crate::ops::{AdamParams, Interp};
 use crate::train::patches::{gather, interpolate_all, split, TrainingData};
-use crate::train::trainer::{loss_plot, train, train_all, Event, TrainOptions};
+use crate::train::trainer::{train, train_all, Event, TrainOptions};
+use crate::viz::plot::loss_plot;
 use std::path::PathBuf;
 
 #[derive(clap::Args, Debug)]

@@ -178,6 +178,11 @@ impl LinearUpsampler {
         e
     }
 
+    /// Read a weights file `anisocb train --net linear` wrote (`OUT/weights.npz`).
+    pub fn load(path: &Path) -> Result<LinearUpsampler> {
+        LinearUpsampler::from_npz(&crate::io::read_npz(path)?, path)
+    }
+
     /// Read what [`LinearUpsampler::to_npz`] wrote; errors name `path`.
     pub fn from_npz(e: &NpzEntries, path: &Path) -> Result<LinearUpsampler> {
         let cfg = e.file("config.json").ok_or_else(|| Error::format(path, "no config.json entry"))?;

@@ -1,5 +1,7 @@
-//! Evaluation: metrics against the HR ground truth, the interpolation baseline, and the
-//! markdown tables of the reports (the pictures are drawn by [`crate::viz`]).
+//! Evaluation: metrics against the HR ground truth, the interpolation baseline, the methods
+//! `anisocb eval` compares and how each is run on a held-out run ([`methods`]), the speed
+//! study ([`speed`]), and the markdown and JSON tables of the reports ([`report`]); the CLI
+//! parses, prints and draws (the pictures with `crate::viz`).
 //!
 //! The metrics of a sequence:
 //!
@@ -17,6 +19,8 @@
 pub mod baseline;
 pub mod invariance;
 pub mod linear;
+pub mod methods;
 pub mod metrics;
 pub mod report;
+pub mod speed;
 pub mod wrinkle;

@@ -84,6 +84,59 @@ impl InputFrame {
     }
 }
 
+/// Every frame of `images` (T, 3, H, W: geometry images in `domain`, Eq 1) in the nets'
+/// coordinates of `frame`, and the per-frame maps `(to_net, from_net)` that took it there,
+/// each estimated from its own frame ([`InputFrame::image_maps`]): (T, 3, H, W), T maps.
+///
+/// The one home of the round trip domain → nets' frame → domain: other images of the same
+/// frames (the HR truth, at any resolution) follow with [`map_frames`] and the maps' `to_net`,
+/// and what the nets give back returns with [`from_cloth_frames`] ([`into_cloth_frames`]: the
+/// first step in place). The maps are identities
+/// for [`InputFrame::Domain`] (applied all the same, so both frames take one path).
+pub fn to_cloth_frames(
+    frame: InputFrame,
+    images: &Tensor,
+    domain: &Domain,
+) -> (Tensor, Vec<(Affine, Affine)>) {
+    let (mut net, mut maps) = (images.clone(), Vec::with_capacity(images.shape[0]));
+    into_cloth_frames(frame, &mut net, domain, &mut maps);
+    (net, maps)
+}
+
+/// [`to_cloth_frames`] in place, the maps appended to `maps`: for a caller that keeps its
+/// buffers from frame to frame (the frame-by-frame upscaler allocates nothing per frame once
+/// `maps` has room).
+pub fn into_cloth_frames(
+    frame: InputFrame,
+    images: &mut Tensor,
+    domain: &Domain,
+    maps: &mut Vec<(Affine, Affine)>,
+) {
+    let first = maps.len();
+    maps.extend((0..images.shape[0]).map(|k| frame.image_maps(images, k, domain)));
+    map_frames(images, maps[first..].iter().map(|m| &m.0), true);
+}
+
+/// Images in the nets' coordinates (T, 3, ·, ·) back into the domain, in place: frame k by
+/// `maps[k].1` (the maps of [`to_cloth_frames`]), as points (positions) or as vectors (a
+/// residual).
+pub fn from_cloth_frames(images: &mut Tensor, maps: &[(Affine, Affine)], as_points: bool) {
+    map_frames(images, maps.iter().map(|m| &m.1), as_points);
+}
+
+/// Frame k of `images` (T, 3, H, W, any H × W: the maps act on coordinates, not pixels) mapped
+/// in place by the k-th of `maps`, as points or as vectors; frames past the last map are left
+/// as they are.
+pub fn map_frames<'a>(images: &mut Tensor, maps: impl IntoIterator<Item = &'a Affine>, as_points: bool) {
+    let per = images.len() / images.shape[0].max(1);
+    if per == 0 {
+        return;
+    }
+    for (img, m) in images.data.chunks_exact_mut(per).zip(maps) {
+        m.apply_image(img, as_points);
+    }
+}
+
 /// An affine map of 3-vectors, `y = m·x + t` (`m` row-major), applied per pixel to a geometry
 /// image.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -367,6 +420,45 @@ mod tests {
                     assert!((a[c] - want).abs() < 1e-9, "mirror {rows} {cols}, vertex {k}, axis {c}");
                 }
             }
+        }
+    }
+
+    #[test]
+    fn the_cloth_frame_round_trip_gives_each_frame_back_and_takes_the_hr_frames_along() {
+        use crate::geom::geometry_image::sequence_to_images;
+        let m = wavy(9, 7);
+        let turned =
+            Affine { m: rotation([1.0, 0.2, -0.4], 0.8).map(|r| r.map(|v| 0.6 * v)), t: [0.5, 2.0, -1.0] };
+        let seq = [
+            m.clone(),
+            GridMesh::new(
+                9,
+                7,
+                m.pos.iter().map(|p| turned.point(p.map(|v| v as f64)).map(|v| v as f32)).collect(),
+            ),
+        ];
+        let domain = Domain::enclosing(&seq, 0.05);
+        let images = sequence_to_images(&seq, &domain);
+        for frame in [InputFrame::Domain, InputFrame::Cloth] {
+            let (mut net, maps) = to_cloth_frames(frame, &images, &domain);
+            assert_eq!((net.shape, maps.len()), (images.shape, 2));
+            // Both frames are the same cloth, moved: the same net coordinates in the cloth frame.
+            if frame == InputFrame::Cloth {
+                let per = net.len() / 2;
+                let worst = (0..per).map(|i| (net.data[i] - net.data[per + i]).abs()).fold(0.0, f32::max);
+                assert!(worst < 1e-5, "{worst}");
+            }
+            // The HR images of the same frames (here: the LR ones again) follow with `to_net`.
+            let mut other = images.clone();
+            map_frames(&mut other, maps.iter().map(|m| &m.0), true);
+            assert_eq!(other.data, net.data);
+            // In place, after the maps already there: the same images and maps.
+            let (mut inplace, mut more) = (images.clone(), vec![(Affine::IDENTITY, Affine::IDENTITY)]);
+            into_cloth_frames(frame, &mut inplace, &domain, &mut more);
+            assert_eq!((inplace.data.as_slice(), &more[1..]), (net.data.as_slice(), maps.as_slice()));
+            from_cloth_frames(&mut net, &maps, true);
+            let back = net.data.iter().zip(&images.data).map(|(a, b)| (a - b).abs()).fold(0.0, f32::max);
+            assert!(back < 1e-5, "{} round trip: {back}", frame.name());
         }
     }
 

@@ -14,7 +14,9 @@ use super::params::UpscaleParams;
 use super::strain::{hr_edge_targets, limit_strain};
 use super::temporal::smooth_in_time;
 use crate::error::{Error, Result};
-use crate::geom::cloth_frame::{mirror_net_images, Affine, InputFrame, GRID_MIRRORS};
+use crate::geom::cloth_frame::{
+    from_cloth_frames, into_cloth_frames, mirror_net_images, Affine, InputFrame, GRID_MIRRORS,
+};
 use crate::geom::geometry_image::{images_to_sequence, sequence_to_images};
 use crate::geom::mesh::ring_vertices;
 use crate::geom::{Domain, GridMesh};
@@ -234,10 +236,7 @@ impl Upscaled {
     /// Images in the nets' frame (T, 3, ·, ·) into the domain: `points` (positions) or vectors.
     fn to_domain(&self, mut x: Tensor, points: bool) -> Tensor {
         if !self.in_domain {
-            let px3 = x.len() / x.shape[0].max(1);
-            for (img, m) in x.data.chunks_exact_mut(px3).zip(&self.nets.net_frames) {
-                m.1.apply_image(img, points);
-            }
+            from_cloth_frames(&mut x, &self.nets.net_frames, points);
         }
         x
     }
@@ -363,11 +362,8 @@ pub(crate) fn run_nets_into(
     let mut done = 0;
     while done < t {
         let n = params.batch.min(t - done);
-        out.net_frames.extend((done..done + n).map(|f| model.input_frame().image_maps(lr, f, domain)));
         let mut x = lr.slice_batch(done, n);
-        for (img, m) in x.data.chunks_exact_mut(3 * h * w).zip(&out.net_frames[done..]) {
-            m.0.apply_image(img, true);
-        }
+        into_cloth_frames(model.input_frame(), &mut x, domain, &mut out.net_frames);
         out.lr_net.data[done * 3 * h * w..(done + n) * 3 * h * w].copy_from_slice(&x.data);
         let o = nets.forward_with(ops, &x, out.how.enhance_ran)?;
         let (r_at, m_at) = (done * px3..(done + n) * px3, done * px1..(done + n) * px1);

@@ -30,7 +30,7 @@
 use crate::cloth::run_io::RunPair;
 use crate::error::{Error, Result};
 use crate::geom::anisotropy::{boundary_map, BoundaryParams};
-use crate::geom::cloth_frame::InputFrame;
+use crate::geom::cloth_frame::{map_frames, to_cloth_frames, InputFrame};
 use crate::geom::geometry_image::image_to_mesh;
 use crate::geom::Domain;
 use crate::imgproc::{enhance_map, CannyParams};
@@ -40,12 +40,6 @@ use crate::nn::geometry_net::GeometryNet;
 use crate::ops::loss::{detail_amplitude, DetailEnergy};
 use crate::ops::Ops;
 use crate::tensor::Tensor;
-#[cfg(feature = "viz")]
-use crate::viz::image::{image_rgb8, resize_nearest, upscale_nearest};
-#[cfg(feature = "viz")]
-use crate::viz::sheet::{evenly_spaced, sheet};
-#[cfg(feature = "viz")]
-use crate::viz::Rgb8;
 use rayon::prelude::*;
 
 /// Parameters of both ground-truth maps.
@@ -96,13 +90,10 @@ pub fn frame_maps(
 /// Frame `f` of a run pair in the nets' coordinates: (LR (3, H, W), HR (3, sH, sW)), both
 /// mapped by the transform estimated from the LR frame.
 pub fn frame_in(run: &RunPair, f: usize, frame: InputFrame) -> (Vec<f32>, Vec<f32>) {
-    let (lrs, hrs) = (run.lr.len() / run.lr.shape[0], run.hr.len() / run.hr.shape[0]);
-    let (to_net, _) = frame.image_maps(&run.lr, f, &run.domain);
-    let mut lr = run.lr.data[f * lrs..(f + 1) * lrs].to_vec();
-    let mut hr = run.hr.data[f * hrs..(f + 1) * hrs].to_vec();
-    to_net.apply_image(&mut lr, true);
-    to_net.apply_image(&mut hr, true);
-    (lr, hr)
+    let (lr, maps) = to_cloth_frames(frame, &run.lr.slice_batch(f, 1), &run.domain);
+    let mut hr = run.hr.slice_batch(f, 1);
+    map_frames(&mut hr, maps.iter().map(|m| &m.0), true);
+    (lr.into_data(), hr.into_data())
 }
 
 /// One entry of `frames.json`.
@@ -275,29 +266,6 @@ impl Dataset {
 
     pub fn is_empty(&self) -> bool {
         self.frames.is_empty()
-    }
-
-    #[cfg(feature = "viz")]
-    /// Rows of (LR, HR, boundary map, edge map) for up to `count` evenly spaced frames, to check
-    /// the maps by eye: geometry images as RGB clamped to [0,1], maps white on black, nearest
-    /// upscaling (LR to the HR size, then all to about 128 px).
-    pub fn contact_sheet(&self, count: usize) -> Result<Rgb8> {
-        if self.is_empty() || count == 0 {
-            return Err(Error::config("contact sheet needs at least one frame"));
-        }
-        let (hh, wh) = (self.hr.shape[2], self.hr.shape[3]);
-        let zoom = (128 / wh.max(hh)).max(1);
-        let rows = evenly_spaced(count.min(self.len()), self.len())
-            .into_iter()
-            .map(|f| {
-                let lr = resize_nearest(&image_rgb8(&self.lr.slice_batch(f, 1))?, wh, hh);
-                let hr = image_rgb8(&self.hr.slice_batch(f, 1))?;
-                let b = image_rgb8(&self.boundary.slice_batch(f, 1))?;
-                let e = image_rgb8(&self.edges.slice_batch(f, 1))?;
-                Ok([lr, hr, b, e].iter().map(|t| upscale_nearest(t, zoom)).collect())
-            })
-            .collect::<Result<Vec<Vec<Rgb8>>>>()?;
-        Ok(sheet(&rows, 4, 4, [40; 3]))
     }
 
     /// `frames.json`: one object per frame, one per line.

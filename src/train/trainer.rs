@@ -3,8 +3,9 @@
 //!
 //! Library entry points: [`train`] (one net, `DIR/weights.npz`) and [`train_all`] (the three
 //! nets one after another in `DIR/{geometry,boundary,enhance}/`, then the bundle
-//! `DIR/weights.npz`). Both report progress through an [`Event`] callback; the CLI draws the
-//! progress bar and the PNG loss curve ([`loss_plot`]) from it.
+//! `DIR/weights.npz`). Both report progress through an [`Event`] callback and draw nothing: the
+//! CLI (`app/train.rs`) draws the progress bar and the PNG loss curve (`viz::plot::loss_plot`,
+//! on each [`Event::Checkpoint`]) from it, so the library trains without feature `viz`.
 //!
 //! `DIR/checkpoint.npz` holds `net.*` (weights + `net.config.json`), `adam.*` ([`Adam::save`]),
 //! `history` (K, 3: step, train loss, val loss or NaN) and `trainer.json` (step, seed and every
@@ -23,8 +24,6 @@ use crate::nn::{AnisoCb, NetConfig, NetKind, Trunk};
 use crate::ops::loss::DetailEnergy;
 use crate::ops::{AdamParams, Ops};
 use crate::tensor::Tensor;
-#[cfg(feature = "viz")]
-use crate::viz::plot::LinePlot;
 use std::path::{Path, PathBuf};
 
 /// Everything a run needs besides the data. Defaults follow the paper (Adam, lr 1e-4, batch 32).
@@ -327,33 +326,6 @@ pub fn write_loss_csv(path: &Path, history: &[LogRow]) -> Result<()> {
     write_atomic_bytes(path, s.as_bytes())
 }
 
-#[cfg(feature = "viz")]
-/// The loss curve of `net`: per-step training loss (light blue) and its exponential moving
-/// average over ~2% of the run (dark blue), validation loss (orange); log y, x = step.
-/// Non-positive and non-finite losses are left out.
-pub fn loss_plot(net: &str, history: &[LogRow]) -> LinePlot {
-    let ok = |v: f32| v.is_finite() && v > 0.0;
-    let train: Vec<(f32, f32)> =
-        history.iter().filter(|r| ok(r.train)).map(|r| (r.step as f32, r.train)).collect();
-    let alpha = 2.0 / (history.len() as f32 / 50.0 + 2.0);
-    let mut ema: Option<f32> = None;
-    let smooth = train
-        .iter()
-        .map(|&(s, v)| {
-            let e = ema.map_or(v, |e| e + alpha * (v - e));
-            ema = Some(e);
-            (s, e)
-        })
-        .collect();
-    let val = history.iter().filter(|r| ok(r.val)).map(|r| (r.step as f32, r.val)).collect();
-    LinePlot::new(&format!("{net} net: loss"))
-        .labels("step", "loss")
-        .log_y(true)
-        .series_colored("train", train, [175, 200, 240])
-        .series_colored("train, moving average", smooth, [30, 70, 190])
-        .series_colored("validation", val, [230, 120, 20])
-}
-
 /// Train one net on `data` into `opts.out`: `checkpoint.npz`, `loss.csv`, `weights.npz`.
 pub fn train(
     ops: &dyn Ops,
@@ -523,25 +495,4 @@ pub fn train_all(
     let bundle = AnisoCb::from_trunks(t.next().unwrap(), t.next().unwrap(), t.next().unwrap())?;
     bundle.save(&opts.out.join("weights.npz"))?;
     Ok((bundle, reports))
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn curve_draws_both_series_inside_the_picture() {
-        let h: Vec<LogRow> = (1..=200)
-            .map(|s| LogRow {
-                step: s,
-                train: 1.0 / s as f32,
-                val: if s % 50 == 0 { 2.0 / s as f32 } else { f32::NAN },
-            })
-            .collect();
-        let img = loss_plot("geometry", &h).render(320, 180).unwrap();
-        assert_eq!(img.data.len(), 320 * 180 * 3);
-        let has = |c: [u8; 3]| img.data.chunks_exact(3).any(|p| p == c);
-        assert!(has([30, 70, 190]) && has([230, 120, 20]));
-        assert!(loss_plot("geometry", &[]).series.iter().all(|s| s.points.is_empty()));
-    }
 }

@@ -1,11 +1,13 @@
 //! The line plot, into an RGB picture: axes, ticks with numbers (built-in font), several
 //! series in distinct colours (or each its own), a legend, optional logarithmic y axis. Used
-//! for loss curves (`train::trainer::loss_plot`) and per-frame error plots (eval). Non-finite points (and y ≤ 0 on a log axis)
-//! break the line instead of failing.
+//! for loss curves ([`loss_plot`], drawn by `anisocb train` from the trainer's checkpoint
+//! events) and per-frame error plots (eval). Non-finite points (and y ≤ 0 on a log axis) break
+//! the line instead of failing.
 
 use super::font::{text_width, GLYPH_H};
 use super::image::{Rgb8, BLACK, WHITE};
 use crate::error::{Error, Result};
+use crate::train::trainer::LogRow;
 
 /// Distinct series colours (Tableau 10).
 pub const PALETTE: [[u8; 3]; 8] = [
@@ -240,5 +242,52 @@ impl LinePlot {
             }
         }
         Ok(img)
+    }
+}
+
+/// The loss curve of `net`: per-step training loss (light blue) and its exponential moving
+/// average over ~2% of the run (dark blue), validation loss (orange); log y, x = step.
+/// Non-positive and non-finite losses are left out.
+pub fn loss_plot(net: &str, history: &[LogRow]) -> LinePlot {
+    let ok = |v: f32| v.is_finite() && v > 0.0;
+    let train: Vec<(f32, f32)> =
+        history.iter().filter(|r| ok(r.train)).map(|r| (r.step as f32, r.train)).collect();
+    let alpha = 2.0 / (history.len() as f32 / 50.0 + 2.0);
+    let mut ema: Option<f32> = None;
+    let smooth = train
+        .iter()
+        .map(|&(s, v)| {
+            let e = ema.map_or(v, |e| e + alpha * (v - e));
+            ema = Some(e);
+            (s, e)
+        })
+        .collect();
+    let val = history.iter().filter(|r| ok(r.val)).map(|r| (r.step as f32, r.val)).collect();
+    LinePlot::new(&format!("{net} net: loss"))
+        .labels("step", "loss")
+        .log_y(true)
+        .series_colored("train", train, [175, 200, 240])
+        .series_colored("train, moving average", smooth, [30, 70, 190])
+        .series_colored("validation", val, [230, 120, 20])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn curve_draws_both_series_inside_the_picture() {
+        let h: Vec<LogRow> = (1..=200)
+            .map(|s| LogRow {
+                step: s,
+                train: 1.0 / s as f32,
+                val: if s % 50 == 0 { 2.0 / s as f32 } else { f32::NAN },
+            })
+            .collect();
+        let img = loss_plot("geometry", &h).render(320, 180).unwrap();
+        assert_eq!(img.data.len(), 320 * 180 * 3);
+        let has = |c: [u8; 3]| img.data.chunks_exact(3).any(|p| p == c);
+        assert!(has([30, 70, 190]) && has([230, 120, 20]));
+        assert!(loss_plot("geometry", &[]).series.iter().all(|s| s.points.is_empty()));
     }
 }

@@ -1,13 +1,21 @@
-//! Contact sheets: tiles in rows on a background, and the strip of a few frames of a
-//! geometry-image sequence (the `simulate` preview).
+//! Contact sheets: tiles in rows on a background, the strip of a few frames of a
+//! geometry-image sequence (the `simulate` preview), the training set's maps by eye (the
+//! `dataset` preview), and which frames of a run the pictures show.
 
-use super::image::{hstack, image_rgb8, pad, upscale_nearest, vstack, Rgb8};
-use crate::error::Result;
+use super::image::{hstack, image_rgb8, pad, resize_nearest, upscale_nearest, vstack, Rgb8};
+use crate::error::{Error, Result};
 use crate::tensor::Tensor;
+use crate::train::dataset::Dataset;
 
 /// `count` (≥ 1) indices spread evenly over `0..total` (> 0), first and last included.
 pub fn evenly_spaced(count: usize, total: usize) -> Vec<usize> {
     (0..count).map(|k| if count == 1 { 0 } else { k * (total - 1) / (count - 1) }).collect()
+}
+
+/// `n` frames of a `t`-frame run spread over its second half (the first frames are near the
+/// rest state): the frames `demo` and `eval` show.
+pub fn pick_frames(t: usize, n: usize) -> Vec<usize> {
+    (0..n).map(|k| (t / 2 + (k + 1) * (t / 2) / (n + 1)).min(t - 1)).collect()
 }
 
 /// Rows of tiles, `gap` px apart both ways, inside a `margin` px border, all on `bg`. Tiles
@@ -29,6 +37,28 @@ pub fn frame_strip(images: &Tensor, n: usize, min_height: usize) -> Result<Rgb8>
     Ok(sheet(&[tiles], 4, 0, [96; 3]))
 }
 
+/// Rows of (LR, HR, boundary map, edge map) for up to `count` evenly spaced frames of `ds`, to
+/// check the maps by eye: geometry images as RGB clamped to `[0, 1]`, maps white on black, nearest
+/// upscaling (LR to the HR size, then all to about 128 px).
+pub fn contact_sheet(ds: &Dataset, count: usize) -> Result<Rgb8> {
+    if ds.is_empty() || count == 0 {
+        return Err(Error::config("contact sheet needs at least one frame"));
+    }
+    let (hh, wh) = (ds.hr.shape[2], ds.hr.shape[3]);
+    let zoom = (128 / wh.max(hh)).max(1);
+    let rows = evenly_spaced(count.min(ds.len()), ds.len())
+        .into_iter()
+        .map(|f| {
+            let lr = resize_nearest(&image_rgb8(&ds.lr.slice_batch(f, 1))?, wh, hh);
+            let hr = image_rgb8(&ds.hr.slice_batch(f, 1))?;
+            let b = image_rgb8(&ds.boundary.slice_batch(f, 1))?;
+            let e = image_rgb8(&ds.edges.slice_batch(f, 1))?;
+            Ok([lr, hr, b, e].iter().map(|t| upscale_nearest(t, zoom)).collect())
+        })
+        .collect::<Result<Vec<Vec<Rgb8>>>>()?;
+    Ok(sheet(&rows, 4, 4, [40; 3]))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -44,5 +74,7 @@ mod tests {
         assert_eq!(s.get(6, 5), [0; 3]);
         assert_eq!(evenly_spaced(4, 10), vec![0, 3, 6, 9]);
         assert_eq!(evenly_spaced(1, 10), vec![0]);
+        assert_eq!(pick_frames(120, 3), vec![75, 90, 105]);
+        assert_eq!(pick_frames(2, 3), vec![1, 1, 1]);
     }
 }
