@@ -38,9 +38,17 @@ pub struct Ownership {
 
 /// A folder a run may write: the lock on its summary, held until dropped.
 pub struct Claim {
-    _lock: File,
+    lock: File,
     /// Stale files removed, by name.
     pub removed: Vec<String>,
+}
+
+impl Drop for Claim {
+    /// The lock file is left empty (its holder gone) and then released: two finished runs leave
+    /// the same bytes in the folder. A killed run's holder line stays until the next run.
+    fn drop(&mut self) {
+        let _ = self.lock.set_len(0);
+    }
 }
 
 /// What an earlier summary in the folder says.
@@ -59,7 +67,7 @@ pub fn claim(dir: &Path, own: &Ownership, overwrite: bool) -> Result<Claim> {
     let created = !lock_path.exists();
     let lock = lock(&lock_path, dir, &own.summary)?;
     match check(dir, own, overwrite) {
-        Ok(removed) => Ok(Claim { _lock: lock, removed }),
+        Ok(removed) => Ok(Claim { lock, removed }),
         Err(e) => {
             // A refused run leaves the folder as it found it.
             if created {
