@@ -57,3 +57,19 @@ fn a_chunk_at_the_integer_limit_upscales_the_slice() {
         2
     );
 }
+
+#[test]
+fn bundle_refuses_to_write_over_one_of_its_inputs() {
+    let d = TempDir::new("hostile-bundle");
+    let w = d.join("w.npz");
+    std::fs::copy(concat!(env!("CARGO_MANIFEST_DIR"), "/weights/anisocb-x2.npz"), &w).unwrap();
+    let before = std::fs::read(&w).unwrap();
+    let s = w.to_str().unwrap();
+    // The same file under another spelling, as the last of the three.
+    let other = format!("{}/./w.npz", d.path().display());
+    let o = anisocb(&["bundle", "--geometry", s, "--boundary", s, "--enhance", s, "--out", &other]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(err.contains("--out") && err.contains("is the input"), "{err}");
+    assert!(std::fs::read(&w).unwrap() == before, "the input bundle was rewritten");
+}

@@ -6,6 +6,7 @@ use crate::error::{Error, Result};
 use crate::nn::bundle::AnisoCb;
 use crate::nn::weights::{load_any, Weights};
 use crate::nn::{NetKind, Trunk};
+use crate::pipeline::input::same_file;
 use std::path::{Path, PathBuf};
 
 #[derive(clap::Args, Debug)]
@@ -45,6 +46,16 @@ fn net_of(path: &Path, kind: NetKind) -> Result<Trunk> {
 }
 
 pub fn run(a: Args) -> Result<()> {
+    // The bundle is written over nothing it is made from (a shipped bundle given as both).
+    let inputs = a.geometry.iter().chain([&a.boundary, &a.enhance]);
+    if let Some(p) = inputs.into_iter().find(|p| same_file(p, &a.out)) {
+        return Err(Error::config(format!(
+            "--out {} is the input {}: writing it would replace a net it is made from; choose \
+             another file for the bundle",
+            a.out.display(),
+            p.display()
+        )));
+    }
     let more = a.geometry[1..].iter().map(|p| net_of(p, NetKind::Geometry)).collect::<Result<Vec<_>>>()?;
     let b = AnisoCb::from_trunks(
         net_of(&a.geometry[0], NetKind::Geometry)?,
