@@ -44,8 +44,15 @@ pub fn list_obj_files(dir: &Path) -> Result<Vec<PathBuf>> {
     let mut files: Vec<PathBuf> = Vec::new();
     for e in rd {
         let p = e.map_err(|e| Error::io(dir, e))?.path();
-        if p.is_file() && p.extension().is_some_and(|x| x.eq_ignore_ascii_case("obj")) {
+        let obj = p.extension().is_some_and(|x| x.eq_ignore_ascii_case("obj"));
+        if obj && p.is_file() {
             files.push(p);
+        } else if obj && !p.exists() {
+            // A link to a frame that is gone: skipping it would drop a frame from the shot.
+            return Err(Error::format(
+                &p,
+                "a link to a file that does not exist: restore the frame, or remove the link",
+            ));
         }
     }
     files.sort_by(|a, b| natural_cmp(&a.to_string_lossy(), &b.to_string_lossy()));

@@ -106,15 +106,57 @@ fn is_obj(p: &Path) -> bool {
 }
 
 /// The geometry.npy an input names, if it names one (a run directory or a `.npy`).
-fn npy_input(inputs: &[PathBuf]) -> Option<PathBuf> {
+fn npy_input(inputs: &[PathBuf]) -> Result<Option<PathBuf>> {
     let first = &inputs[0];
-    if inputs.len() == 1 && first.is_dir() && first.join("geometry.npy").exists() {
+    Ok(if inputs.len() == 1 && first.is_dir() && first.join("geometry.npy").exists() {
+        // A folder of OBJ frames with a stray geometry.npy: which one is the shot?
+        if let Ok(objs) = list_obj_files(first) {
+            return Err(Error::format(
+                first,
+                format!(
+                    "holds both geometry.npy and {} OBJ frames ({} …): name the one to upscale, \
+                     the .npy or the OBJ files",
+                    objs.len(),
+                    objs[0].file_name().unwrap_or_default().to_string_lossy()
+                ),
+            ));
+        }
         Some(first.join("geometry.npy"))
     } else if inputs.len() == 1 && first.extension().is_some_and(|e| e == "npy") {
         Some(first.clone())
     } else {
         None
+    })
+}
+
+/// Refuse a folder of OBJ frames that holds two shots: two or more numbered frames under
+/// each of two name stems (`shotA_0001.obj` …, `shotB_0001.obj` …), which natural order would
+/// play one after the other as one shot.
+fn refuse_two_shots(dir: &Path, files: &[PathBuf]) -> Result<()> {
+    let mut stems: Vec<(String, usize)> = Vec::new();
+    for f in files {
+        let Some(stem) = f.file_stem().and_then(|s| s.to_str()) else { continue };
+        let head = stem.trim_end_matches(|c: char| c.is_ascii_digit());
+        if head.len() == stem.len() {
+            continue;
+        }
+        match stems.iter_mut().find(|s| s.0 == head) {
+            Some(s) => s.1 += 1,
+            None => stems.push((head.to_string(), 1)),
+        }
     }
+    let shots: Vec<_> = stems.iter().filter(|s| s.1 >= 2).collect();
+    if let [a, b, ..] = shots.as_slice() {
+        return Err(Error::format(
+            dir,
+            format!(
+                "holds two shots: {}*.obj ({} frames) and {}*.obj ({} frames); give one shot's \
+                 frames (its files, or a folder of its own)",
+                a.0, a.1, b.0, b.1
+            ),
+        ));
+    }
+    Ok(())
 }
 
 /// The OBJ files of the input, in natural order.
@@ -122,7 +164,9 @@ fn obj_files(inputs: &[PathBuf]) -> Result<Vec<PathBuf>> {
     let mut files = Vec::new();
     for p in inputs {
         if p.is_dir() {
-            files.extend(list_obj_files(p)?);
+            let listed = list_obj_files(p)?;
+            refuse_two_shots(p, &listed)?;
+            files.extend(listed);
         } else if is_obj(p) {
             files.push(p.clone());
         } else if !p.exists() {
@@ -365,7 +409,7 @@ pub fn open_input(
         ));
     }
     let first = &inputs[0];
-    if let Some(gp) = npy_input(inputs) {
+    if let Some(gp) = npy_input(inputs)? {
         let dp = gp.with_file_name("domain.npy");
         let domain = Domain::from_tensor(&read_npy(&dp)?).map_err(|e| e.in_file(&dp))?;
         let frames = NpyFrames::open(&gp)?;
