@@ -378,3 +378,36 @@ fn physics_pass_turned_with_its_gravity_gives_the_turned_cloth_bit_for_bit() {
         assert!(a.pos == b.pos, "frame {k}: the turned shot's cloth is not the cloth turned");
     }
 }
+
+#[test]
+fn physics_pass_that_cannot_follow_the_shot_is_an_error_naming_the_frame_and_causes() {
+    // A flag held at its top; from frame 10 on the shot is 2 m to the side (two shots in one
+    // folder, a snap, a unit mix-up): the pass's cloth cannot be there, and says so.
+    let mut spec = ScenarioSpec::new(Scenario::Flag);
+    (spec.w, spec.h, spec.frames, spec.seed) = (12, 12, 16, 3);
+    let run = run_single(&spec).unwrap();
+    let mut up = anisocb::pipeline::Upscaler::embedded().unwrap().with_physics(pins_top()).unwrap();
+    let mut err = None;
+    for (k, f) in run.iter().enumerate() {
+        let mut f = f.clone();
+        if k >= 10 {
+            f.pos.iter_mut().for_each(|p| p[0] += 2.0);
+        }
+        if let Err(e) = up.push(&f) {
+            err = Some((k, e.to_string()));
+            break;
+        }
+    }
+    let (k, e) = err.expect("a 2 m jump was followed without a word");
+    assert_eq!(k, 10, "{e}");
+    assert!(e.contains("frame 10") && e.contains("metres") && e.contains("one shot"), "{e}");
+    // The same shot without the jump runs to the end.
+    let mut up = anisocb::pipeline::Upscaler::embedded().unwrap().with_physics(pins_top()).unwrap();
+    for f in &run {
+        up.push(f).unwrap();
+    }
+}
+
+fn pins_top() -> FollowParams {
+    FollowParams { pins: PinnedEdges::parse("top").unwrap(), ..FollowParams::default() }
+}

@@ -3,9 +3,11 @@
 //! out, in shot order.
 
 use crate::cloth::follow::{FollowParams, Follower};
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::geom::geometry_image::image_to_mesh;
+use crate::geom::mesh::{bounds, dist};
 use crate::geom::Domain;
+use crate::geom::GridMesh;
 use crate::pipeline::stream::HrSink;
 use crate::sr::upscale::Upscaled;
 use crate::tensor::Tensor;
@@ -45,7 +47,11 @@ impl PhysicsPass {
                 self.follower = Some(Follower::new(&target, lr, &self.params)?);
                 target
             }
-            Some(fo) => fo.step(&target, k)?,
+            Some(fo) => {
+                let cloth = fo.step(&target, k)?;
+                check_follows(&cloth, &target, k)?;
+                cloth
+            }
         };
         // (3, rH, rW) of frame f, planar.
         let img = &mut hr.data[f * 3 * hw..(f + 1) * 3 * hw];
@@ -62,6 +68,49 @@ impl PhysicsPass {
     pub fn reset(&mut self) {
         self.follower = None;
     }
+}
+
+/// Largest distance, as a fraction of the frame's size (its bounding box's diagonal), by
+/// which the pass's cloth may lie from the frame it follows. The pass adds folds of
+/// millimetres to centimetres and its drift correction keeps it on the shot: on our
+/// simulator's drop, drape, flag, twist and flag-sphere runs (60 frames, 32², their held edges
+/// pinned) the largest vertex distance stayed below 8 % of the cloth's size (the drop's
+/// landing; the others below 3 %). A cloth a fifth of its size away did not follow the shot: a jump it cannot take
+/// (two shots in one folder, a snap of metres), or a shot read with the wrong units, gravity
+/// axis or frame rate.
+pub const MAX_FOLLOW_FRACTION: f32 = 0.2;
+
+/// Largest mean offset of the pass's cloth from the frame, as a fraction of the frame's size:
+/// a cloth that trails the shot as a whole (a shot too fast for the pass to follow). Our
+/// simulator's runs stayed below 1 % (drop 0.96 %, drape 0.26 %, flag 0.11 %).
+pub const MAX_TRAIL_FRACTION: f32 = 0.05;
+
+/// Refuse frame `k` of the pass's `cloth` if a vertex lies further than
+/// [`MAX_FOLLOW_FRACTION`] of the frame's size from `target`, the frame it follows, or the
+/// cloth as a whole further than [`MAX_TRAIL_FRACTION`].
+fn check_follows(cloth: &GridMesh, target: &GridMesh, k: usize) -> Result<()> {
+    let (lo, hi) = bounds(&target.pos);
+    let size = dist(lo, hi);
+    let far = cloth.pos.iter().zip(&target.pos).map(|(a, b)| dist(*a, *b)).fold(0.0f32, f32::max);
+    // The mean offset: a cloth that trails the shot as a whole.
+    let n = cloth.pos.len().max(1) as f32;
+    let mut mean = [0.0f32; 3];
+    for (a, b) in cloth.pos.iter().zip(&target.pos) {
+        (0..3).for_each(|i| mean[i] += (a[i] - b[i]) / n);
+    }
+    let trail = dist(mean, [0.0; 3]);
+    if far > MAX_FOLLOW_FRACTION * size || trail > MAX_TRAIL_FRACTION * size {
+        let far = far.max(trail);
+        return Err(Error::numeric(format!(
+            "frame {k}: the physics pass's cloth lies {far:.3} m from the frame ({:.0} % of the \
+             cloth's {size:.2} m): it cannot follow the shot there. Check that the shot is in \
+             metres, that gravity points down along its axes (y-up: 0,-9.81,0; z-up: 0,0,-9.81), \
+             that the frame rate is the shot's, and that the input holds one shot (a jump of \
+             metres between frames)",
+            100.0 * far / size
+        )));
+    }
+    Ok(())
 }
 
 /// An [`HrSink`] that replaces each HR frame by the physics pass's cloth and hands it on.
