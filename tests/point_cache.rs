@@ -1,7 +1,7 @@
 //! PC2 and MDD point caches (io::point_cache): writer → reader round trips are bit-identical,
 //! ranges read exactly their frames and only their bytes, and files spelled out byte by byte
 //! here — independently of the writer — are read (and written) as the formats define them.
-//! The broken-file catalogue lives in tests/hostile_inputs.rs.
+//! The broken-file catalogue lives in tests/hostile_point_cache.rs.
 
 #[path = "common/tempdir.rs"]
 mod tempdir;
