@@ -92,6 +92,21 @@ impl AnisoCb {
         Ok(self)
     }
 
+    /// FNV-1a over every net's name and weights' bits, in the bundle's order: two bundles that
+    /// compute differently have different checksums (an output folder's summary records it).
+    pub fn checksum(&self) -> u64 {
+        let mut h = 0xcbf2_9ce4_8422_2325u64;
+        let mut eat =
+            |bytes: &[u8]| bytes.iter().for_each(|&b| h = (h ^ b as u64).wrapping_mul(0x0100_0000_01b3));
+        for (name, trunk) in self.named_trunks() {
+            eat(name.as_bytes());
+            for (_, t) in trunk.params() {
+                t.data.iter().for_each(|v| eat(&v.to_bits().to_le_bytes()));
+            }
+        }
+        h
+    }
+
     pub fn scale(&self) -> usize {
         self.geometry.trunk.config.scale
     }

@@ -15,7 +15,7 @@
 
 use crate::error::{Error, Result};
 use crate::io::atomic::ensure_dir;
-use crate::io::json::{read_json, Value};
+use crate::io::json::{read_json, Object, Value};
 use std::collections::{HashMap, HashSet};
 use std::fs::{self, File, TryLockError};
 use std::io::{Read, Seek, Write};
@@ -34,6 +34,18 @@ pub struct Ownership {
     pub summary: String,
     /// The names of the files this run writes besides its summary.
     pub files: Vec<String>,
+}
+
+impl Ownership {
+    /// `o` (a summary) with the run's identity: its inputs, its settings and the files it
+    /// writes, so the summary lists exactly what the run leaves in the folder.
+    pub fn record(&self, o: Object) -> Object {
+        let strings =
+            |v: &[String]| Value::from(v.iter().map(|s| Value::from(s.as_str())).collect::<Vec<_>>());
+        o.val("inputs", strings(&self.inputs))
+            .val("settings", self.settings.clone())
+            .val("files", strings(&self.files))
+    }
 }
 
 /// A folder a run may write: the lock on its summary, held until dropped.

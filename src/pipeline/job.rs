@@ -293,7 +293,7 @@ pub fn upscale_files(
         .val("range", vec![Value::num(range.start), Value::num(range.end)])
         .num("eta", params.eta)
         .str("note", "unfinished: this run was stopped part-way or failed; rerun the same command");
-    let started = with_ownership(started, &own);
+    let started = own.record(started);
     write_json(&plan.summary_path, &started.into(), Layout::Compact)?;
     let start = Instant::now();
     if let Some(c) = &cache_in {
@@ -346,7 +346,7 @@ pub fn upscale_files(
         Some(p) => summary.val("physics", physics_json(p)),
         None => summary,
     };
-    write_json(&plan.summary_path, &with_ownership(summary, &own).into(), Layout::Compact)?;
+    write_json(&plan.summary_path, &own.record(summary).into(), Layout::Compact)?;
     drop(claim);
     Ok(Summary { frames: n, lr: (w, h), hr: (r * w, r * h), seconds: secs, format: plan.fmt })
 }
@@ -385,7 +385,7 @@ fn ownership(ops: &dyn Ops, model: &AnisoCb, job: &UpscaleJob, plan: &Plan) -> R
         .num("margin", job.margin)
         .str("device", ops.name())
         .str("precision", job.precision.name())
-        .str("weights", &format!("{:016x}", weights_checksum(model)))
+        .str("weights", &format!("{:016x}", model.checksum()))
         .val("physics", job.physics.as_ref().map_or(Value::Null, |f| physics_json(f).into()));
     let name = |p: &PathBuf| p.file_name().unwrap_or_default().to_string_lossy().into_owned();
     Ok(Ownership {
@@ -395,34 +395,6 @@ fn ownership(ops: &dyn Ops, model: &AnisoCb, job: &UpscaleJob, plan: &Plan) -> R
         summary: name(&plan.summary_path),
         files: plan.writes.iter().filter(|w| **w != plan.summary_path).map(name).collect(),
     })
-}
-
-/// FNV-1a over every weight's bits, in the bundle's order: two weights files that give other
-/// bytes have other checksums.
-fn weights_checksum(model: &AnisoCb) -> u64 {
-    let mut h = 0xcbf2_9ce4_8422_2325u64;
-    for (name, trunk) in model.named_trunks() {
-        for b in name.bytes() {
-            h = (h ^ b as u64).wrapping_mul(0x0100_0000_01b3);
-        }
-        for (_, t) in trunk.params() {
-            for v in &t.data {
-                for b in v.to_bits().to_le_bytes() {
-                    h = (h ^ b as u64).wrapping_mul(0x0100_0000_01b3);
-                }
-            }
-        }
-    }
-    h
-}
-
-/// `o` with the run's identity: the job's inputs, its settings and the files it writes (the
-/// summary lists exactly what the run leaves in the folder).
-fn with_ownership(o: Object, own: &Ownership) -> Object {
-    let strings = |v: &[String]| Value::from(v.iter().map(|s| Value::from(s.as_str())).collect::<Vec<_>>());
-    o.val("inputs", strings(&own.inputs))
-        .val("settings", own.settings.clone())
-        .val("files", strings(&own.files))
 }
 
 /// What a job writes where, settled and checked before anything is written.
