@@ -8,12 +8,14 @@ use super::activation::{CHUNK, PAR_MIN};
 use crate::tensor::Tensor;
 use rayon::prelude::*;
 
+pub mod detail;
 pub mod geometry;
 
+pub use detail::{
+    detail_amplitude, detail_energy_mse, detail_energy_mse_ref, detail_high_pass, image_normals, DetailEnergy,
+};
 pub use geometry::{
-    detail_amplitude, detail_energy_mse, detail_energy_mse_ref, detail_high_pass, edge_length_mse,
-    edge_length_mse_ref, edge_mse, edge_mse_ref, image_normals, laplacian_mse, laplacian_mse_ref,
-    DetailEnergy,
+    edge_length_mse, edge_length_mse_ref, edge_mse, edge_mse_ref, laplacian_mse, laplacian_mse_ref,
 };
 
 /// One element of BCE-with-logits: (loss, d loss / d z), not yet divided by the count.
