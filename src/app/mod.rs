@@ -123,6 +123,8 @@ fn flag(field: &'static str) -> &'static str {
         "eta" => "--eta",
         "temporal" => "--temporal",
         "batch" => "--batch",
+        "patch" => "--patch",
+        "canny_sigma" => "--canny-sigma",
         "strain_iters" => "--strain-iters",
         "margin" => "--margin",
         "frames" => "--frames",

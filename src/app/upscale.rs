@@ -129,7 +129,7 @@ pub struct Args {
     pub format: String,
     /// Domain margin for OBJ and point-cache input, as a fraction of the sequence's largest
     /// extent, from 0 to 1.
-    #[arg(help_heading = "Model and engine", long, default_value_t = DOMAIN_MARGIN)]
+    #[arg(help_heading = "Model and engine", long, default_value_t = DOMAIN_MARGIN, allow_negative_numbers = true)]
     pub margin: f32,
     /// Also write the predicted boundary and wrinkle-edge maps (boundary.npy, enhance.npy).
     #[arg(help_heading = "Input and output", long)]

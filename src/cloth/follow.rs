@@ -122,6 +122,12 @@ impl Default for FollowParams {
     }
 }
 
+/// Largest distance from the shot's origin, and largest size, in metres, that
+/// [`FollowParams::validate`] accepts for a collider (the floor's height, the sphere's centre
+/// and radius, the box's centre and half extents): 10 km is far beyond any cloth's scene; a
+/// larger number is a slip or another unit, and would make the pass's arithmetic overflow.
+pub const MAX_COLLIDER_METRES: f32 = 1e4;
+
 impl FollowParams {
     /// The setting for cloth simulated by Blender (`upscale --preset blender`): silk, damped
     /// at critical, the rest the defaults. Chosen on the five Blender validation scenes
@@ -158,6 +164,15 @@ impl FollowParams {
             ));
         }
         if let Some(g) = self.ground {
+            if g.is_finite() && g.abs() > MAX_COLLIDER_METRES {
+                return Err(Error::invalid(
+                    "ground",
+                    format!(
+                        "the floor's height must be within ±{MAX_COLLIDER_METRES} m of the shot's \
+                         origin, got {g}; give it in the shot's units (metres)"
+                    ),
+                ));
+            }
             if !g.is_finite() || self.gravity.iter().all(|&c| c == 0.0) {
                 return Err(Error::invalid(
                     "ground",
@@ -180,9 +195,30 @@ impl FollowParams {
                 ),
             ));
         }
+        let far = |v: &[f32]| v.iter().any(|x| x.is_finite() && x.abs() > MAX_COLLIDER_METRES);
+        if let Some(s) = self.sphere.filter(|s| far(&s.center) || far(&[s.radius])) {
+            return Err(Error::invalid(
+                "sphere",
+                format!(
+                    "the sphere's centre and radius must be within ±{MAX_COLLIDER_METRES} m, got \
+                     centre {:?} radius {}; give them in the shot's units (metres)",
+                    s.center, s.radius
+                ),
+            ));
+        }
         let box_ok = self.cuboid.is_none_or(|b| {
             b.center.iter().all(|c| c.is_finite()) && b.half.iter().all(|h| h.is_finite() && *h > 0.0)
         });
+        if let Some(b) = self.cuboid.filter(|b| box_ok && (far(&b.center) || far(&b.half))) {
+            return Err(Error::invalid(
+                "cuboid",
+                format!(
+                    "the box's centre and half extents must be within ±{MAX_COLLIDER_METRES} m, got \
+                     centre {:?} half extents {:?}; give them in the shot's units (metres)",
+                    b.center, b.half
+                ),
+            ));
+        }
         if !box_ok {
             return Err(Error::invalid(
                 "cuboid",

@@ -37,6 +37,14 @@ impl Domain {
             if !(self.bmin[k].is_finite() && self.bmax[k].is_finite() && self.bmax[k] > self.bmin[k]) {
                 return Err(Error::config(format!("domain axis {k} is empty or not finite: {self:?}")));
             }
+            if !(self.bmax[k] - self.bmin[k]).is_finite() {
+                return Err(Error::config(format!(
+                    "the domain is not usable: axis {k} spans {:e} to {:e}, an extent beyond f32's \
+                     range (±3.4e38) that no geometry image can be decoded with; the domain box \
+                     must enclose the cloth in metres",
+                    self.bmin[k], self.bmax[k]
+                )));
+            }
         }
         Ok(())
     }

@@ -39,10 +39,22 @@ impl Default for CannyParams {
     }
 }
 
+/// Largest Gaussian σ (pixels) [`CannyParams::validate`] accepts: the kernel is truncated at
+/// 4σ, so σ = 50 is 401 taps, already wider than any geometry image it smooths (a few hundred
+/// pixels); a larger σ only blurs the image flat, and an absurd one could not be allocated.
+pub const MAX_SIGMA: f32 = 50.0;
+
 impl CannyParams {
     pub fn validate(&self) -> Result<()> {
-        if !(self.sigma.is_finite() && self.sigma >= 0.0) {
-            return Err(Error::config(format!("canny sigma must be ≥ 0, got {}", self.sigma)));
+        if !(self.sigma.is_finite() && (0.0..=MAX_SIGMA).contains(&self.sigma)) {
+            return Err(Error::invalid(
+                "canny_sigma",
+                format!(
+                    "the Canny Gaussian σ must be 0 to {MAX_SIGMA} pixels, got {}; the default 1 \
+                     suits geometry images of 64 to 256 pixels, 0 = no smoothing",
+                    self.sigma
+                ),
+            ));
         }
         if !(self.low.is_finite() && self.high.is_finite() && self.low >= 0.0 && self.high >= self.low) {
             return Err(Error::config(format!(

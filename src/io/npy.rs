@@ -110,19 +110,39 @@ fn parse_npy_header_str(bytes: &[u8], file_len: u64) -> std::result::Result<NpyH
     })
 }
 
-/// Decode little-endian f32 (`item` = 4) or f64 (8) data into f32s.
-fn decode_floats(bytes: &[u8], item: usize) -> Vec<f32> {
-    if item == 4 && cfg!(target_endian = "little") {
+/// Decode little-endian f32 (`item` = 4) or f64 (8) data into f32s. Fails with the index and
+/// value of the first f64 that is finite but beyond f32's range: it would become ±inf, and be
+/// reported as a non-finite value the file does not hold.
+fn decode_floats(bytes: &[u8], item: usize) -> std::result::Result<Vec<f32>, (usize, f64)> {
+    if item == 8 {
+        let mut out = Vec::with_capacity(bytes.len() / 8);
+        for (i, b) in bytes.chunks_exact(8).enumerate() {
+            let v = f64::from_le_bytes(b.try_into().unwrap_or([0; 8]));
+            let x = v as f32;
+            if v.is_finite() && !x.is_finite() {
+                return Err((i, v));
+            }
+            out.push(x);
+        }
+        return Ok(out);
+    }
+    Ok(if item == 4 && cfg!(target_endian = "little") {
         // '<f4' on a little-endian host: the payload is the f32 buffer itself; bytemuck copies
         // it out whatever its alignment in the file (same bits as decoding element by element).
         let mut v = vec![0.0f32; bytes.len() / 4];
         bytemuck::cast_slice_mut::<f32, u8>(&mut v).copy_from_slice(bytes);
         v
-    } else if item == 4 {
-        bytes.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect()
     } else {
-        bytes.chunks_exact(8).map(|b| f64::from_le_bytes(b.try_into().unwrap_or([0; 8])) as f32).collect()
-    }
+        bytes.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect()
+    })
+}
+
+/// What [`decode_floats`]'s error means, for element `at` (a description of where it is).
+fn out_of_f32_range(v: f64, at: &str) -> String {
+    format!(
+        "float64 value {v:e} at {at} is finite but beyond float32's range (±3.4e38), which \
+         anisocb computes in; rescale the data (positions in metres) and save it again"
+    )
 }
 
 /// Parse `.npy` bytes; the error is a plain message that the caller attaches a file name to.
@@ -134,7 +154,8 @@ pub fn tensor_from_npy_bytes(bytes: &[u8]) -> Result<Tensor> {
 pub(crate) fn tensor_from_npy_bytes_str(bytes: &[u8]) -> std::result::Result<Tensor, String> {
     let h = parse_npy_header_str(bytes, bytes.len() as u64)?;
     // Bounded by the payload present, checked by the header parse.
-    let data = decode_floats(&bytes[h.offset..], h.item);
+    let data = decode_floats(&bytes[h.offset..], h.item)
+        .map_err(|(i, v)| out_of_f32_range(v, &format!("index {i}")))?;
     Tensor::from_vec(&h.shape, data).map_err(|e| e.to_string())
 }
 
@@ -183,7 +204,11 @@ impl NpyFrames {
         self.file.read_exact(&mut bytes).map_err(|e| Error::io(&self.path, e))?;
         let mut shape = self.header.shape.clone();
         shape[0] = range.len();
-        Tensor::from_vec(&shape, decode_floats(&bytes, self.header.item))
+        let data = decode_floats(&bytes, self.header.item).map_err(|(i, v)| {
+            let at = format!("index {} (frame {})", range.start * per + i, range.start + i / per.max(1));
+            Error::format(&self.path, out_of_f32_range(v, &at))
+        })?;
+        Tensor::from_vec(&shape, data)
     }
 }
 

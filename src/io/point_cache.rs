@@ -148,6 +148,18 @@ impl CacheHeader {
                         self.sample_rate
                     ));
                 }
+                // The scene frame of every sample, as a slice of the cache computes it (start +
+                // k × rate, in f32): the last is the largest.
+                let last = self.frames - 1;
+                let at = self.start_frame + last as f32 * self.sample_rate;
+                if !(at.is_finite() && (last as f32 * self.sample_rate).is_finite()) {
+                    return Err(format!(
+                        "start frame {:e} and sample rate {:e} put sample {last} at scene frame \
+                         {at}, beyond f32's range (±3.4e38): the header's timing is corrupt; \
+                         re-export the cache",
+                        self.start_frame, self.sample_rate
+                    ));
+                }
             }
             CacheFormat::Mdd => {
                 if self.times.len() != self.frames {

@@ -192,12 +192,17 @@ impl NetConfig {
         let o = Object::parse_str(text)?;
         let s =
             |k: &str| o.get(k).and_then(|v| v.as_str()).ok_or(format!("config.json: missing string '{k}'"));
-        let n = |k: &str| {
-            o.get(k)
-                .and_then(|v| v.as_u64())
-                .map(|v| v as usize)
-                .ok_or(format!("config.json: missing integer '{k}'"))
+        // A count: absent, or present as anything but a non-negative integer, say which.
+        let count = |k: &str| -> std::result::Result<Option<usize>, String> {
+            match o.get(k) {
+                None => Ok(None),
+                Some(v) => v.as_u64().and_then(|v| usize::try_from(v).ok()).map(Some).ok_or(format!(
+                    "config.json: '{k}' is {v}; it must be a non-negative integer (a count, as \
+                     `anisocb train` writes it)"
+                )),
+            }
         };
+        let n = |k: &str| count(k)?.ok_or(format!("config.json: missing integer '{k}'"));
         let kind = NetKind::parse(s("kind")?).map_err(|e| format!("config.json: {e}"))?;
         let padding = match s("padding")? {
             "zero" => Padding::Zero,
@@ -205,8 +210,8 @@ impl NetConfig {
             p => return Err(format!("config.json: unknown padding '{p}'")),
         };
         for (k, want) in [("in_channels", IN_CHANNELS), ("tail_convs", TAIL_CONVS), ("kernel", KERNEL)] {
-            if let Some(v) = o.get(k).and_then(|v| v.as_u64()) {
-                if v as usize != want {
+            if let Some(v) = count(k)? {
+                if v != want {
                     return Err(format!("config.json: {k} = {v}, this build supports only {want}"));
                 }
             }

@@ -72,7 +72,7 @@ pub fn trunk_from_npz(
         Error::format(path, why)
     })?;
     let (kind, config) = NetConfig::from_json_str(&String::from_utf8_lossy(cfg_bytes))
-        .map_err(|m| Error::format(path, format!("{cfg_name}: {m}")))?;
+        .map_err(|m| Error::format(path, format!("{cfg_name}: {}", m.trim_start_matches("config.json: "))))?;
     if let Some((ekind, ecfg)) = expect {
         let mut diffs = Vec::new();
         if ekind != kind {

@@ -393,6 +393,23 @@ pub(crate) fn same_file(a: &Path, b: &Path) -> bool {
     }
 }
 
+/// The point-cache format `path` is in, by its name (`.pc2`, `.mdd`) or, whatever its name, by
+/// the PC2 signature at its start; None for anything else (an unreadable file included: its
+/// reader says why).
+fn point_cache_kind(path: &Path) -> Option<&'static str> {
+    if let Some(f) = CacheFormat::from_path(path) {
+        return Some(f.name());
+    }
+    // Only a regular file is opened here: opening a pipe would wait for its writer.
+    if !std::fs::metadata(path).ok()?.is_file() {
+        return None;
+    }
+    let mut head = [0u8; 12];
+    let mut f = std::fs::File::open(path).ok()?;
+    std::io::Read::read_exact(&mut f, &mut head).ok()?;
+    (&head == b"POINTCACHE2\0").then_some(CacheFormat::Pc2.name())
+}
+
 /// Open what the user gave: OBJ files or folders, a run folder or geometry.npy, or one point
 /// cache with its `rest` mesh; `r` is the model's scale (for the HR UVs). Everything that can be
 /// checked before a net runs is checked here; `messages` gets the notes and warnings for the user (each line prefixed
@@ -435,6 +452,17 @@ pub fn open_input(
             ),
             ));
         };
+        if let Some(kind) = point_cache_kind(rest) {
+            return Err(Error::invalid(
+                "rest",
+                format!(
+                    "{}: this is a {kind} point cache, not a mesh; the rest mesh must be an OBJ \
+                     file of the mesh the cache moves (exported from the same object, same vertex \
+                     order), and the cache is the input",
+                    rest.display()
+                ),
+            ));
+        }
         let cache = PointCacheReader::open(first)?;
         let seq = ObjSequence::open(&[rest.to_path_buf()])?;
         let g = seq.first;

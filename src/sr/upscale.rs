@@ -343,6 +343,7 @@ pub(crate) fn run_nets_into(
         return Err(Error::numeric(format!("input frame {frame} holds a non-finite value {v}")));
     }
     domain.validate()?;
+    check_extent(lr, domain)?;
     let r = model.scale();
     let (hh, hw) = (r * h, r * w);
     let cloth = model.input_frame() == InputFrame::Cloth;
@@ -400,6 +401,26 @@ pub(crate) fn run_nets_into(
         crate::ops::check_device(ops)?;
         done += n;
         on_frames(done);
+    }
+    Ok(())
+}
+
+/// Refuse a frame of `lr` (T, 3, H, W, geometry images in `domain`) whose vertices all lie at
+/// one point: it has no size, no orientation and no wrinkles, and the nets' frame of it (and
+/// every check of the result against its size) would divide by zero.
+fn check_extent(lr: &Tensor, domain: &Domain) -> Result<()> {
+    let (_, _, h, w) = lr.dims4();
+    for (f, img) in lr.data.chunks_exact(3 * h * w).enumerate() {
+        let flat = img.chunks_exact(h * w).all(|c| c.iter().all(|&v| v == c[0]));
+        if flat {
+            let at = domain.decode([img[0], img[h * w], img[2 * h * w]]);
+            return Err(Error::numeric(format!(
+                "input frame {f} is collapsed to a point: all its {} vertices are at {at:?}, so it \
+                 has no extent to upscale (a frame exported before the cloth existed, or a broken \
+                 export); re-export it or leave it out of the frames upscaled",
+                h * w
+            )));
+        }
     }
     Ok(())
 }

@@ -68,7 +68,62 @@ pub struct TrainOptions {
     pub out: PathBuf,
 }
 
+/// Largest batch [`TrainOptions::check_sizes`] accepts (patches per step): the paper trains
+/// with 32; beyond a few hundred a step is no better an estimate of the gradient, only larger.
+pub const MAX_BATCH: usize = 4096;
+
+/// Largest LR patch side (pixels) [`TrainOptions::check_sizes`] accepts. Patches are clamped
+/// to the frame, so any side at least the frame's trains on whole frames.
+pub const MAX_PATCH: usize = 1024;
+
+/// Largest number of HR pixels in one training batch (batch × HR patch area, after clamping
+/// to the frame) [`TrainOptions::check_sizes`] accepts: every layer keeps `channels` values of
+/// each for the backward pass, so 2²² pixels — 128× the default of 32 patches of 32 × 32 — is
+/// already 1 GiB per layer at the paper's 64 channels.
+pub const MAX_BATCH_PIXELS: usize = 1 << 22;
+
 impl TrainOptions {
+    /// Refuse a batch or patch size that could not be allocated, before anything is: `batch`
+    /// in 1..=[`MAX_BATCH`], `patch` in 1..=[`MAX_PATCH`], and their batch on `data` (the patch
+    /// clamped to its frames, ×`scale` for the HR side) at most [`MAX_BATCH_PIXELS`] pixels.
+    pub fn check_sizes(&self, data: &TrainingData) -> Result<()> {
+        if self.batch == 0 || self.batch > MAX_BATCH {
+            return Err(Error::invalid(
+                "batch",
+                format!(
+                    "must be 1 to {MAX_BATCH} patches per step, got {} (the paper trains with 32)",
+                    self.batch
+                ),
+            ));
+        }
+        if self.patch == 0 || self.patch > MAX_PATCH {
+            return Err(Error::invalid(
+                "patch",
+                format!(
+                    "must be 1 to {MAX_PATCH} LR pixels per side, got {} (a patch is clamped to \
+                     the frame: one as large as the frame trains on whole frames)",
+                    self.patch
+                ),
+            ));
+        }
+        let (h, w) = data.lr_size();
+        let (hh, hw) = (self.patch.min(h) * data.scale, self.patch.min(w) * data.scale);
+        let pixels = (self.batch as u128) * (hh as u128) * (hw as u128);
+        if pixels > MAX_BATCH_PIXELS as u128 {
+            let gib = pixels as f64 * self.config.channels as f64 * 4.0 / (1u64 << 30) as f64;
+            return Err(Error::invalid(
+                "batch",
+                format!(
+                    "{} patches of {hh}×{hw} HR pixels are {pixels} pixels per step, more than \
+                     {MAX_BATCH_PIXELS}: every layer would keep {gib:.1} GiB for the backward \
+                     pass; lower the batch or the patch size",
+                    self.batch
+                ),
+            ));
+        }
+        Ok(())
+    }
+
     /// GeometryNet's loss terms from `edge_weight`, `laplacian_weight`, `length_weight` and
     /// `detail_weight` / `detail_radius` (ε the default of [`DetailEnergy`]).
     pub fn geometry_loss(&self) -> GeometryLoss {
@@ -335,6 +390,7 @@ pub fn train(
     on_event: &mut dyn FnMut(Event),
 ) -> Result<TrainReport> {
     opts.config.validate()?;
+    opts.check_sizes(data)?;
     if opts.config.scale != data.scale {
         return Err(Error::config(format!(
             "net upscale ×{} but the data is ×{} (hr vs lr shapes)",
