@@ -166,7 +166,7 @@ fn resume_refuses_changed_options_and_fresh_runs_refuse_to_overwrite() {
     let dir = tmp("refuse");
     train(&Cpu, &data, NetKind::Enhance, &tiny_opts(dir.clone(), 2), &mut |_| {}).unwrap();
     let err = train(&Cpu, &data, NetKind::Enhance, &tiny_opts(dir.clone(), 4), &mut |_| {}).unwrap_err();
-    assert!(err.to_string().contains("--resume"), "{err}");
+    assert!(err.to_string().contains("resume it"), "{err}");
     let changed = TrainOptions { resume: true, batch: 4, ..tiny_opts(dir.clone(), 4) };
     let err = train(&Cpu, &data, NetKind::Enhance, &changed, &mut |_| {}).unwrap_err().to_string();
     println!("{err}");

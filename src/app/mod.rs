@@ -145,6 +145,7 @@ fn flag(field: &'static str) -> &'static str {
         "substeps_per_second" => "--physics-substeps",
         "pins" => "--physics-pin",
         "val_frac" => "--val-frac",
+        "resume" => "--resume",
         f => f,
     }
 }

@@ -416,14 +416,20 @@ pub fn train(
     let fp = data.fingerprint(net);
     let mut st = if opts.resume {
         if !ckpt.exists() {
-            return Err(Error::format(&ckpt, "--resume given but there is no checkpoint to resume from"));
+            return Err(Error::invalid(
+                "resume",
+                format!(
+                    "{}: there is no checkpoint to resume from; train from the start instead",
+                    ckpt.display()
+                ),
+            ));
         }
         read_checkpoint(&ckpt, net, opts, fp)?
     } else {
         if ckpt.exists() {
             return Err(Error::format(
                 &ckpt,
-                "a checkpoint already exists here: pass --resume to continue it, or choose another --out",
+                "a checkpoint already exists here: resume it, or train into another folder",
             ));
         }
         let trunk = Trunk::init(net, opts.config, opts.seed);
@@ -474,7 +480,7 @@ pub fn train(
                 "no checkpoint was written yet".to_string()
             };
             return Err(Error::numeric(format!(
-                "{} net, step {}: {what}; stopped ({last}). Try a lower --lr or check the data.",
+                "{} net, step {}: {what}; stopped ({last}). Try a lower learning rate or check the data.",
                 net.name(),
                 st.step + 1
             )));
