@@ -219,3 +219,26 @@ fn upscale_refuses_a_point_cache_whose_points_are_not_in_the_rest_meshs_order() 
     let o = anisocb(&["upscale", &s(&good), "--rest", &s(&rest), "--out", &s(&d.join("o2"))]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
 }
+
+#[test]
+fn upscale_refuses_a_point_cache_whose_later_frames_are_shuffled_naming_the_frame() {
+    let d = scratch("upscale_cache_later_order");
+    let s = |p: &Path| p.to_str().unwrap().to_string();
+    let rest = write(&d, "rest.obj", grid_obj(8, 8).as_bytes());
+    let xyz = grid_xyz(8, 8, 4);
+    // Frames 0 and 1 in the rest mesh's order; frames 2 and 3 shuffled (vertex k takes point
+    // 37k mod 64: a cache mixed from another export).
+    let mixed: Vec<f32> = (0..256)
+        .flat_map(|k| {
+            let (f, v) = (k / 64, k % 64);
+            let v = if f >= 2 { v * 37 % 64 } else { v };
+            xyz[(f * 64 + v) * 3..(f * 64 + v) * 3 + 3].to_vec()
+        })
+        .collect();
+    let bad = write(&d, "mixed.pc2", &pc2_raw(b"POINTCACHE2\0", 1, 64, 0.0, 1.0, 4, &mixed));
+    upscale_refused(
+        &[&s(&bad), "--rest", &s(&rest), "--out", &s(&d.join("o"))],
+        1,
+        &["mixed.pc2", "frame 2", "not in the rest mesh's vertex order"],
+    );
+}

@@ -378,6 +378,11 @@ impl<R: Read + Seek> PointCacheReader<R> {
         Ok(PointCacheReader { src, header, path: path.to_path_buf() })
     }
 
+    /// The file it reads.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
     pub fn header(&self) -> &CacheHeader {
         &self.header
     }

@@ -29,8 +29,15 @@ pub enum Shot {
     /// `attrs` until its HR frame is written, and notes on renumbered frames to `notes`.
     Obj { seq: Box<ObjSequence>, domain: Domain, attrs: FrameAttrs, notes: Notes },
     /// A point cache; `order[j*w + i]` is the cache point at grid vertex (i, j) (from the rest
-    /// mesh).
-    Cache { cache: PointCacheReader, order: Vec<u32>, w: usize, h: usize, domain: Domain },
+    /// mesh `rest`, which every frame read is checked against: [`unlike_edges`]).
+    Cache {
+        cache: PointCacheReader,
+        order: Vec<u32>,
+        w: usize,
+        h: usize,
+        domain: Domain,
+        rest: Box<GridMesh>,
+    },
 }
 
 impl Shot {
@@ -81,12 +88,13 @@ impl LrSource for Shot {
                 notes.borrow_mut().extend(seq.take_notes());
                 Ok(t)
             }
-            Shot::Cache { cache, order, w, h, domain } => {
+            Shot::Cache { cache, order, w, h, domain, rest } => {
                 let (w, h, n) = (*w, *h, cache.header().points);
                 let pts = cache.read_frames(range.clone())?;
                 let mut t = Tensor::zeros(&[range.len(), 3, h, w]);
                 for (k, frame) in pts.chunks_exact(n).enumerate() {
                     let mesh = GridMesh::new(w, h, order.iter().map(|&v| frame[v as usize]).collect());
+                    check_cache_frame(&mesh, rest, range.start + k, cache.path())?;
                     put_frame(&mut t, k, &mesh, domain);
                 }
                 Ok(t)
@@ -337,6 +345,28 @@ const EDGE_RATIO: f32 = 1.5;
 /// sheet).
 const MAX_UNLIKE_EDGES: f64 = 0.1;
 
+/// Refuse frame `k` of the cache `path` (as a grid, `mesh`) whose points are in another order
+/// than the rest mesh's (`rest`): frame 0 is checked when the cache is opened, every frame as
+/// it is read, so a cache whose later frames were shuffled or mixed from another export is not
+/// upscaled into a crumpled sheet.
+fn check_cache_frame(mesh: &GridMesh, rest: &GridMesh, k: usize, path: &Path) -> Result<()> {
+    let odd = unlike_edges(mesh, rest);
+    if odd > MAX_UNLIKE_EDGES {
+        return Err(Error::format(
+            path,
+            format!(
+                "in frame {k} of the cache, {:.0} % of the edges are over {EDGE_RATIO}× longer or \
+                 shorter than the same edges of the rest mesh (relative to the typical edge; cloth \
+                 stretches by a few percent): this frame's points are not in the rest mesh's \
+                 vertex order (a cache whose frames were mixed from another export); export the \
+                 cache again from one object",
+                100.0 * odd
+            ),
+        ));
+    }
+    Ok(())
+}
+
 /// The fraction of `a`'s edges whose length ratio to the same edge of `b` is more than
 /// [`EDGE_RATIO`] from the median ratio (edges of length 0 in `b` left out).
 fn unlike_edges(a: &GridMesh, b: &GridMesh) -> f64 {
@@ -502,7 +532,7 @@ pub fn open_input(
             MeshOut::of(&g, rest, (0..t).map(|k| format!("frame_{k:04}.obj").into()).collect(), r, messages);
         let header = cache.header().clone();
         let (w, h, order) = (g.mesh.w, g.mesh.h, g.order.clone());
-        let shot = Shot::Cache { cache, order, w, h, domain: Domain::UNIT };
+        let shot = Shot::Cache { cache, order, w, h, domain: Domain::UNIT, rest: Box::new(g.mesh.clone()) };
         let cin = CacheIn { path: first.clone(), header, rest: rest.to_path_buf(), rest_grid: g };
         let files = vec![first.clone(), rest.to_path_buf()];
         return Ok(Input { shot, npy_domain: None, mesh_out: Some(out), cache_in: Some(cin), files });
