@@ -10,6 +10,7 @@ pub mod layout;
 pub mod mesh;
 pub mod obj;
 pub mod obj_sequence;
+pub mod surface;
 pub mod vec3;
 
 pub use geometry_image::Domain;

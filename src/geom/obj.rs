@@ -38,6 +38,10 @@ pub struct ObjMesh {
     pub face_uv: Vec<Vec<u32>>,
     /// Everything else an upscaled copy should keep.
     pub attrs: ObjAttrs,
+    /// The `g`, `usemtl` and `s` lines (and `o` lines after the first face) as written, each
+    /// with the number of faces before it: a mesh of several materials, groups or objects
+    /// keeps them face by face when it is written subdivided ([`mesh_obj_text`]).
+    pub tags: Vec<(usize, String)>,
 }
 
 /// What an OBJ carries besides geometry, kept so that an upscaled frame is written the way it
@@ -104,10 +108,15 @@ pub fn parse_obj(text: &str, path: &Path) -> Result<ObjMesh> {
     // (line, vertex indices, vertices read before the face: what a negative index counts
     // back from).
     let mut raw_faces: Vec<(usize, Vec<i64>, i64)> = Vec::new();
+    let mut tags = Vec::new();
     for (ln, line) in text.lines().enumerate() {
         let ln = ln + 1;
         let line = line.split('#').next().unwrap_or("").trim();
         let mut it = line.split_whitespace();
+        let key = it.clone().next();
+        if matches!(key, Some("g" | "usemtl" | "s")) || (key == Some("o") && !raw_faces.is_empty()) {
+            tags.push((raw_faces.len(), line.to_string()));
+        }
         match it.next() {
             Some("v") => {
                 let c: Vec<&str> = it.collect();
@@ -175,7 +184,7 @@ pub fn parse_obj(text: &str, path: &Path) -> Result<ObjMesh> {
             t.clear();
         }
     }
-    Ok(ObjMesh { pos, faces, uv, face_uv, attrs })
+    Ok(ObjMesh { pos, faces, uv, face_uv, attrs, tags })
 }
 
 /// 1-based (or negative, relative) OBJ indices → 0-based, checked against `n` entries.
@@ -546,6 +555,84 @@ pub fn obj_text_with(mesh: &GridMesh, quads: bool, uv: Option<&[[f32; 2]]>, attr
         s.push('\n');
     }
     s
+}
+
+/// OBJ text of any mesh (the subdivided mesh of an any-cloth upscale): positions `pos`,
+/// `faces` (as in the file: written in their order and winding), texture coordinates `uv`
+/// with their per-face indices, and what the input had: `mtllib`, the object name, normals
+/// (area-weighted per vertex, when the input had `vn`), and its `tags` — each `(k, line)`
+/// written before face `k · per_face` (an LR face's tags before its four HR faces). Numbers
+/// print as in [`obj_text_with`].
+pub fn mesh_obj_text(
+    pos: &[[f32; 3]],
+    faces: &[Vec<u32>],
+    uv: Option<(&[[f32; 2]], &[Vec<u32>])>,
+    attrs: &ObjAttrs,
+    tags: &[(usize, String)],
+    per_face: usize,
+) -> String {
+    use std::fmt::Write;
+    let mut s = String::with_capacity(pos.len() * if uv.is_some() { 90 } else { 40 } + faces.len() * 24);
+    let _ = writeln!(s, "# anisocb mesh {} vertices, {} faces, metres", pos.len(), faces.len());
+    for m in &attrs.mtllib {
+        let _ = writeln!(s, "mtllib {m}");
+    }
+    if let Some(o) = &attrs.object {
+        let _ = writeln!(s, "o {o}");
+    }
+    for p in pos {
+        let _ = writeln!(s, "v {} {} {}", p[0], p[1], p[2]);
+    }
+    if let Some((t, _)) = uv {
+        for t in t {
+            let _ = writeln!(s, "vt {} {}", t[0], t[1]);
+        }
+    }
+    if attrs.normals {
+        for n in mesh_normals(pos, faces) {
+            let _ = writeln!(s, "vn {:.4} {:.4} {:.4}", n[0] + 0.0, n[1] + 0.0, n[2] + 0.0);
+        }
+    }
+    let mut tag = tags.iter().peekable();
+    for (k, f) in faces.iter().enumerate() {
+        while let Some((_, line)) = tag.next_if(|t| t.0 * per_face <= k) {
+            let _ = writeln!(s, "{line}");
+        }
+        s.push('f');
+        let fuv = uv.map(|(_, fu)| &fu[k]).filter(|fu| fu.len() == f.len());
+        for (c, &v) in f.iter().enumerate() {
+            let i = v + 1;
+            let _ = match (fuv.map(|fu| fu[c] + 1), attrs.normals) {
+                (None, false) => write!(s, " {i}"),
+                (Some(t), false) => write!(s, " {i}/{t}"),
+                (None, true) => write!(s, " {i}//{i}"),
+                (Some(t), true) => write!(s, " {i}/{t}/{i}"),
+            };
+        }
+        s.push('\n');
+    }
+    for (_, line) in tag {
+        let _ = writeln!(s, "{line}");
+    }
+    s
+}
+
+/// Area-weighted vertex normals of a mesh of triangles and quads (a quad by its two
+/// triangles 0-1-2, 0-2-3), unit length; (0, 0, 1) for a vertex in no face or no area.
+pub fn mesh_normals(pos: &[[f32; 3]], faces: &[Vec<u32>]) -> Vec<[f32; 3]> {
+    let mut n = vec![[0.0f32; 3]; pos.len()];
+    for f in faces {
+        for t in 1..f.len() - 1 {
+            let (a, b, c) = (pos[f[0] as usize], pos[f[t] as usize], pos[f[t + 1] as usize]);
+            let c = cross(super::vec3::sub(b, a), super::vec3::sub(c, a));
+            for &v in f {
+                for k in 0..3 {
+                    n[v as usize][k] += c[k];
+                }
+            }
+        }
+    }
+    n.into_iter().map(|v| super::vec3::normalize_or(v, [0.0, 0.0, 1.0])).collect()
 }
 
 /// Write a grid as OBJ (atomically).

@@ -3,6 +3,7 @@
 
 use super::mesh::{GridMesh, GridSymmetry};
 use super::obj::*;
+use super::surface::Surface;
 use crate::error::{Error, Result};
 use std::cell::RefCell;
 use std::path::{Path, PathBuf};
@@ -266,4 +267,41 @@ pub fn read_obj_sequence(paths: &[PathBuf]) -> Result<(Vec<GridMesh>, FaceStyle)
     let seq = ObjSequence::open(paths)?;
     let frames = (0..seq.len()).map(|k| seq.frame(k)).collect::<Result<Vec<_>>>()?;
     Ok((frames, seq.first.style))
+}
+
+/// An OBJ sequence of a mesh that is not a regular grid (issue 45), read one frame at a time:
+/// the first file fixes the topology ([`Surface`]), UVs and tags; every other frame must have
+/// the same faces and vertex count (its positions are taken in its own vertex order, which is
+/// the first file's when the faces are equal).
+pub struct MeshSequence {
+    pub files: Vec<PathBuf>,
+    /// The first file as parsed.
+    pub first: ObjMesh,
+    pub surface: Surface,
+}
+
+impl MeshSequence {
+    /// The sequence `paths` whose first file parsed as `first`; its faces are checked as a
+    /// cloth surface.
+    pub fn open(paths: &[PathBuf], first: ObjMesh) -> Result<MeshSequence> {
+        let Some(p) = paths.first() else { return Err(Error::config("no OBJ files given")) };
+        let surface = Surface::new(first.pos.len(), first.faces.clone(), p)?;
+        Ok(MeshSequence { files: paths.to_vec(), first, surface })
+    }
+
+    pub fn len(&self) -> usize {
+        self.files.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.files.is_empty()
+    }
+
+    /// Frame `k`'s positions and what its file carries besides geometry.
+    pub fn frame_and_attrs(&self, k: usize) -> Result<(Vec<[f32; 3]>, ObjAttrs)> {
+        let p = &self.files[k];
+        let m = if k == 0 { self.first.clone() } else { parse_obj(&read_obj_text(p)?, p)? };
+        self.surface.check_same(m.pos.len(), &m.faces, k, p)?;
+        Ok((m.pos, m.attrs))
+    }
 }

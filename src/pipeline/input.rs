@@ -4,9 +4,14 @@
 
 use crate::error::{Error, Result};
 use crate::geom::geometry_image::{image_to_mesh, mesh_to_image, Bounds};
+use crate::geom::layout::MeshLayout;
+use crate::geom::mesh::dist;
 use crate::geom::obj::{
-    list_obj_files, natural_cmp, obj_text_with, FaceStyle, ObjAttrs, ObjGrid, ObjSequence,
+    list_obj_files, mesh_obj_text, natural_cmp, obj_text_with, obj_to_grid, parse_obj, read_obj_text,
+    FaceStyle, ObjAttrs, ObjGrid, ObjMesh, ObjSequence,
 };
+use crate::geom::obj_sequence::MeshSequence;
+use crate::geom::surface::{Subdivision, Surface};
 use crate::geom::{Domain, GridMesh};
 use crate::io::npy::NpyFrames;
 use crate::io::point_cache::{CacheFormat, CacheHeader, PointCacheReader};
@@ -38,6 +43,19 @@ pub enum Shot {
         domain: Domain,
         rest: Box<GridMesh>,
     },
+    /// An OBJ sequence of a mesh that is not a regular grid (issue 45): each frame laid out
+    /// into the atlas image by `layout`; each frame's positions wait in `lr` until its HR
+    /// frame is written (the HR mesh is their subdivision plus the nets' detail).
+    Mesh { seq: Box<MeshSequence>, layout: Rc<MeshLayout>, domain: Domain, attrs: FrameAttrs, lr: LrFrames },
+    /// A point cache of such a mesh, with its rest positions (every frame read is checked
+    /// against them, as for a grid).
+    MeshCache {
+        cache: PointCacheReader,
+        layout: Rc<MeshLayout>,
+        domain: Domain,
+        rest: Vec<[f32; 3]>,
+        lr: LrFrames,
+    },
 }
 
 impl Shot {
@@ -47,13 +65,26 @@ impl Shot {
             Shot::Npy { frames, .. } => (frames.frames(), frames.header.shape[3], frames.header.shape[2]),
             Shot::Obj { seq, .. } => (seq.len(), seq.first.mesh.w, seq.first.mesh.h),
             Shot::Cache { cache, w, h, .. } => (cache.header().frames, *w, *h),
+            Shot::Mesh { seq, layout, .. } => (seq.len(), layout.atlas.w, layout.atlas.h),
+            Shot::MeshCache { cache, layout, .. } => (cache.header().frames, layout.atlas.w, layout.atlas.h),
+        }
+    }
+
+    /// The layout of a shot that is a mesh, not a grid, and its LR frames read so far.
+    pub fn mesh(&self) -> Option<(&Rc<MeshLayout>, &LrFrames)> {
+        match self {
+            Shot::Mesh { layout, lr, .. } | Shot::MeshCache { layout, lr, .. } => Some((layout, lr)),
+            _ => None,
         }
     }
 
     /// Encode OBJ and cache frames with `d` from now on (`.npy` frames come with theirs).
     pub fn set_domain(&mut self, d: Domain) {
         match self {
-            Shot::Obj { domain, .. } | Shot::Cache { domain, .. } => *domain = d,
+            Shot::Obj { domain, .. }
+            | Shot::Cache { domain, .. }
+            | Shot::Mesh { domain, .. }
+            | Shot::MeshCache { domain, .. } => *domain = d,
             Shot::Npy { .. } => {}
         }
     }
@@ -94,13 +125,60 @@ impl LrSource for Shot {
                 let mut t = Tensor::zeros(&[range.len(), 3, h, w]);
                 for (k, frame) in pts.chunks_exact(n).enumerate() {
                     let mesh = GridMesh::new(w, h, order.iter().map(|&v| frame[v as usize]).collect());
-                    check_cache_frame(&mesh, rest, range.start + k, cache.path())?;
+                    let (now, then) = (mesh.edge_lengths(), rest.edge_lengths());
+                    check_cache_frame(&now, &then, range.start + k, cache.path())?;
                     put_frame(&mut t, k, &mesh, domain);
+                }
+                Ok(t)
+            }
+            Shot::Mesh { seq, layout, domain, attrs, lr } => {
+                let (h, w) = layout.image_size();
+                let mut t = Tensor::zeros(&[range.len(), 3, h, w]);
+                for (k, f) in range.enumerate() {
+                    let (pos, a) = seq.frame_and_attrs(f)?;
+                    attrs.borrow_mut().insert(f, a);
+                    put_image(&mut t, k, &layout.to_image(&pos, domain)?);
+                    lr.borrow_mut().insert(f, pos);
+                }
+                Ok(t)
+            }
+            Shot::MeshCache { cache, layout, domain, rest, lr } => {
+                let (h, w) = layout.image_size();
+                let n = cache.header().points;
+                let pts = cache.read_frames(range.clone())?;
+                let mut t = Tensor::zeros(&[range.len(), 3, h, w]);
+                let faces = &layout.surface.faces;
+                let then = mesh_edge_lengths(rest, faces);
+                for (k, frame) in pts.chunks_exact(n).enumerate() {
+                    let now = mesh_edge_lengths(frame, faces);
+                    check_cache_frame(&now, &then, range.start + k, cache.path())?;
+                    put_image(&mut t, k, &layout.to_image(frame, domain)?);
+                    lr.borrow_mut().insert(range.start + k, frame.to_vec());
                 }
                 Ok(t)
             }
         }
     }
+}
+
+/// LR positions of a mesh's frames read but not yet written, by frame.
+pub type LrFrames = Rc<RefCell<BTreeMap<usize, Vec<[f32; 3]>>>>;
+
+/// Frame `k` of the (n, 3, H, W) images `t`: the (1, 3, H, W) image `img`.
+fn put_image(t: &mut Tensor, k: usize, img: &Tensor) {
+    let n = img.len();
+    t.data[k * n..(k + 1) * n].copy_from_slice(&img.data);
+}
+
+/// Lengths (metres) of each face's edges in face order (an edge shared by two faces twice).
+fn mesh_edge_lengths(pos: &[[f32; 3]], faces: &[Vec<u32>]) -> Vec<f32> {
+    let mut v = Vec::with_capacity(4 * faces.len());
+    for f in faces {
+        for i in 0..f.len() {
+            v.push(dist(pos[f[i] as usize], pos[f[(i + 1) % f.len()] as usize]));
+        }
+    }
+    v
 }
 
 /// Frame `k` of the (n, 3, H, W) images `t`: `mesh` encoded with `domain` (Eq 1).
@@ -300,6 +378,39 @@ pub struct MeshOut {
     /// HR texture coordinates, if the input had usable ones.
     pub uv: Option<Vec<[f32; 2]>>,
     pub attrs: ObjAttrs,
+    /// The HR mesh's faces, UVs and tags when the input is a mesh, not a grid.
+    pub topo: Option<Rc<MeshTopo>>,
+}
+
+/// The subdivided mesh as written (any-mesh input): faces four per LR face, the UVs
+/// subdivided with their own faces (seams stay seams), and the input's `g`/`usemtl`/`s` lines
+/// before the same faces.
+pub struct MeshTopo {
+    pub faces: Vec<Vec<u32>>,
+    /// HR texture coordinates and each HR face's indices into them.
+    pub uv: Option<(Vec<[f32; 2]>, Vec<Vec<u32>>)>,
+    pub tags: Vec<(usize, String)>,
+}
+
+impl MeshTopo {
+    /// The HR topology of `m` (checked as `surface`, read from `file`); a note on UVs that
+    /// cannot be kept goes to `messages`.
+    pub fn of(m: &ObjMesh, sub: &Subdivision, file: &Path, messages: &mut Vec<String>) -> MeshTopo {
+        let uv = if m.uv.is_empty() {
+            None
+        } else if let Some(f) = m.face_uv.iter().position(|t| t.is_empty()) {
+            messages.push(format!(
+                "note: {}: face {} has no texture coordinates; the output has no UVs",
+                file.display(),
+                f + 1
+            ));
+            None
+        } else {
+            let s = Subdivision::of(m.uv.len(), &m.face_uv);
+            Some((s.apply(&m.uv), s.faces))
+        };
+        MeshTopo { faces: sub.faces.clone(), uv, tags: m.tags.clone() }
+    }
 }
 
 impl MeshOut {
@@ -316,7 +427,14 @@ impl MeshOut {
             messages.push(format!("note: {}: {why}", file.display()));
         }
         let uv = g.uv.as_ref().map(|uv| upscale_uv(uv, g.mesh.w, g.mesh.h, r));
-        MeshOut { names, style: g.style, uv, attrs: g.attrs.clone() }
+        MeshOut { names, style: g.style, uv, attrs: g.attrs.clone(), topo: None }
+    }
+
+    /// What the mesh `m` (not a grid; HR topology `topo`) gives the output, frames `names`.
+    pub fn of_mesh(m: &ObjMesh, topo: MeshTopo, names: Vec<OsString>) -> MeshOut {
+        let style =
+            if m.faces.iter().all(|f| f.len() == 3) { FaceStyle::Triangles } else { FaceStyle::Quads };
+        MeshOut { names, style, uv: None, attrs: m.attrs.clone(), topo: Some(Rc::new(topo)) }
     }
 
     /// Plain quads named `frame_0000.obj` … for `t` frames (output of non-OBJ input).
@@ -326,12 +444,20 @@ impl MeshOut {
             style: FaceStyle::Quads,
             uv: None,
             attrs: ObjAttrs::default(),
+            topo: None,
         }
     }
 
     /// OBJ text of an HR frame with `attrs` (its input frame's; the rest mesh's for caches).
     pub fn obj_text(&self, mesh: &GridMesh, attrs: &ObjAttrs) -> String {
         obj_text_with(mesh, self.style != FaceStyle::Triangles, self.uv.as_deref(), attrs)
+    }
+
+    /// OBJ text of an HR frame of a mesh input (`pos`: its HR vertices) with `attrs`.
+    pub fn mesh_text(&self, pos: &[[f32; 3]], attrs: &ObjAttrs) -> String {
+        let t = self.topo.as_ref().expect("a mesh input");
+        let uv = t.uv.as_ref().map(|(c, f)| (c.as_slice(), f.as_slice()));
+        mesh_obj_text(pos, &t.faces, uv, attrs, &t.tags, 4)
     }
 }
 
@@ -349,8 +475,8 @@ const MAX_UNLIKE_EDGES: f64 = 0.1;
 /// than the rest mesh's (`rest`): frame 0 is checked when the cache is opened, every frame as
 /// it is read, so a cache whose later frames were shuffled or mixed from another export is not
 /// upscaled into a crumpled sheet.
-fn check_cache_frame(mesh: &GridMesh, rest: &GridMesh, k: usize, path: &Path) -> Result<()> {
-    let odd = unlike_edges(mesh, rest);
+fn check_cache_frame(now: &[f32], rest: &[f32], k: usize, path: &Path) -> Result<()> {
+    let odd = unlike_edges(now, rest);
     if odd > MAX_UNLIKE_EDGES {
         return Err(Error::format(
             path,
@@ -367,11 +493,10 @@ fn check_cache_frame(mesh: &GridMesh, rest: &GridMesh, k: usize, path: &Path) ->
     Ok(())
 }
 
-/// The fraction of `a`'s edges whose length ratio to the same edge of `b` is more than
-/// [`EDGE_RATIO`] from the median ratio (edges of length 0 in `b` left out).
-fn unlike_edges(a: &GridMesh, b: &GridMesh) -> f64 {
-    let mut ratio: Vec<f32> =
-        a.edge_lengths().iter().zip(b.edge_lengths()).filter(|e| e.1 > 0.0).map(|(x, y)| x / y).collect();
+/// The fraction of the edge lengths `a` whose ratio to the same edge's length in `b` is more
+/// than [`EDGE_RATIO`] from the median ratio (edges of length 0 in `b` left out).
+fn unlike_edges(a: &[f32], b: &[f32]) -> f64 {
+    let mut ratio: Vec<f32> = a.iter().zip(b).filter(|e| *e.1 > 0.0).map(|(x, y)| x / y).collect();
     if ratio.is_empty() {
         return 0.0;
     }
@@ -386,7 +511,8 @@ pub struct CacheIn {
     pub path: PathBuf,
     pub header: CacheHeader,
     pub rest: PathBuf,
-    pub rest_grid: ObjGrid,
+    /// The rest mesh as a grid (`None` for a mesh that is not one: the shot holds it).
+    pub rest_grid: Option<ObjGrid>,
 }
 
 /// What the user gave, opened.
@@ -494,6 +620,10 @@ pub fn open_input(
             ));
         }
         let cache = PointCacheReader::open(first)?;
+        let rest_mesh = parse_obj(&read_obj_text(rest)?, rest)?;
+        if obj_to_grid(&rest_mesh, rest).is_err() {
+            return open_mesh_cache(first, cache, rest, rest_mesh, messages);
+        }
         let seq = ObjSequence::open(&[rest.to_path_buf()])?;
         let g = seq.first;
         let nv = g.mesh.w * g.mesh.h;
@@ -512,7 +642,7 @@ pub fn open_input(
         let mut cache = cache;
         let f0 = cache.read_frames(0..1)?;
         let frame0 = GridMesh::new(g.mesh.w, g.mesh.h, g.order.iter().map(|&v| f0[v as usize]).collect());
-        let odd = unlike_edges(&frame0, &g.mesh);
+        let odd = unlike_edges(&frame0.edge_lengths(), &g.mesh.edge_lengths());
         if odd > MAX_UNLIKE_EDGES {
             return Err(Error::format(
                 first,
@@ -533,7 +663,7 @@ pub fn open_input(
         let header = cache.header().clone();
         let (w, h, order) = (g.mesh.w, g.mesh.h, g.order.clone());
         let shot = Shot::Cache { cache, order, w, h, domain: Domain::UNIT, rest: Box::new(g.mesh.clone()) };
-        let cin = CacheIn { path: first.clone(), header, rest: rest.to_path_buf(), rest_grid: g };
+        let cin = CacheIn { path: first.clone(), header, rest: rest.to_path_buf(), rest_grid: Some(g) };
         let files = vec![first.clone(), rest.to_path_buf()];
         return Ok(Input { shot, npy_domain: None, mesh_out: Some(out), cache_in: Some(cin), files });
     }
@@ -553,6 +683,10 @@ pub fn open_input(
     let files = obj_files(inputs)?;
     refuse_colliding_names(&files)?;
     messages.extend(frame_gaps(&files).into_iter().map(|g| format!("warning: {g}")));
+    let first = parse_obj(&read_obj_text(&files[0])?, &files[0])?;
+    if obj_to_grid(&first, &files[0]).is_err() {
+        return open_mesh_sequence(files, first, messages);
+    }
     let seq = ObjSequence::open(&files)?;
     let names = seq.files.iter().map(|p| p.file_name().unwrap_or_default().to_os_string()).collect();
     let out = MeshOut::of(&seq.first, &seq.files[0], names, r, messages);
@@ -564,4 +698,89 @@ pub fn open_input(
         notes: Notes::default(),
     };
     Ok(Input { shot, npy_domain: None, mesh_out: Some(out), cache_in: None, files })
+}
+
+/// The layout of a mesh that is not a grid (`m`, read from `file`), and a note on it.
+fn lay_out(m: &ObjMesh, rest: &[[f32; 3]], file: &Path, messages: &mut Vec<String>) -> Result<MeshLayout> {
+    let surface = Surface::new(m.pos.len(), m.faces.clone(), file)?;
+    let uv = (!m.uv.is_empty() && m.face_uv.iter().all(|t| !t.is_empty()))
+        .then_some((m.uv.as_slice(), m.face_uv.as_slice()));
+    let layout = MeshLayout::new(surface, rest, uv).map_err(|e| e.in_file(file))?;
+    let a = &layout.atlas;
+    messages.push(format!(
+        "note: {}: a mesh of {} vertices and {} faces, not a regular grid: laid out as {} chart(s) \
+         ({}) in a {}x{} geometry image at {:.1} mm a pixel (its mean edge length); the output is \
+         its subdivision, {} vertices",
+        file.display(),
+        layout.lr_vertices(),
+        layout.surface.faces.len(),
+        a.charts,
+        match a.source {
+            crate::geom::atlas::ChartSource::Uv => "its UV islands",
+            crate::geom::atlas::ChartSource::Arap => "flattened by ARAP",
+        },
+        a.w,
+        a.h,
+        1e3 * a.texel,
+        layout.sub.hr_vertices()
+    ));
+    Ok(layout)
+}
+
+/// [`open_input`] for an OBJ sequence of a mesh that is not a grid, its first file parsed as
+/// `first`.
+fn open_mesh_sequence(files: Vec<PathBuf>, first: ObjMesh, messages: &mut Vec<String>) -> Result<Input> {
+    let layout = lay_out(&first, &first.pos, &files[0], messages)?;
+    let topo = MeshTopo::of(&first, &layout.sub, &files[0], messages);
+    let names = files.iter().map(|p| p.file_name().unwrap_or_default().to_os_string()).collect();
+    let out = MeshOut::of_mesh(&first, topo, names);
+    let seq = MeshSequence::open(&files, first)?;
+    let shot = Shot::Mesh {
+        seq: Box::new(seq),
+        layout: Rc::new(layout),
+        domain: Domain::UNIT,
+        attrs: FrameAttrs::default(),
+        lr: LrFrames::default(),
+    };
+    Ok(Input { shot, npy_domain: None, mesh_out: Some(out), cache_in: None, files })
+}
+
+/// [`open_input`] for a point cache `path` whose rest mesh `rest` (parsed as `m`) is not a
+/// grid: the cache's points are the mesh's vertices, checked on frame 0 as for a grid.
+fn open_mesh_cache(
+    path: &Path,
+    mut cache: PointCacheReader,
+    rest: &Path,
+    m: ObjMesh,
+    messages: &mut Vec<String>,
+) -> Result<Input> {
+    if cache.header().points != m.pos.len() {
+        return Err(Error::format(
+            path,
+            format!(
+                "the cache moves {} points but the rest mesh {} has {} vertices: export both from the same object",
+                cache.header().points,
+                rest.display(),
+                m.pos.len()
+            ),
+        ));
+    }
+    let layout = lay_out(&m, &m.pos, rest, messages)?;
+    let f0 = cache.read_frames(0..1)?;
+    let (now, then) = (mesh_edge_lengths(&f0, &m.faces), mesh_edge_lengths(&m.pos, &m.faces));
+    check_cache_frame(&now, &then, 0, path)?;
+    let t = cache.header().frames;
+    let topo = MeshTopo::of(&m, &layout.sub, rest, messages);
+    let out = MeshOut::of_mesh(&m, topo, (0..t).map(|k| format!("frame_{k:04}.obj").into()).collect());
+    let header = cache.header().clone();
+    let shot = Shot::MeshCache {
+        cache,
+        layout: Rc::new(layout),
+        domain: Domain::UNIT,
+        rest: m.pos,
+        lr: LrFrames::default(),
+    };
+    let cin = CacheIn { path: path.to_path_buf(), header, rest: rest.to_path_buf(), rest_grid: None };
+    let files = vec![path.to_path_buf(), rest.to_path_buf()];
+    Ok(Input { shot, npy_domain: None, mesh_out: Some(out), cache_in: Some(cin), files })
 }

@@ -5,7 +5,7 @@
 
 use super::folder::{self, Ownership};
 use super::input::{open_input, shot_bounds, CacheIn, FrameAttrs, Input, MeshOut, Shot};
-use super::output::{refuse_duplicate_outputs, refuse_out_over_input, CacheSink, ObjSink, Outputs};
+use super::output::{refuse_duplicate_outputs, refuse_out_over_input, CacheSink, Decode, ObjSink, Outputs};
 use super::physics::PhysicsSink;
 use crate::cloth::follow::{FollowOutput, FollowParams};
 use crate::cloth::run_io::DOMAIN_MARGIN;
@@ -260,6 +260,9 @@ pub fn upscale_files(
     }
     let Input { mut shot, npy_domain, mesh_out, cache_in, files } = opened?;
     let (t, w, h) = shot.size();
+    if shot.mesh().is_some() {
+        refuse_for_mesh(job)?;
+    }
     let mesh_given = mesh_out.is_some();
     let mesh_out = mesh_out.unwrap_or_else(|| MeshOut::plain(t));
     let plan = Plan::new(job, t, mesh_given, &mesh_out, cache_in.as_ref(), &files)?;
@@ -270,12 +273,20 @@ pub fn upscale_files(
         report.message(&format!("note: removed {n}, an earlier run's output that this run does not write"));
     }
     let range = plan.range.clone();
+    let size = match shot.mesh() {
+        Some((m, _)) => format!(
+            "a mesh of {} vertices -> {} (geometry images {w}x{h} -> {}x{})",
+            m.lr_vertices(),
+            m.sub.hr_vertices(),
+            r * w,
+            r * h
+        ),
+        None => format!("{w}x{h} -> {}x{}", r * w, r * h),
+    };
     report.message(&format!(
-        "upscaling frames {}..{} of {t}, {w}x{h} -> {}x{} ({}), η = {}",
+        "upscaling frames {}..{} of {t}, {size} ({}), η = {}",
         range.start,
         range.end,
-        r * w,
-        r * h,
         ops.name(),
         params.eta
     ));
@@ -297,7 +308,7 @@ pub fn upscale_files(
     write_json(&plan.summary_path, &started.into(), Layout::Compact)?;
     let start = Instant::now();
     if let Some(c) = &cache_in {
-        write_hr_rest_mesh(ops, model, job, c, &mesh_out, &domain)?;
+        write_hr_rest_mesh(ops, model, job, c, &shot, &mesh_out, &domain)?;
     }
     let mut out = open_outputs(job, &plan, &shot, mesh_out, cache_in.as_ref(), domain, (r * w, r * h))?;
     let notes = match &shot {
@@ -338,6 +349,7 @@ pub fn upscale_files(
         .str("device", ops.name())
         .num("seconds", format!("{secs:.3}"))
         .num("ms_per_frame", format!("{:.3}", 1e3 * secs / n as f64))
+        .val("mesh", shot.mesh().map_or(Value::Null, |(m, _)| mesh_json(m).into()))
         .val(
             "domain",
             Object::new().val("bmin", Value::reals(&domain.bmin)).val("bmax", Value::reals(&domain.bmax)),
@@ -349,6 +361,44 @@ pub fn upscale_files(
     write_json(&plan.summary_path, &own.record(summary).into(), Layout::Compact)?;
     drop(claim);
     Ok(Summary { frames: n, lr: (w, h), hr: (r * w, r * h), seconds: secs, format: plan.fmt })
+}
+
+/// Refuse, for a mesh that is not a regular grid, what runs on grids only so far: the physics
+/// pass, and geometry.npy output (atlas images, with no mesh to go back to).
+fn refuse_for_mesh(job: &UpscaleJob) -> Result<()> {
+    if job.physics.is_some() {
+        return Err(Error::invalid(
+            "physics",
+            "the physics pass runs on a regular grid of vertices only so far, and this input is a \
+             mesh of another outline: upscale it without the physics pass",
+        ));
+    }
+    if job.format == OutputFormat::Npy {
+        return Err(Error::invalid(
+            "format",
+            "geometry.npy output is a grid's images; this input is a mesh of another outline, whose \
+             images are an atlas of its charts: write OBJ frames or a point cache",
+        ));
+    }
+    Ok(())
+}
+
+/// How a mesh input was laid out, as the summary records it.
+fn mesh_json(m: &crate::geom::layout::MeshLayout) -> Object {
+    let a = &m.atlas;
+    Object::new()
+        .num("lr_vertices", m.lr_vertices())
+        .num("hr_vertices", m.sub.hr_vertices())
+        .num("faces", m.surface.faces.len())
+        .num("charts", a.charts)
+        .str(
+            "charts_from",
+            match a.source {
+                crate::geom::atlas::ChartSource::Uv => "uv",
+                crate::geom::atlas::ChartSource::Arap => "arap",
+            },
+        )
+        .num("texel_m", format!("{:.6}", a.texel))
 }
 
 /// The physics pass's settings as the summary records them.
@@ -505,6 +555,10 @@ fn settle_domain(
             report.start("bounds", shot.size().0);
             let d = shot_bounds(shot, job.margin, job.chunk, &mut |k| report.progress(k))?;
             report.end();
+            // The frames read for the bounds are read again to upscale.
+            if let Some((_, lr)) = shot.mesh() {
+                lr.borrow_mut().clear();
+            }
             shot.set_domain(d);
             let note = format!(
                 "domain = bounding box of all frames + {:.0}% margin: bmin {:?}, bmax {:?} (m)",
@@ -524,18 +578,34 @@ fn write_hr_rest_mesh(
     model: &AnisoCb,
     job: &UpscaleJob,
     c: &CacheIn,
+    shot: &Shot,
     mesh_out: &MeshOut,
     domain: &Domain,
 ) -> Result<()> {
-    let rest = &c.rest_grid.mesh;
+    let name = c.rest.file_name().unwrap_or_default();
+    if let Shot::MeshCache { layout, rest, .. } = shot {
+        let img = layout.to_image(rest, domain)?;
+        let up = crate::sr::upscale::upscale_images(ops, model, &img, domain, &job.params, &mut |_| {})?;
+        let hr = layout.hr_frame(&up.hr, &up.interpolated(), 0, domain, rest);
+        return write_atomic_bytes(&job.out.join(name), mesh_out.mesh_text(&hr, &mesh_out.attrs).as_bytes());
+    }
+    let Some(g) = &c.rest_grid else { unreachable!("a grid cache has its rest grid") };
+    let rest = &g.mesh;
     let d = if *domain == Domain::UNIT {
         *domain
     } else {
         Domain::enclosing(std::slice::from_ref(rest), job.margin)
     };
     let (hr, _) = upscale_meshes(ops, model, std::slice::from_ref(rest), &d, &job.params, &mut |_| {})?;
-    let name = c.rest.file_name().unwrap_or_default();
     write_atomic_bytes(&job.out.join(name), mesh_out.obj_text(&hr[0], &mesh_out.attrs).as_bytes())
+}
+
+/// How `shot`'s HR images become vertices.
+fn decode(shot: &Shot) -> Decode {
+    match shot.mesh() {
+        Some((layout, lr)) => Decode::Mesh(layout.clone(), lr.clone()),
+        None => Decode::Grid,
+    }
 }
 
 /// The sinks of `plan` for HR frames of `hr` = (columns, rows): OBJ frames, geometry.npy or
@@ -563,10 +633,11 @@ fn open_outputs(
     match (plan.fmt.as_str(), cache_in) {
         ("obj", _) => {
             let attrs = match shot {
-                Shot::Obj { attrs, .. } => attrs.clone(),
+                Shot::Obj { attrs, .. } | Shot::Mesh { attrs, .. } => attrs.clone(),
                 _ => FrameAttrs::default(),
             };
-            out.obj = Some(ObjSink { dir: job.out.clone(), domain, mesh: mesh_out, attrs });
+            out.obj =
+                Some(ObjSink { dir: job.out.clone(), domain, mesh: mesh_out, attrs, decode: decode(shot) });
         }
         ("npy", _) => out.geometry = Some(NpyWriter::create(&plan.npy("geometry"), &[n, 3, hh, hw])?),
         (_, Some(c)) => {
@@ -580,7 +651,9 @@ fn open_outputs(
             }
             let mut file = AtomicFile::create(&path)?;
             write_header(file.writer(), &header).map_err(|e| Error::io(&path, e))?;
-            out.cache = Some(CacheSink { file, format: header.format, domain, frames: n, written: 0 });
+            let decode = decode(shot);
+            out.cache =
+                Some(CacheSink { file, format: header.format, domain, frames: n, written: 0, decode });
         }
         _ => unreachable!("fmt is obj, npy, or a cache format for cache input"),
     }

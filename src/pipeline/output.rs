@@ -2,10 +2,11 @@
 //! `.npy` geometry images and maps ([`Outputs`], an [`HrSink`]), each file written atomically;
 //! and the checks that keep a run from overwriting its input or writing a file twice.
 
-use super::input::{folder_of, same_file, FrameAttrs, MeshOut};
+use super::input::{folder_of, same_file, FrameAttrs, LrFrames, MeshOut};
 use crate::error::{Error, Result};
 use crate::geom::geometry_image::image_to_mesh;
-use crate::geom::Domain;
+use crate::geom::layout::MeshLayout;
+use crate::geom::{Domain, GridMesh};
 use crate::io::atomic::{write_atomic_bytes, AtomicFile};
 use crate::io::npy::NpyWriter;
 use crate::io::point_cache::{write_frame, CacheFormat};
@@ -13,7 +14,44 @@ use crate::pipeline::stream::HrSink;
 use crate::sr::upscale::Upscaled;
 use std::ops::Range;
 use std::path::{Path, PathBuf};
+use std::rc::Rc;
 
+/// How an HR image becomes the HR frame's vertices.
+#[derive(Clone, Default)]
+pub enum Decode {
+    /// The grid is the image (Eq 2).
+    #[default]
+    Grid,
+    /// A mesh that is not a grid: its subdivision of the LR frame (waiting in the
+    /// [`LrFrames`]) plus the nets' detail at each vertex's chart position.
+    Mesh(Rc<MeshLayout>, LrFrames),
+}
+
+impl Decode {
+    /// The HR vertices of entries `keep` of `up`, shot frames `first ..`, in order.
+    pub fn frames(
+        &self,
+        first: usize,
+        up: &Upscaled,
+        keep: Range<usize>,
+        domain: &Domain,
+    ) -> Result<Vec<Vec<[f32; 3]>>> {
+        match self {
+            Decode::Grid => Ok(keep.map(|f| image_to_mesh(&up.hr, f, domain).pos).collect()),
+            Decode::Mesh(layout, lr) => {
+                let base = up.interpolated();
+                keep.enumerate()
+                    .map(|(k, f)| {
+                        let pos = lr.borrow_mut().remove(&(first + k)).ok_or_else(|| {
+                            Error::shape(format!("frame {}: its LR positions were not kept", first + k))
+                        })?;
+                        Ok(layout.hr_frame(&up.hr, &base, f, domain, &pos))
+                    })
+                    .collect()
+            }
+        }
+    }
+}
 /// OBJ frames written one file per frame, the way the input was: each with its own input
 /// frame's attributes (from `attrs`; the first frame's for non-OBJ input).
 pub struct ObjSink {
@@ -21,15 +59,19 @@ pub struct ObjSink {
     pub domain: Domain,
     pub mesh: MeshOut,
     pub attrs: FrameAttrs,
+    pub decode: Decode,
 }
 
 impl HrSink for ObjSink {
     fn write(&mut self, first: usize, up: &Upscaled, keep: Range<usize>) -> Result<()> {
-        for (k, f) in keep.enumerate() {
-            let hr = image_to_mesh(&up.hr, f, &self.domain);
+        let (_, _, hh, hw) = up.hr.dims4();
+        for (k, pos) in self.decode.frames(first, up, keep, &self.domain)?.into_iter().enumerate() {
             let attrs =
                 self.attrs.borrow_mut().remove(&(first + k)).unwrap_or_else(|| self.mesh.attrs.clone());
-            let text = self.mesh.obj_text(&hr, &attrs);
+            let text = match self.decode {
+                Decode::Grid => self.mesh.obj_text(&GridMesh::new(hw, hh, pos), &attrs),
+                Decode::Mesh(..) => self.mesh.mesh_text(&pos, &attrs),
+            };
             write_atomic_bytes(&self.dir.join(&self.mesh.names[first + k]), text.as_bytes())?;
         }
         Ok(())
@@ -43,14 +85,14 @@ pub struct CacheSink {
     pub domain: Domain,
     pub frames: usize,
     pub written: usize,
+    pub decode: Decode,
 }
 
 impl HrSink for CacheSink {
-    fn write(&mut self, _first: usize, up: &Upscaled, keep: Range<usize>) -> Result<()> {
-        for f in keep {
-            let mesh = image_to_mesh(&up.hr, f, &self.domain);
+    fn write(&mut self, first: usize, up: &Upscaled, keep: Range<usize>) -> Result<()> {
+        for pos in self.decode.frames(first, up, keep, &self.domain)? {
             let path = self.file.path().to_path_buf();
-            write_frame(self.file.writer(), self.format, &mesh.pos).map_err(|e| Error::io(path, e))?;
+            write_frame(self.file.writer(), self.format, &pos).map_err(|e| Error::io(path, e))?;
             self.written += 1;
         }
         Ok(())

@@ -1,0 +1,220 @@
+//! Any cloth, not only a rectangular sheet (issue 45): a skirt, a round tablecloth, a T-shaped
+//! sheet, a sheet with a hole, an unwelded sheet and a textured mixed mesh upscale to their own
+//! subdivision plus the nets' detail, keep their UVs, materials and groups, stay closed where
+//! they were welded, move with the cloth, and what is not a cloth surface is refused by name.
+
+#[path = "common/meshes.rs"]
+mod meshes;
+#[path = "common/tempdir.rs"]
+mod tempdir;
+
+use anisocb::cloth::follow::FollowParams;
+use anisocb::geom::obj::parse_obj;
+use anisocb::geom::surface::Subdivision;
+use anisocb::io::point_cache::{write_frame, write_header, CacheFormat, CacheHeader};
+use anisocb::nn::weights::embedded_model;
+use anisocb::ops::Cpu;
+use anisocb::pipeline::{upscale_files, OutputFormat, Quiet, Summary, UpscaleJob};
+use meshes::Mesh;
+use std::path::Path;
+use tempdir::TempDir;
+
+/// Write `frames` as `dir/in/f_000k.obj`.
+fn write_frames(dir: &Path, frames: &[Mesh]) -> std::path::PathBuf {
+    let d = dir.join("in");
+    std::fs::create_dir_all(&d).unwrap();
+    for (k, m) in frames.iter().enumerate() {
+        std::fs::write(d.join(format!("f_{k:04}.obj")), m.obj()).unwrap();
+    }
+    d
+}
+
+fn run(job: UpscaleJob) -> anisocb::Result<Summary> {
+    upscale_files(&Cpu, &embedded_model().unwrap(), &job.check()?, &mut Quiet)
+}
+
+fn read(path: &Path) -> anisocb::geom::obj::ObjMesh {
+    parse_obj(&std::fs::read_to_string(path).unwrap(), path).unwrap()
+}
+
+fn extent(pos: &[[f32; 3]]) -> f32 {
+    (0..3)
+        .map(|k| {
+            let (lo, hi) = pos.iter().fold((f32::MAX, f32::MIN), |(l, h), p| (l.min(p[k]), h.max(p[k])));
+            hi - lo
+        })
+        .fold(0.0, f32::max)
+}
+
+#[test]
+fn every_cloth_shape_upscales_to_its_subdivision_plus_the_nets_detail() {
+    let shapes = [
+        ("skirt", meshes::skirt(24, 8)),
+        ("tablecloth", meshes::tablecloth(24, 6, 0.5)),
+        ("t_shape", meshes::t_shape(13, 13, 4)),
+        ("holed", meshes::holed_sheet(13)),
+        ("unwelded", meshes::unwelded_sheet(8)),
+        ("mixed", meshes::mixed_textured(9)),
+    ];
+    for (name, m) in shapes {
+        let dir = TempDir::new(&format!("any-mesh-{name}"));
+        let frames = [m.clone(), m.rippled(0.01, 0.5), m.moved(0.3, [0.1, 0.0, -0.2])];
+        let input = write_frames(&dir, &frames);
+        let out = dir.join("out");
+        let done = run(UpscaleJob::new(vec![input], &out)).unwrap_or_else(|e| panic!("{name}: {e}"));
+        assert_eq!(done.frames, 3, "{name}");
+        let sub = Subdivision::of(m.pos.len(), &m.faces);
+        for (k, lr) in frames.iter().enumerate() {
+            let hr = read(&out.join(format!("f_{k:04}.obj")));
+            assert_eq!(hr.pos.len(), sub.hr_vertices(), "{name} frame {k}");
+            assert_eq!(hr.faces, sub.faces, "{name} frame {k}: the subdivided faces, in order");
+            let base = sub.apply(&lr.pos);
+            let d: Vec<f32> = hr
+                .pos
+                .iter()
+                .zip(&base)
+                .map(|(a, b)| ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt())
+                .collect();
+            let rms = (d.iter().map(|x| x * x).sum::<f32>() / d.len() as f32).sqrt();
+            let max = d.iter().copied().fold(0.0, f32::max);
+            let ext = extent(&lr.pos);
+            eprintln!(
+                "{name} frame {k}: detail RMS {:.2} mm, max {:.2} mm on a {ext:.2} m cloth",
+                1e3 * rms,
+                1e3 * max
+            );
+            // The nets add folds of a few percent of the cloth at most (the same bound
+            // `check_detail_size` puts on a sheet is 50 %; a broken atlas gives metres).
+            assert!(
+                rms.is_finite() && rms < 0.02 * ext && max < 0.1 * ext,
+                "{name} frame {k}: rms {rms}, max {max}"
+            );
+            assert!(rms > 1e-6, "{name} frame {k}: no detail at all: the nets' output was not read");
+        }
+    }
+}
+
+#[test]
+fn a_mesh_keeps_its_uvs_materials_groups_and_normals() {
+    let dir = TempDir::new("any-mesh-attrs");
+    let m = meshes::mixed_textured(7);
+    let input = write_frames(&dir, &[m.clone()]);
+    let out = dir.join("out");
+    run(UpscaleJob::new(vec![input], &out)).unwrap();
+    let text = std::fs::read_to_string(out.join("f_0000.obj")).unwrap();
+    let hr = read(&out.join("f_0000.obj"));
+    let (uv, fuv) = m.uv.clone().unwrap();
+    let s = Subdivision::of(uv.len(), &fuv);
+    assert_eq!(hr.uv, s.apply(&uv), "UVs subdivided with their own faces");
+    assert_eq!(hr.face_uv, s.faces);
+    let tags: Vec<(usize, String)> = m.tags.iter().map(|(k, l)| (4 * k, l.clone())).collect();
+    assert_eq!(hr.tags, tags, "each tag before the first of its face's four HR faces");
+    assert!(text.lines().filter(|l| l.starts_with("vn ")).count() == hr.pos.len());
+    assert!(text.contains("usemtl lining") && text.contains("g back"));
+}
+
+#[test]
+fn an_unwelded_sheet_stays_closed_where_its_vertices_met() {
+    let dir = TempDir::new("any-mesh-unwelded");
+    let m = meshes::unwelded_sheet(8).rippled(0.02, 0.0);
+    let input = write_frames(&dir, &[m.clone()]);
+    let out = dir.join("out");
+    run(UpscaleJob::new(vec![input], &out)).unwrap();
+    let hr = read(&out.join("f_0000.obj"));
+    let sub = Subdivision::of(m.pos.len(), &m.faces);
+    let base = sub.apply(&m.pos);
+    // HR vertices whose subdivision puts them at one place (corners and shared edges'
+    // midpoints of neighbouring quads) come out at one place.
+    let mut pairs = 0;
+    for a in 0..base.len() {
+        for b in a + 1..base.len() {
+            if base[a] == base[b] {
+                pairs += 1;
+                assert_eq!(hr.pos[a], hr.pos[b], "HR vertices {a} and {b} were one point and came apart");
+            }
+        }
+    }
+    assert!(pairs > 100, "{pairs}");
+}
+
+#[test]
+fn a_moved_and_turned_mesh_gives_the_same_result_moved_and_turned() {
+    let dir = TempDir::new("any-mesh-moved");
+    let m = meshes::skirt(20, 6);
+    let (angle, t) = (0.7f32, [0.3f32, -0.1, 0.25]);
+    let input = write_frames(&dir, &[m.clone(), m.moved(angle, t)]);
+    let out = dir.join("out");
+    run(UpscaleJob::new(vec![input], &out)).unwrap();
+    let a = read(&out.join("f_0000.obj"));
+    let b = read(&out.join("f_0001.obj"));
+    let moved = Mesh { pos: a.pos.clone(), ..m.clone() }.moved(angle, t);
+    let worst = moved
+        .pos
+        .iter()
+        .zip(&b.pos)
+        .map(|(p, q)| (0..3).map(|k| (p[k] - q[k]).abs()).fold(0.0, f32::max))
+        .fold(0.0, f32::max);
+    assert!(worst < 2e-4, "the turned skirt's HR frame is {worst} m from the first frame's turned");
+}
+
+#[test]
+fn a_point_cache_of_a_mesh_gives_the_obj_sequences_vertices() {
+    let dir = TempDir::new("any-mesh-cache");
+    let m = meshes::tablecloth(20, 5, 0.4);
+    let frames = [m.clone(), m.rippled(0.01, 1.0), m.moved(0.2, [0.0, 0.1, 0.0])];
+    let objs = write_frames(&dir, &frames);
+    run(UpscaleJob::new(vec![objs], dir.join("out_obj"))).unwrap();
+    let cache = dir.join("cloth.pc2");
+    let mut bytes = Vec::new();
+    write_header(&mut bytes, &CacheHeader::new(CacheFormat::Pc2, m.pos.len(), 3, 24.0)).unwrap();
+    for f in &frames {
+        write_frame(&mut bytes, CacheFormat::Pc2, &f.pos).unwrap();
+    }
+    std::fs::write(&cache, bytes).unwrap();
+    let rest = dir.join("rest.obj");
+    std::fs::write(&rest, m.obj()).unwrap();
+    let mut job = UpscaleJob::new(vec![cache], dir.join("out_pc2"));
+    job.rest = Some(rest);
+    run(job).unwrap();
+    let mut hr = anisocb::io::point_cache::PointCacheReader::open(&dir.join("out_pc2/cloth.pc2")).unwrap();
+    let n = hr.header().points;
+    let pts = hr.read_frames(0..3).unwrap();
+    for k in 0..3 {
+        let obj = read(&dir.join(format!("out_obj/f_{k:04}.obj")));
+        assert_eq!(obj.pos.len(), n);
+        for (p, q) in obj.pos.iter().zip(&pts[k * n..(k + 1) * n]) {
+            assert_eq!(p, q, "frame {k}: the cache and the OBJ frames disagree");
+        }
+    }
+    assert!(dir.join("out_pc2/rest.obj").exists(), "the HR rest mesh is written beside the cache");
+}
+
+#[test]
+fn meshes_that_are_not_cloth_surfaces_and_grid_only_options_are_refused() {
+    let dir = TempDir::new("any-mesh-refused");
+    let m = meshes::t_shape(9, 9, 3);
+    // An edge in three faces.
+    let mut fin = m.clone();
+    let f0 = fin.faces[0].clone();
+    fin.pos.push([0.0, 0.0, 0.3]);
+    fin.faces.push(vec![f0[0], f0[1], (fin.pos.len() - 1) as u32]);
+    let input = write_frames(&dir.path().join("fin"), &[fin]);
+    let e = run(UpscaleJob::new(vec![input], dir.join("o1"))).unwrap_err().to_string();
+    assert!(e.contains("shared by 3 faces") && e.contains("f_0000.obj"), "{e}");
+    // The topology changes in the second frame.
+    let mut other = m.clone();
+    other.faces.swap(0, 1);
+    let input = write_frames(&dir.path().join("topo"), &[m.clone(), other]);
+    let e = run(UpscaleJob::new(vec![input], dir.join("o2"))).unwrap_err().to_string();
+    assert!(e.contains("frame 1 has another topology") && e.contains("f_0001.obj"), "{e}");
+    // Grid-only options.
+    let input = write_frames(&dir.path().join("ok"), &[m.clone()]);
+    let mut job = UpscaleJob::new(vec![input.clone()], dir.join("o3"));
+    job.physics = Some(FollowParams::default());
+    let e = run(job).unwrap_err().to_string();
+    assert!(e.contains("physics pass runs on a regular grid"), "{e}");
+    let mut job = UpscaleJob::new(vec![input], dir.join("o4"));
+    job.format = OutputFormat::Npy;
+    let e = run(job).unwrap_err().to_string();
+    assert!(e.contains("write OBJ frames or a point cache"), "{e}");
+}
