@@ -98,7 +98,7 @@ fn every_cloth_shape_upscales_to_its_subdivision_plus_the_nets_detail() {
 fn a_mesh_keeps_its_uvs_materials_groups_and_normals() {
     let dir = TempDir::new("any-mesh-attrs");
     let m = meshes::mixed_textured(7);
-    let input = write_frames(&dir, &[m.clone()]);
+    let input = write_frames(&dir, std::slice::from_ref(&m));
     let out = dir.join("out");
     run(UpscaleJob::new(vec![input], &out)).unwrap();
     let text = std::fs::read_to_string(out.join("f_0000.obj")).unwrap();
@@ -117,7 +117,7 @@ fn a_mesh_keeps_its_uvs_materials_groups_and_normals() {
 fn an_unwelded_sheet_stays_closed_where_its_vertices_met() {
     let dir = TempDir::new("any-mesh-unwelded");
     let m = meshes::unwelded_sheet(8).rippled(0.02, 0.0);
-    let input = write_frames(&dir, &[m.clone()]);
+    let input = write_frames(&dir, std::slice::from_ref(&m));
     let out = dir.join("out");
     run(UpscaleJob::new(vec![input], &out)).unwrap();
     let hr = read(&out.join("f_0000.obj"));
@@ -208,7 +208,7 @@ fn meshes_that_are_not_cloth_surfaces_and_grid_only_options_are_refused() {
     let e = run(UpscaleJob::new(vec![input], dir.join("o2"))).unwrap_err().to_string();
     assert!(e.contains("frame 1 has another topology") && e.contains("f_0001.obj"), "{e}");
     // Grid-only options.
-    let input = write_frames(&dir.path().join("ok"), &[m.clone()]);
+    let input = write_frames(&dir.path().join("ok"), std::slice::from_ref(&m));
     let mut job = UpscaleJob::new(vec![input.clone()], dir.join("o3"));
     job.physics = Some(FollowParams::default());
     let e = run(job).unwrap_err().to_string();

@@ -11,7 +11,7 @@
 
 use super::atlas::{Atlas, AtlasInput};
 use super::geometry_image::{grid_to_image, image_to_grid, Domain};
-use super::surface::{Subdivision, Surface};
+use super::surface::{FaceUvs, Subdivision, Surface};
 use crate::error::{Error, Result};
 use crate::tensor::Tensor;
 
@@ -107,11 +107,7 @@ pub struct MeshLayout {
 
 impl MeshLayout {
     /// Lay out `surface` from its positions `rest` (metres) and the file's UVs if any.
-    pub fn new(
-        surface: Surface,
-        rest: &[[f32; 3]],
-        uv: Option<(&[[f32; 2]], &[Vec<u32>])>,
-    ) -> Result<MeshLayout> {
+    pub fn new(surface: Surface, rest: &[[f32; 3]], uv: Option<FaceUvs>) -> Result<MeshLayout> {
         if surface.vertices > MAX_LR_VERTICES {
             return Err(Error::shape(format!(
                 "a mesh of {} vertices is larger than the {MAX_LR_VERTICES} an LR frame may have: \
@@ -200,7 +196,7 @@ impl MeshLayout {
             if copies.is_empty() {
                 continue;
             }
-            for c in 0..3 {
+            for (c, pc) in p.iter_mut().enumerate() {
                 let at = plane + c * px..plane + (c + 1) * px;
                 let (a, b) = (&hr.data[at.clone()], &base.data[at]);
                 let d: f32 = copies
@@ -210,7 +206,7 @@ impl MeshLayout {
                     })
                     .sum::<f32>()
                     / copies.len() as f32;
-                p[c] += d * (domain.bmax[c] - domain.bmin[c]);
+                *pc += d * (domain.bmax[c] - domain.bmin[c]);
             }
         }
         out

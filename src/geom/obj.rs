@@ -566,7 +566,7 @@ pub fn obj_text_with(mesh: &GridMesh, quads: bool, uv: Option<&[[f32; 2]]>, attr
 pub fn mesh_obj_text(
     pos: &[[f32; 3]],
     faces: &[Vec<u32>],
-    uv: Option<(&[[f32; 2]], &[Vec<u32>])>,
+    uv: Option<super::surface::FaceUvs>,
     attrs: &ObjAttrs,
     tags: &[(usize, String)],
     per_face: usize,

@@ -20,6 +20,13 @@ pub struct Surface {
     pub faces: Vec<Vec<u32>>,
 }
 
+/// Texture coordinates and, per face, the index of each corner's coordinate (a UV seam is an
+/// edge whose two faces index different coordinates).
+pub type FaceUvs<'a> = (&'a [[f32; 2]], &'a [Vec<u32>]);
+
+/// [`FaceUvs`] owned.
+pub type FaceUvsBuf = (Vec<[f32; 2]>, Vec<Vec<u32>>);
+
 /// `(min, max)` of an edge's two vertices: the key that names an edge whatever its direction.
 pub fn edge_key(a: u32, b: u32) -> (u32, u32) {
     (a.min(b), a.max(b))

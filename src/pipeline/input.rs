@@ -11,7 +11,7 @@ use crate::geom::obj::{
     FaceStyle, ObjAttrs, ObjGrid, ObjMesh, ObjSequence,
 };
 use crate::geom::obj_sequence::MeshSequence;
-use crate::geom::surface::{Subdivision, Surface};
+use crate::geom::surface::{FaceUvsBuf, Subdivision, Surface};
 use crate::geom::{Domain, GridMesh};
 use crate::io::npy::NpyFrames;
 use crate::io::point_cache::{CacheFormat, CacheHeader, PointCacheReader};
@@ -388,7 +388,7 @@ pub struct MeshOut {
 pub struct MeshTopo {
     pub faces: Vec<Vec<u32>>,
     /// HR texture coordinates and each HR face's indices into them.
-    pub uv: Option<(Vec<[f32; 2]>, Vec<Vec<u32>>)>,
+    pub uv: Option<FaceUvsBuf>,
     pub tags: Vec<(usize, String)>,
 }
 

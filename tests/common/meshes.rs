@@ -15,7 +15,7 @@ pub struct Mesh {
     /// 0-based faces of 3 or 4 vertices.
     pub faces: Vec<Vec<u32>>,
     /// Optional UVs: coordinates and per-face indices.
-    pub uv: Option<(Vec<[f32; 2]>, Vec<Vec<u32>>)>,
+    pub uv: Option<anisocb::geom::surface::FaceUvsBuf>,
     /// Lines written before face k: (k, line).
     pub tags: Vec<(usize, String)>,
     pub normals: bool,
