@@ -13,6 +13,7 @@ use crate::cloth::run_io::read_pair;
 use crate::error::Result;
 use crate::eval::invariance::invariance_markdown;
 use crate::eval::linear::LinearUpsampler;
+use crate::eval::mesh::{evaluate_mesh_run, mesh_markdown, MeshRun, MeshScores};
 use crate::eval::methods::{default_method, evaluate_run, Contenders, EvalOptions, Method, RunEval, PHYSICS};
 use crate::eval::metrics::vertex_errors;
 use crate::eval::report::{cells_json, results_document, Cell};
@@ -48,8 +49,16 @@ Example (the headline table: README, commands in docs/results.md):
   anisocb eval --runs runs/* --prior weights/domain-x2.npz --linear weights/linear-x2.npz --moved --out eval-out")]
 pub struct Args {
     /// Held-out run pairs (`anisocb simulate --pair --out DIR`).
-    #[arg(long, required = true, num_args = 1..)]
+    #[arg(long, required_unless_present = "meshes", num_args = 1..)]
     pub runs: Vec<PathBuf>,
+    /// Held-out runs of meshes that are not grids (garments): each DIR holds `lr/` and `hr/`
+    /// OBJ frames (the HR run is the LR mesh subdivided once, simulated on its own) and
+    /// optionally `collider/` (a closed mesh per frame). Compares the linear and smooth
+    /// subdivisions with anisocb (vertex errors, normals, wrinkle detail and its flicker
+    /// against the HR run's, penetration): `meshes.md`, `meshes.json`
+    /// (research/blender/make_garments.py makes such runs with Blender's cloth).
+    #[arg(long, num_args = 1..)]
+    pub meshes: Vec<PathBuf>,
     /// Output directory.
     #[arg(long, default_value = "eval-out")]
     pub out: PathBuf,
@@ -107,6 +116,25 @@ pub fn run(a: Args) -> Result<()> {
     set_threads(a.threads)?;
     let ops = crate::cuda::ops_for_device(&a.device)?;
     let model = load_model(a.weights.as_deref())?;
+    if !a.meshes.is_empty() {
+        ensure_dir(&a.out)?;
+        let params = crate::sr::params::UpscaleParams::default();
+        let mut rows = Vec::new();
+        let pb = progress(a.meshes.len() as u64, "eval meshes");
+        for dir in &a.meshes {
+            let run = MeshRun::read(dir)?;
+            rows.push((run.name.clone(), evaluate_mesh_run(ops.as_ref(), &model, &params, &run)?));
+            pb.inc(1);
+        }
+        pb.finish_and_clear();
+        let md = mesh_markdown(&rows);
+        write_atomic_bytes(&a.out.join("meshes.md"), md.as_bytes())?;
+        write_json(&a.out.join("meshes.json"), &mesh_json(&rows), Layout::Rows)?;
+        println!("{md}");
+        if a.runs.is_empty() {
+            return Ok(());
+        }
+    }
     let others = Contenders {
         prior: a.prior.as_deref().map(|p| Ok((stem(p), load_geometry_net(p)?))).transpose()?,
         paper: a.paper.as_deref().map(AnisoCb::load).transpose()?,
@@ -148,6 +176,31 @@ pub fn run(a: Args) -> Result<()> {
         if a.flipbook { ", <scenario>-flipbook.png (animated close-up)" } else { "" }
     );
     Ok(())
+}
+
+/// The mesh runs' scores as JSON rows (metres, degrees, shares).
+fn mesh_json(rows: &[(String, Vec<MeshScores>)]) -> crate::io::json::Value {
+    use crate::io::json::{Object, Value};
+    let r: Vec<Value> = rows
+        .iter()
+        .flat_map(|(name, scores)| {
+            scores.iter().map(move |s| {
+                Object::new()
+                    .str("run", name)
+                    .str("method", &s.method)
+                    .num("rmse_m", s.rmse)
+                    .num("max_error_m", s.max_error)
+                    .num("velocity_error_m", s.velocity_error)
+                    .num("normal_deg", s.normal_deg)
+                    .num("detail_m", s.detail)
+                    .num("flicker_m", s.flicker)
+                    .num("inside_share", s.inside)
+                    .num("deepest_m", s.depth)
+                    .into()
+            })
+        })
+        .collect();
+    Value::Arr(r)
 }
 
 /// One run's pictures: `<scenario>-rmse.png`, `-worst.png` (with `--worst`), `-wrinkles.png`

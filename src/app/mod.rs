@@ -21,8 +21,8 @@ use clap::{Parser, Subcommand};
     name = "anisocb",
     version,
     about = "Super-resolve low-resolution cloth animations into high-resolution ones with wrinkles (AnisoCBConvNet)",
-    long_about = "anisocb turns each frame of a low-resolution cloth animation (a regular grid mesh) into a \
-mesh with twice the vertices per side and believable wrinkles, by super-resolving its geometry image with \
+    long_about = "anisocb turns each frame of a low-resolution cloth animation (a grid, a garment or any \
+mesh of triangles and quads) into a mesh with twice the vertices per side and believable wrinkles, by super-resolving its geometry image with \
 three small convolutional networks (GeometryNet, BoundaryNet, EnhanceNet).\n\n\
 Start with `anisocb demo` (simulate, upscale, compare, write pictures) or `anisocb upscale FRAMES... --out DIR`."
 )]

@@ -36,10 +36,15 @@ From Blender and back (OBJ sequence):
   3. In Blender, import hr/ as an OBJ sequence (e.g. File > Import > Wavefront for one frame,
      or an OBJ-sequence add-on): UVs, material slot, object name and face style come back.
 
-Input meshes must be regular grids (quads or triangulated quads, any vertex order); the output has
-2W x 2H vertices per frame over the same surface, written the way the input was (OBJ quads or
-triangles with the same file names, UVs interpolated (bilinear: seams stay put), normals recomputed,
-mtllib/usemtl/o/g/s kept; or geometry.npy + domain.npy).
+Any cloth mesh: a regular grid (quads or triangulated quads, any vertex order) becomes a grid of
+2W x 2H vertices over the same surface; any other mesh of triangles and quads (a skirt, a sleeve, a
+round tablecloth, a garment of several panels, with holes, seams, unwelded) becomes its own
+subdivision, every face split in four (edge midpoints, a centre per quad), its pieces laid out as
+charts of a geometry image (its UV islands when they are a usable layout, else ARAP flattening)
+for the nets. The output is written the way the input was: OBJ with the same file names, faces in
+the same order and winding, UVs subdivided (seams stay seams), normals recomputed,
+mtllib/usemtl/o/g/s kept face by face; or a point cache; geometry.npy + domain.npy for grids.
+Every frame of a shot must have the first frame's topology. --physics runs on grids only so far.
 
 Finished or not: OUT/upscale.json (upscale.A-B.json for a --frames slice) is written first, before
 any frame, with \"complete\": false, and replaced by the run's summary with \"complete\": true only
@@ -347,12 +352,12 @@ pub fn run(a: Args) -> Result<()> {
     let model = load_model(a.weights.as_deref())?;
     let done = upscale_files(ops.as_ref(), &model, &job, &mut Stderr::default())?;
     let (n, secs) = (done.frames, done.seconds);
+    let size = match done.mesh {
+        Some((lr, hr)) => format!("of a mesh, {lr} -> {hr} vertices,"),
+        None => format!("{}x{} -> {}x{}", done.lr.0, done.lr.1, done.hr.0, done.hr.1),
+    };
     println!(
-        "upscaled {n} frames {}x{} -> {}x{} in {secs:.2} s ({:.1} ms/frame) -> {} ({})",
-        done.lr.0,
-        done.lr.1,
-        done.hr.0,
-        done.hr.1,
+        "upscaled {n} frames {size} in {secs:.2} s ({:.1} ms/frame) -> {} ({})",
         1e3 * secs / n as f64,
         job.out.display(),
         done.format

@@ -19,6 +19,7 @@
 pub mod baseline;
 pub mod invariance;
 pub mod linear;
+pub mod mesh;
 pub mod methods;
 pub mod metrics;
 pub mod report;

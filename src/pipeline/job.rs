@@ -217,9 +217,12 @@ impl Report for Quiet {}
 pub struct Summary {
     /// Frames written.
     pub frames: usize,
-    /// LR and HR grid sizes (columns, rows).
+    /// LR and HR grid sizes (columns, rows); for a mesh that is not a grid, its geometry
+    /// images' (the atlas).
     pub lr: (usize, usize),
     pub hr: (usize, usize),
+    /// LR and HR vertices of a mesh that is not a grid (`None` for a grid).
+    pub mesh: Option<(usize, usize)>,
     pub seconds: f64,
     /// `obj`, `npy`, `pc2` or `mdd`.
     pub format: String,
@@ -360,7 +363,8 @@ pub fn upscale_files(
     };
     write_json(&plan.summary_path, &own.record(summary).into(), Layout::Compact)?;
     drop(claim);
-    Ok(Summary { frames: n, lr: (w, h), hr: (r * w, r * h), seconds: secs, format: plan.fmt })
+    let mesh = shot.mesh().map(|(m, _)| (m.lr_vertices(), m.sub.hr_vertices()));
+    Ok(Summary { frames: n, lr: (w, h), hr: (r * w, r * h), mesh, seconds: secs, format: plan.fmt })
 }
 
 /// Refuse, for a mesh that is not a regular grid, what runs on grids only so far: the physics

@@ -509,3 +509,34 @@ pub fn upscale_meshes(
     let meshes = images_to_sequence(&up.hr, domain);
     Ok((meshes, up))
 }
+
+/// Upscale the frames of a mesh that is not a grid (`layout`, positions in metres) in memory:
+/// each frame's atlas image through the pipeline, and each HR frame its subdivision plus the
+/// composed detail ([`MeshLayout::hr_frame`]), in the layout's HR numbering.
+pub fn upscale_mesh_frames(
+    ops: &dyn Ops,
+    model: &AnisoCb,
+    layout: &crate::geom::layout::MeshLayout,
+    frames: &[Vec<[f32; 3]>],
+    params: &UpscaleParams,
+) -> Result<Vec<Vec<[f32; 3]>>> {
+    if frames.is_empty() {
+        return Err(Error::shape("no frames to upscale"));
+    }
+    // A domain-frame model needs the shot's box; a cloth-frame one works in any.
+    let domain = if model.input_frame() == InputFrame::Cloth {
+        Domain::UNIT
+    } else {
+        let all: Vec<[f32; 3]> = frames.iter().flatten().copied().collect();
+        Domain::enclosing(&[GridMesh::new(all.len(), 1, all)], 0.05)
+    };
+    let (h, w) = layout.image_size();
+    let mut lr = Tensor::zeros(&[frames.len(), 3, h, w]);
+    for (k, f) in frames.iter().enumerate() {
+        let img = layout.to_image(f, &domain)?;
+        lr.data[k * img.len()..(k + 1) * img.len()].copy_from_slice(&img.data);
+    }
+    let up = upscale_images(ops, model, &lr, &domain, params, &mut |_| {})?;
+    let base = up.interpolated();
+    Ok(frames.iter().enumerate().map(|(k, f)| layout.hr_frame(&up.hr, &base, k, &domain, f)).collect())
+}
