@@ -2,6 +2,7 @@
 //! and the 3-vector helpers ([`vec3`]) everything geometric shares.
 
 pub mod anisotropy;
+mod arap;
 pub mod atlas;
 pub mod cloth_frame;
 pub mod geometry_image;
