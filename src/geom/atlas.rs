@@ -13,48 +13,39 @@
 //! turned so a face wound as [`super::mesh::GridMesh::quads`] winds the way a grid's face does
 //! in its image, and, the same layout from the same mesh, every time (no hash order anywhere).
 
-use super::arap::{self, area3, orient2, p3, Chart};
+use super::arap;
+use super::charts::{self, area3, bary, bbox, corners, orient2, orient2_of, p3, turn, Chart};
 use super::layout::MAX_LR_VERTICES;
-use super::vec3::{cross, dot, norm, sub};
+use super::vec3::{norm, sub};
 use crate::error::{Error, Result};
-use std::collections::BTreeMap;
-
 /// Empty pixels between two charts' boxes: room for the extrapolated rings of both, so a 3×3
 /// convolution near one chart's border sees that chart continued, not its neighbour.
 pub const GAP: usize = 6;
+
 /// Empty pixels between the charts and the image border.
 pub const MARGIN: usize = 3;
+
 /// Sign of [`orient2`] of a face wound as a [`super::mesh::GridMesh`] quad, in (column, row)
 /// pixel axes: the grid's quad (i,j), (i,j+1), (i+1,j+1), (i+1,j) at pixels (c, r) = (i, j).
 const GRID_WINDING: f64 = -1.0;
+
 /// A pixel centre this far outside a triangle (in barycentric units) still counts as inside, so
 /// a centre on a shared edge or on the chart's border is covered despite rounding; the
 /// triangle it is deepest in wins.
 const BARY_EPS: f64 = 1e-4;
+
 /// Slack (pixels) when a chart's extent is rounded to whole pixels: an 11-pixel-wide chart that
 /// came out 11.0000001 wide keeps 12 columns, not 13.
 const SNAP: f64 = 1e-3;
+
 /// Rings of extrapolated pixels that continue the chart's slope; beyond them each ring repeats
 /// the mean of the ring inside. A curved cloth continued linearly leaves its bounding box after
 /// a few texels, and the receptive field of the nets' first layers is this wide.
 const LINEAR_RINGS: u32 = 8;
+
 /// A piece whose rest area is under this many square texels is collapsed (all its vertices on
 /// a point or a line): it has no layout.
 const DEGENERATE_PIECE: f64 = 1e-6;
-/// A UV triangle is stretched where either singular value of its map from 3D, after the
-/// island's own best linear correction ([`uv_metric`]), is beyond this factor or under its
-/// inverse ...
-const UV_STRETCH_MAX: f64 = 2.0;
-/// ... and the file's UVs are used only where under this fraction of each island's 3D area is
-/// stretched.
-const UV_STRETCHED_AREA_MAX: f64 = 0.05;
-/// UVs whose islands average fewer faces than this are too fragmented to lay out (each island
-/// costs a GAP-wide frame of empty pixels): ARAP makes one chart per piece instead.
-const UV_MIN_MEAN_ISLAND_FACES: usize = 8;
-/// Cells of the grid the UV islands are drawn on to test them for overlap, per triangle.
-const OVERLAP_CELLS_PER_TRIANGLE: f64 = 4.0;
-/// Most cells of that grid.
-const OVERLAP_MAX_CELLS: f64 = (1u64 << 22) as f64;
 
 /// A fixed-topology mesh to lay out.
 pub struct AtlasInput<'a> {
@@ -66,6 +57,7 @@ pub struct AtlasInput<'a> {
     pub rest: &'a [[f32; 3]],
     /// The file's UVs, if it has them: coordinates and, per face (parallel to `faces`), the
     /// coordinate index of each corner.
+    #[allow(clippy::type_complexity)]
     pub uv: Option<(&'a [[f32; 2]], &'a [Vec<u32>])>,
 }
 
@@ -120,9 +112,11 @@ impl Atlas {
     pub fn build(input: &AtlasInput) -> Result<Atlas> {
         validate(input)?;
         let texel = mean_edge(input)?;
-        let (source, mut charts, uv_note) = match uv_charts(input, texel) {
-            Ok(c) => (ChartSource::Uv, c, None),
-            Err(why) => (ChartSource::Arap, arap_charts(input, texel)?, why),
+        let uv = input.uv.map(|uv| charts::uv_charts(input.faces, input.rest, uv, texel, GRID_WINDING));
+        let (source, mut charts, uv_note) = match uv {
+            Some(Ok(c)) => (ChartSource::Uv, c, None),
+            Some(Err(why)) => (ChartSource::Arap, arap_charts(input, texel)?, Some(why)),
+            None => (ChartSource::Arap, arap_charts(input, texel)?, None),
         };
         let (h, w) = pack(&mut charts)?;
         let mut corner_px: Vec<Vec<[f32; 2]>> = input.faces.iter().map(|f| vec![[0.0; 2]; f.len()]).collect();
@@ -252,217 +246,20 @@ fn mean_edge(input: &AtlasInput) -> Result<f64> {
     Ok(texel)
 }
 
-/// Barycentric coordinates of `p` in triangle `t`, or `None` for a degenerate triangle.
-fn bary(p: [f64; 2], t: [[f64; 2]; 3]) -> Option<[f64; 3]> {
-    let d = orient2(t[0], t[1], t[2]);
-    if d == 0.0 || !d.is_finite() {
-        return None;
-    }
-    let (w0, w1) = (orient2(p, t[1], t[2]) / d, orient2(t[0], p, t[2]) / d);
-    Some([w0, w1, 1.0 - w0 - w1])
-}
-
-/// A chart triangle's 2D corners.
-fn corners(c: &Chart, t: usize) -> [[f64; 2]; 3] {
-    c.tris[t].map(|v| c.pos[v as usize])
-}
-
-/// Singular values (largest first) of the map from the 3D triangle `p` (m) to the 2D triangle
-/// `q`, or `None` when `p` is degenerate.
-fn stretch(p: [[f64; 3]; 3], q: [[f64; 2]; 3]) -> Option<[f64; 2]> {
-    let (e1, e2) = (sub(p[1], p[0]), sub(p[2], p[0]));
-    let l1 = norm(e1);
-    let h = norm(cross(e1, e2)) / l1;
-    if !(l1 > 0.0 && h > 0.0) {
-        return None;
-    }
-    let x2 = dot(e1, e2) / l1;
-    // J = U X⁻¹, X = [[l1, x2], [0, h]] (columns: the rest edges in the triangle's plane).
-    let u = [[q[1][0] - q[0][0], q[2][0] - q[0][0]], [q[1][1] - q[0][1], q[2][1] - q[0][1]]];
-    let j = [
-        [u[0][0] / l1, (u[0][1] - u[0][0] * x2 / l1) / h],
-        [u[1][0] / l1, (u[1][1] - u[1][0] * x2 / l1) / h],
-    ];
-    let (e, f) = ((j[0][0] + j[1][1]) / 2.0, (j[0][0] - j[1][1]) / 2.0);
-    let (g, hh) = ((j[1][0] + j[0][1]) / 2.0, (j[1][0] - j[0][1]) / 2.0);
-    let (qq, r) = ((e * e + hh * hh).sqrt(), (f * f + g * g).sqrt());
-    Some([qq + r, (qq - r).abs()])
-}
-
-/// The file's UV islands as charts in LR pixels, or why not: `Err(None)` when there are no UVs.
-fn uv_charts(input: &AtlasInput, texel: f64) -> std::result::Result<Vec<Chart>, Option<String>> {
-    let (coords, uvf) = input.uv.ok_or(None)?;
-    let (faces, rest) = (input.faces, input.rest);
-    if uvf.len() != faces.len() {
-        return Err(Some(format!("UVs for {} faces of {}", uvf.len(), faces.len())));
-    }
-    for (f, (face, uvs)) in faces.iter().zip(uvf).enumerate() {
-        if uvs.len() != face.len() {
-            return Err(Some(format!("face {f} has {} corners but {} UVs", face.len(), uvs.len())));
-        }
-        if let Some(&i) = uvs.iter().find(|&&i| coords.get(i as usize).is_none_or(|c| !c.iter().all(|x| x.is_finite()))) {
-            return Err(Some(format!("face {f}'s UV {i} is missing or not finite")));
-        }
-    }
-    // UV indices with the same coordinates are one UV (exporters that write one per corner).
-    let mut first: BTreeMap<[u32; 2], u32> = BTreeMap::new();
-    let canon: Vec<u32> =
-        coords.iter().enumerate().map(|(i, c)| *first.entry(c.map(|x| (x + 0.0).to_bits())).or_insert(i as u32)).collect();
-    let mut islands = arap::pieces(faces, rest, |f, k| (canon[uvf[f][k] as usize], faces[f][k]))
-        .map_err(|e| Some(e.to_string()))?;
-    if islands.len() > 1 && islands.len() * UV_MIN_MEAN_ISLAND_FACES > faces.len() {
-        return Err(Some(format!("{} UV islands for {} faces: too fragmented", islands.len(), faces.len())));
-    }
-    let mut maps = Vec::with_capacity(islands.len());
-    for (ii, c) in islands.iter_mut().enumerate() {
-        for (tri, o) in c.tris.iter().zip(&c.origin) {
-            for k in 0..3 {
-                let uv = coords[uvf[o.face as usize][o.corner[k] as usize] as usize];
-                c.pos[tri[k] as usize] = [uv[0] as f64, uv[1] as f64];
-            }
-        }
-        let name = format!("UV island {ii} (with face {})", c.origin[0].face);
-        let p3s: Vec<[[f64; 3]; 3]> = c.tris.iter().map(|t| t.map(|v| p3(rest, c.vert[v as usize]))).collect();
-        let a3: Vec<f64> = p3s.iter().map(|p| area3(p[0], p[1], p[2])).collect();
-        let auv: Vec<f64> = (0..c.tris.len()).map(|t| 0.5 * orient2_of(&corners(c, t))).collect();
-        let (a3_sum, auv_sum) = (a3.iter().sum::<f64>(), auv.iter().sum::<f64>());
-        if !(a3_sum > 0.0 && auv_sum != 0.0) {
-            return Err(Some(format!("{name} has no area in 3D or in UV")));
-        }
-        let sign = auv_sum.signum();
-        let (m3, muv) = (a3_sum / a3.len() as f64, auv_sum.abs() / auv.len() as f64);
-        let bad = |t: usize| a3[t] > arap::DEGENERATE_REL * m3 && sign * auv[t] <= arap::DEGENERATE_REL * muv;
-        if let Some(t) = (0..a3.len()).find(|&t| bad(t)) {
-            return Err(Some(format!("{name}: face {}'s UVs are flipped or degenerate", c.origin[t].face)));
-        }
-        let a = uv_metric(&p3s, c).ok_or_else(|| Some(format!("{name}: its UVs have no consistent metric")))?;
-        let stretched: f64 = (0..a3.len())
-            .filter(|&t| {
-                let q = corners(c, t).map(|p| apply(a, p));
-                stretch(p3s[t], q).is_some_and(|[hi, lo]| hi > UV_STRETCH_MAX || lo < 1.0 / UV_STRETCH_MAX)
-            })
-            .map(|t| a3[t])
-            .sum();
-        if stretched > UV_STRETCHED_AREA_MAX * a3_sum {
-            return Err(Some(format!(
-                "{name}: {:.0}% of its area is stretched more than {UV_STRETCH_MAX}× in UV",
-                100.0 * stretched / a3_sum
-            )));
-        }
-        // To pixels; rows mirrored where the island winds against a grid's faces.
-        let my = if sign == GRID_WINDING { 1.0 } else { -1.0 };
-        maps.push([[a[0][0] / texel, a[0][1] / texel], [my * a[1][0] / texel, my * a[1][1] / texel]]);
-    }
-    if let Some((a, b)) = uv_overlap(&islands) {
-        return Err(Some(format!("UV islands {a} and {b} overlap")));
-    }
-    for (c, m) in islands.iter_mut().zip(&maps) {
-        c.pos.iter_mut().for_each(|p| *p = apply(*m, *p));
-    }
-    Ok(islands)
-}
-
-/// `m · p` for a 2×2 matrix `m` (rows).
-fn apply(m: [[f64; 2]; 2], p: [f64; 2]) -> [f64; 2] {
-    [m[0][0] * p[0] + m[0][1] * p[1], m[1][0] * p[0] + m[1][1] * p[1]]
-}
-
-/// The linear map (2×2, metres per UV unit) that best turns the island's UVs into lengths on
-/// the rest mesh: the square root of the 3D metric pulled back to UV, averaged over the island
-/// by UV area. A layout squeezed into the unit square (a 11 × 8 sheet at u = i/11, v = j/8) is
-/// made isometric again; `None` when that metric is not positive definite.
-fn uv_metric(p3s: &[[[f64; 3]; 3]], c: &Chart) -> Option<[[f64; 2]; 2]> {
-    let mut g = [[0.0f64; 2]; 2];
-    for (t, p) in p3s.iter().enumerate() {
-        let q = corners(c, t);
-        let u = [[q[1][0] - q[0][0], q[2][0] - q[0][0]], [q[1][1] - q[0][1], q[2][1] - q[0][1]]];
-        let det = u[0][0] * u[1][1] - u[0][1] * u[1][0];
-        if det == 0.0 {
-            continue;
-        }
-        let (e1, e2) = (sub(p[1], p[0]), sub(p[2], p[0]));
-        let gram = [[dot(e1, e1), dot(e1, e2)], [dot(e1, e2), dot(e2, e2)]];
-        let inv = [[u[1][1] / det, -u[0][1] / det], [-u[1][0] / det, u[0][0] / det]];
-        // U⁻ᵀ · Gram · U⁻¹, weighted by the triangle's UV area |det| / 2.
-        for (r, gr) in g.iter_mut().enumerate() {
-            for (cc, gc) in gr.iter_mut().enumerate() {
-                let mut acc = 0.0;
-                for i in 0..2 {
-                    for j in 0..2 {
-                        acc += inv[i][r] * gram[i][j] * inv[j][cc];
-                    }
-                }
-                *gc += 0.5 * det.abs() * acc;
-            }
-        }
-    }
-    let det = g[0][0] * g[1][1] - g[0][1] * g[1][0];
-    if !(det > 0.0 && g[0][0] > 0.0 && det.is_finite()) {
-        return None;
-    }
-    // The symmetric square root of a 2×2 SPD matrix: (G + √det I) / √(tr G + 2√det).
-    let (sd, tr) = (det.sqrt(), g[0][0] + g[1][1]);
-    let k = 1.0 / (tr + 2.0 * sd).sqrt();
-    let area: f64 = (0..c.tris.len()).map(|t| 0.5 * orient2_of(&corners(c, t)).abs()).sum();
-    let n = 1.0 / area.sqrt();
-    Some([[(g[0][0] + sd) * k * n, g[0][1] * k * n], [g[1][0] * k * n, (g[1][1] + sd) * k * n]])
-}
-
-/// Twice the signed area of a 2D triangle.
-fn orient2_of(t: &[[f64; 2]; 3]) -> f64 {
-    orient2(t[0], t[1], t[2])
-}
-
-/// Two UV islands that overlap, if any: where the boxes of islands meet, the islands are drawn
-/// on a grid of cell centres, and a centre strictly inside triangles of two islands is an
-/// overlap.
-fn uv_overlap(islands: &[Chart]) -> Option<(usize, usize)> {
-    let boxes: Vec<[[f64; 2]; 2]> = islands.iter().map(|c| bbox(&c.pos)).collect();
-    let meet = |a: &[[f64; 2]; 2], b: &[[f64; 2]; 2]| (0..2).all(|k| a[0][k] < b[1][k] && b[0][k] < a[1][k]);
-    if !(0..boxes.len()).any(|i| (i + 1..boxes.len()).any(|j| meet(&boxes[i], &boxes[j]))) {
-        return None;
-    }
-    let all = bbox(&boxes.iter().flatten().copied().collect::<Vec<_>>());
-    let (lo, span) = (all[0], [all[1][0] - all[0][0], all[1][1] - all[0][1]]);
-    let tris: usize = islands.iter().map(|c| c.tris.len()).sum();
-    let cells = (OVERLAP_CELLS_PER_TRIANGLE * tris as f64).min(OVERLAP_MAX_CELLS);
-    let cell = (span[0] * span[1] / cells).sqrt().max(span[0].max(span[1]) / cells).max(f64::MIN_POSITIVE);
-    let (nx, ny) = ((span[0] / cell) as usize + 1, (span[1] / cell) as usize + 1);
-    let mut owner = vec![u32::MAX; nx * ny];
-    for (ii, c) in islands.iter().enumerate() {
-        for t in 0..c.tris.len() {
-            let q = corners(c, t);
-            let b = bbox(&q);
-            let (c0, r0) = (((b[0][0] - lo[0]) / cell) as usize, ((b[0][1] - lo[1]) / cell) as usize);
-            let (c1, r1) = (((b[1][0] - lo[0]) / cell) as usize, ((b[1][1] - lo[1]) / cell) as usize);
-            for r in r0..=r1.min(ny - 1) {
-                for col in c0..=c1.min(nx - 1) {
-                    let p = [lo[0] + (col as f64 + 0.5) * cell, lo[1] + (r as f64 + 0.5) * cell];
-                    if !bary(p, q).is_some_and(|w| w.iter().all(|&x| x > BARY_EPS)) {
-                        continue;
-                    }
-                    match owner[r * nx + col] {
-                        u32::MAX => owner[r * nx + col] = ii as u32,
-                        o if o as usize != ii => return Some((o as usize, ii)),
-                        _ => {}
-                    }
-                }
-            }
-        }
-    }
-    None
-}
-
 /// One ARAP chart per piece of the mesh, in LR pixels.
 fn arap_charts(input: &AtlasInput, texel: f64) -> Result<Vec<Chart>> {
     let (faces, rest) = (input.faces, input.rest);
-    let pieces = arap::pieces(faces, rest, |f, k| faces[f][k])?;
+    let pieces = charts::pieces(faces, rest, |f, k| faces[f][k])?;
     let mut out = Vec::with_capacity(pieces.len());
     for (i, c) in pieces.into_iter().enumerate() {
         let name = format!("piece {i} (the part with face {}, counting from 0)", c.origin[0].face);
-        let area: f64 =
-            c.tris.iter().map(|t| t.map(|v| p3(rest, c.vert[v as usize]))).map(|p| area3(p[0], p[1], p[2])).sum();
-        if !(area > DEGENERATE_PIECE * texel * texel) {
+        let area: f64 = c
+            .tris
+            .iter()
+            .map(|t| t.map(|v| p3(rest, c.vert[v as usize])))
+            .map(|p| area3(p[0], p[1], p[2]))
+            .sum();
+        if area.is_nan() || area <= DEGENERATE_PIECE * texel * texel {
             return Err(Error::shape(format!(
                 "any-mesh layout: {name} has an area of {area:e} m² (its vertices lie on a point or a line): remove it"
             )));
@@ -472,18 +269,6 @@ fn arap_charts(input: &AtlasInput, texel: f64) -> Result<Vec<Chart>> {
         out.push(c);
     }
     Ok(out)
-}
-
-/// `[min, max]` of points.
-fn bbox(pts: &[[f64; 2]]) -> [[f64; 2]; 2] {
-    let mut b = [[f64::INFINITY; 2], [f64::NEG_INFINITY; 2]];
-    for p in pts {
-        for k in 0..2 {
-            b[0][k] = b[0][k].min(p[k]);
-            b[1][k] = b[1][k].max(p[k]);
-        }
-    }
-    b
 }
 
 /// The rotation `(cos, sin)` (applied as in [`turn`]) that gives `pts` their smallest bounding
@@ -496,7 +281,8 @@ fn box_rotation(pts: &[[f64; 2]]) -> [f64; 2] {
     let mut hull: Vec<[f64; 2]> = Vec::new();
     for pass in 0..2 {
         let start = hull.len();
-        let it: Box<dyn Iterator<Item = &[f64; 2]>> = if pass == 0 { Box::new(s.iter()) } else { Box::new(s.iter().rev()) };
+        let it: Box<dyn Iterator<Item = &[f64; 2]>> =
+            if pass == 0 { Box::new(s.iter()) } else { Box::new(s.iter().rev()) };
         for &p in it {
             while hull.len() >= start + 2 && orient2(hull[hull.len() - 2], hull[hull.len() - 1], p) <= 0.0 {
                 hull.pop();
@@ -510,7 +296,7 @@ fn box_rotation(pts: &[[f64; 2]]) -> [f64; 2] {
         let (a, b) = (hull[i], hull[(i + 1) % hull.len()]);
         let d = [b[0] - a[0], b[1] - a[1]];
         let l = (d[0] * d[0] + d[1] * d[1]).sqrt();
-        if !(l > 0.0) {
+        if l.is_nan() || l <= 0.0 {
             continue;
         }
         let r = [d[0] / l, -d[1] / l];
@@ -521,11 +307,6 @@ fn box_rotation(pts: &[[f64; 2]]) -> [f64; 2] {
         }
     }
     best.0
-}
-
-/// `p` turned by the rotation `(cos, sin)`.
-fn turn(r: [f64; 2], p: [f64; 2]) -> [f64; 2] {
-    [r[0] * p[0] - r[1] * p[1], r[1] * p[0] + r[0] * p[1]]
 }
 
 /// Turns each chart to its smallest box (long side along the rows), shelves the boxes tallest
@@ -561,7 +342,7 @@ fn pack(charts: &mut [Chart]) -> Result<(usize, usize)> {
         shelf_h = shelf_h.max(ext[i][1]);
         x = (x + ext[i][0] + gap - SNAP).ceil();
     }
-    if !(w * h <= MAX_LR_VERTICES as f64) {
+    if w.is_nan() || h.is_nan() || w * h > MAX_LR_VERTICES as f64 {
         return Err(Error::shape(format!(
             "any-mesh layout: the charts need a {h}×{w} image, more than the {MAX_LR_VERTICES} pixels an LR \
              frame may have: upscale the cloth in pieces"
@@ -581,8 +362,10 @@ fn rasterize(charts: &[Chart], h: usize, w: usize) -> Vec<Cover> {
         for t in 0..c.tris.len() {
             let q = corners(c, t);
             let b = bbox(&q);
-            let (c0, c1) = ((b[0][0] - SNAP).ceil().max(0.0) as usize, ((b[1][0] + SNAP).floor() as usize).min(w - 1));
-            let (r0, r1) = ((b[0][1] - SNAP).ceil().max(0.0) as usize, ((b[1][1] + SNAP).floor() as usize).min(h - 1));
+            let (c0, c1) =
+                ((b[0][0] - SNAP).ceil().max(0.0) as usize, ((b[1][0] + SNAP).floor() as usize).min(w - 1));
+            let (r0, r1) =
+                ((b[0][1] - SNAP).ceil().max(0.0) as usize, ((b[1][1] + SNAP).floor() as usize).min(h - 1));
             for r in r0..=r1 {
                 for col in c0..=c1 {
                     let Some(wt) = bary([col as f64, r as f64], q) else { continue };
@@ -596,10 +379,17 @@ fn rasterize(charts: &[Chart], h: usize, w: usize) -> Vec<Cover> {
             }
         }
         if !hit {
-            let t = (0..c.tris.len()).fold(0, |b, t| if orient2_of(&corners(c, t)).abs() > orient2_of(&corners(c, b)).abs() { t } else { b });
+            let t = (0..c.tris.len()).fold(0, |b, t| {
+                if orient2_of(&corners(c, t)).abs() > orient2_of(&corners(c, b)).abs() {
+                    t
+                } else {
+                    b
+                }
+            });
             let q = corners(c, t);
             let m = [0, 1].map(|k| (q[0][k] + q[1][k] + q[2][k]) / 3.0);
-            let px = (m[1].round().clamp(0.0, (h - 1) as f64) as usize) * w + m[0].round().clamp(0.0, (w - 1) as f64) as usize;
+            let px = (m[1].round().clamp(0.0, (h - 1) as f64) as usize) * w
+                + m[0].round().clamp(0.0, (w - 1) as f64) as usize;
             if who[px].0 == u32::MAX {
                 who[px] = (ci as u32, t as u32);
             }
@@ -625,7 +415,8 @@ fn rasterize(charts: &[Chart], h: usize, w: usize) -> Vec<Cover> {
 /// nearer than d − 1, else v[n]. A plane is continued exactly. After [`LINEAR_RINGS`] rings every
 /// term is v[n]. Returns (pixels, their op starts (+1 at the end), sources, coefficients).
 fn extrapolation(h: usize, w: usize, covered: &[bool]) -> (Vec<u32>, Vec<u32>, Vec<u32>, Vec<f32>) {
-    const NEIGHBOURS: [(isize, isize); 8] = [(-1, -1), (-1, 0), (-1, 1), (0, -1), (0, 1), (1, -1), (1, 0), (1, 1)];
+    const NEIGHBOURS: [(isize, isize); 8] =
+        [(-1, -1), (-1, 0), (-1, 1), (0, -1), (0, 1), (1, -1), (1, 0), (1, 1)];
     let at = |r: usize, c: usize, dr: isize, dc: isize, k: isize| {
         let (rr, cc) = (r as isize + k * dr, c as isize + k * dc);
         (rr >= 0 && cc >= 0 && (rr as usize) < h && (cc as usize) < w).then(|| rr as usize * w + cc as usize)
@@ -675,9 +466,13 @@ fn extrapolation(h: usize, w: usize, covered: &[bool]) -> (Vec<u32>, Vec<u32>, V
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::geom::vec3::{cross, dot};
+
+    /// Faces and rest positions (m).
+    type Mesh = (Vec<Vec<u32>>, Vec<[f32; 3]>);
 
     /// A `nx × ny` sheet of quads wound as a grid's, vertex (i, j) at `at(i, j)`.
-    fn sheet(nx: usize, ny: usize, at: impl Fn(usize, usize) -> [f32; 3]) -> (Vec<Vec<u32>>, Vec<[f32; 3]>) {
+    fn sheet(nx: usize, ny: usize, at: impl Fn(usize, usize) -> [f32; 3]) -> Mesh {
         let id = |i: usize, j: usize| (j * nx + i) as u32;
         let rest = (0..ny).flat_map(|j| (0..nx).map(move |i| (i, j))).map(|(i, j)| at(i, j)).collect();
         let mut faces = Vec::new();
@@ -689,14 +484,14 @@ mod tests {
         (faces, rest)
     }
 
-    /// The 12 × 9 sheet, 2 cm spacing, in a tilted plane: (origin, unit normal).
-    fn tilted_sheet() -> (Vec<Vec<u32>>, Vec<[f32; 3]>, [f64; 3], [f64; 3]) {
+    /// The 12 × 9 sheet, 2 cm spacing, in a tilted plane, with the plane's origin and unit normal.
+    fn tilted_sheet() -> (Mesh, [f64; 3], [f64; 3]) {
         let (o, e1, e2) = ([0.1f64, -0.2, 0.3], [0.6f64, 0.0, 0.8], [0.0f64, 1.0, 0.0]);
         let (faces, rest) = sheet(12, 9, |i, j| {
             let (a, b) = (0.02 * i as f64, 0.02 * j as f64);
             [0, 1, 2].map(|k| (o[k] + a * e1[k] + b * e2[k]) as f32)
         });
-        (faces, rest, o, cross(e1, e2))
+        ((faces, rest), o, cross(e1, e2))
     }
 
     fn build(faces: &[Vec<u32>], rest: &[[f32; 3]]) -> Atlas {
@@ -711,7 +506,13 @@ mod tests {
 
     fn pixels_per_vertex(what: &str, a: &Atlas, rest: &[[f32; 3]]) -> f64 {
         let r = (a.h * a.w) as f64 / rest.len() as f64;
-        eprintln!("{what}: {}×{} image, {} vertices, {r:.2} pixels per vertex, {:?}", a.h, a.w, rest.len(), a.source);
+        eprintln!(
+            "{what}: {}×{} image, {} vertices, {r:.2} pixels per vertex, {:?}",
+            a.h,
+            a.w,
+            rest.len(),
+            a.source
+        );
         r
     }
 
@@ -734,7 +535,8 @@ mod tests {
     fn face_tris(a: &Atlas, faces: &[Vec<u32>]) -> Vec<(usize, [[f64; 2]; 3], [u32; 3])> {
         let mut out = Vec::new();
         for (f, face) in faces.iter().enumerate() {
-            let ks: &[[usize; 3]] = if face.len() == 3 { &[[0, 1, 2]] } else { &[[0, 1, 2], [0, 2, 3], [0, 1, 3], [1, 2, 3]] };
+            let ks: &[[usize; 3]] =
+                if face.len() == 3 { &[[0, 1, 2]] } else { &[[0, 1, 2], [0, 2, 3], [0, 1, 3], [1, 2, 3]] };
             for k in ks {
                 let q = k.map(|k| a.corner_px[f][k].map(|x| x as f64));
                 out.push((f, q, k.map(|k| face[k])));
@@ -763,7 +565,8 @@ mod tests {
                 .find(|(_, q, _)| bary(p, *q).is_some_and(|w| w.iter().all(|&x| x > -1e-3)))
                 .unwrap_or_else(|| panic!("covered pixel {px} is in no face"));
             let wt = bary(p, *q).unwrap();
-            let want: [f64; 3] = std::array::from_fn(|k| (0..3).map(|c| wt[c] * rest[vs[c] as usize][k] as f64).sum());
+            let want: [f64; 3] =
+                std::array::from_fn(|k| (0..3).map(|c| wt[c] * rest[vs[c] as usize][k] as f64).sum());
             let err = norm(sub(v, want));
             assert!(err < tol, "covered pixel {px}: {v:?} vs {want:?}");
         }
@@ -771,7 +574,7 @@ mod tests {
 
     #[test]
     fn flat_sheet_flattens_to_an_isometric_chart_and_a_planar_image() {
-        let (faces, rest, o, n) = tilted_sheet();
+        let ((faces, rest), o, n) = tilted_sheet();
         let a = build(&faces, &rest);
         assert_eq!((a.source, a.charts), (ChartSource::Arap, 1));
         let err = edge_error(&a, &faces, &rest);
@@ -783,8 +586,9 @@ mod tests {
 
     #[test]
     fn flat_sheet_with_uvs_uses_them() {
-        let (faces, rest, o, n) = tilted_sheet();
-        let uv: Vec<[f32; 2]> = (0..9).flat_map(|j| (0..12).map(move |i| [i as f32 / 11.0, j as f32 / 8.0])).collect();
+        let ((faces, rest), o, n) = tilted_sheet();
+        let uv: Vec<[f32; 2]> =
+            (0..9).flat_map(|j| (0..12).map(move |i| [i as f32 / 11.0, j as f32 / 8.0])).collect();
         let a = Atlas::build(&AtlasInput { faces: &faces, rest: &rest, uv: Some((&uv, &faces)) }).unwrap();
         assert_eq!((a.source, a.charts), (ChartSource::Uv, 1));
         let err = edge_error(&a, &faces, &rest);
@@ -811,10 +615,13 @@ mod tests {
             let t = std::f64::consts::TAU * i as f64 / around as f64;
             [(r * t.cos()) as f32, (r * t.sin()) as f32, (step * j as f64) as f32]
         };
-        let rest: Vec<[f32; 3]> = (0..along).flat_map(|j| (0..around).map(move |i| (i, j))).map(|(i, j)| at(i, j)).collect();
+        let rest: Vec<[f32; 3]> =
+            (0..along).flat_map(|j| (0..around).map(move |i| (i, j))).map(|(i, j)| at(i, j)).collect();
         let id = |i: usize, j: usize| (j * around + i % around) as u32;
         let faces: Vec<Vec<u32>> = (0..along - 1)
-            .flat_map(|j| (0..around).map(move |i| vec![id(i, j), id(i, j + 1), id(i + 1, j + 1), id(i + 1, j)]))
+            .flat_map(|j| {
+                (0..around).map(move |i| vec![id(i, j), id(i, j + 1), id(i + 1, j + 1), id(i + 1, j)])
+            })
             .collect();
         let a = build(&faces, &rest);
         assert_eq!((a.source, a.charts), (ChartSource::Arap, 1));
@@ -835,7 +642,10 @@ mod tests {
         assert_eq!(a.face_chart().iter().map(|&c| c as usize + 1).max(), Some(charts));
         for (f, cs) in a.corner_px.iter().enumerate() {
             for p in cs {
-                assert!(p[0] >= 0.0 && p[1] >= 0.0 && p[0] <= (a.w - 1) as f32 && p[1] <= (a.h - 1) as f32, "face {f}: {p:?}");
+                assert!(
+                    p[0] >= 0.0 && p[1] >= 0.0 && p[0] <= (a.w - 1) as f32 && p[1] <= (a.h - 1) as f32,
+                    "face {f}: {p:?}"
+                );
             }
         }
         let mut owner = vec![u32::MAX; a.h * a.w];
@@ -845,7 +655,10 @@ mod tests {
                 for c in b[0][0].floor() as usize..=b[1][0].ceil() as usize {
                     if bary([c as f64, r as f64], q).is_some_and(|w| w.iter().all(|&x| x > 1e-9)) {
                         let ch = a.face_chart()[f];
-                        assert!(owner[r * a.w + c] == u32::MAX || owner[r * a.w + c] == ch, "pixel ({r}, {c}) in two charts");
+                        assert!(
+                            owner[r * a.w + c] == u32::MAX || owner[r * a.w + c] == ch,
+                            "pixel ({r}, {c}) in two charts"
+                        );
                         owner[r * a.w + c] = ch;
                     }
                 }
@@ -867,12 +680,13 @@ mod tests {
     }
 
     /// A domed disk of triangles: a centre and `rings` rings of 12 vertices, radius 1 cm a ring.
-    fn disk(rings: usize, centre: [f32; 3]) -> (Vec<Vec<u32>>, Vec<[f32; 3]>) {
+    fn disk(rings: usize, centre: [f32; 3]) -> Mesh {
         const N: usize = 12;
         let mut rest = vec![centre];
         for k in 1..=rings {
             for i in 0..N {
-                let (t, rr) = (std::f32::consts::TAU * (i as f32 + 0.5 * k as f32) / N as f32, 0.01 * k as f32);
+                let (t, rr) =
+                    (std::f32::consts::TAU * (i as f32 + 0.5 * k as f32) / N as f32, 0.01 * k as f32);
                 rest.push([centre[0] + rr * t.cos(), centre[1] + rr * t.sin(), centre[2] - 2.0 * rr * rr]);
             }
         }
@@ -918,11 +732,195 @@ mod tests {
 
     #[test]
     fn building_twice_gives_the_same_bits() {
-        let (faces, rest, ..) = tilted_sheet();
+        let ((faces, rest), ..) = tilted_sheet();
         let (a, b) = (build(&faces, &rest), build(&faces, &rest));
-        let bits = |a: &Atlas| a.corner_px.iter().flatten().flat_map(|p| p.map(f32::to_bits)).collect::<Vec<_>>();
+        let bits =
+            |a: &Atlas| a.corner_px.iter().flatten().flat_map(|p| p.map(f32::to_bits)).collect::<Vec<_>>();
         assert_eq!(bits(&a), bits(&b));
         let img = |a: &Atlas| image(a, &rest).iter().map(|x| x.to_bits()).collect::<Vec<_>>();
         assert_eq!(img(&a), img(&b));
+    }
+
+    /// Quads of a `n × m` grid of vertex ids `id(i, j)`, wound as a grid's.
+    fn quads(n: usize, m: usize, id: impl Fn(usize, usize) -> u32) -> Vec<Vec<u32>> {
+        (0..m)
+            .flat_map(|j| (0..n).map(move |i| (i, j)))
+            .map(|(i, j)| vec![id(i, j), id(i, j + 1), id(i + 1, j + 1), id(i + 1, j)])
+            .collect()
+    }
+
+    #[test]
+    fn closed_and_curved_pieces_flatten_and_stay_bounded() {
+        // A sphere of quads (a latitude/longitude grid closed by two triangle fans): closed, no
+        // boundary, strongly curved.
+        let (n, m, r) = (16usize, 8usize, 0.1f32);
+        let mut rest = vec![[0.0, 0.0, r], [0.0, 0.0, -r]];
+        for j in 1..m {
+            let th = std::f32::consts::PI * j as f32 / m as f32;
+            for i in 0..n {
+                let ph = std::f32::consts::TAU * i as f32 / n as f32;
+                rest.push([r * th.sin() * ph.cos(), r * th.sin() * ph.sin(), r * th.cos()]);
+            }
+        }
+        let id = |i: usize, j: usize| (2 + (j - 1) * n + i % n) as u32;
+        let mut faces = quads(n, m - 2, |i, j| id(i, j + 1));
+        for i in 0..n {
+            faces.push(vec![0, id(i, 1), id(i + 1, 1)]);
+            faces.push(vec![1, id(i + 1, m - 1), id(i, m - 1)]);
+        }
+        let a = build(&faces, &rest);
+        pixels_per_vertex("sphere 16×8", &a, &rest);
+        check_layout(&a, &faces, 1);
+        // A hemisphere (one boundary loop, not developable): its image stays near the cloth.
+        let half: Vec<Vec<u32>> = faces
+            .iter()
+            .filter(|f| f.iter().all(|&v| v == 0 || rest[v as usize][2] >= -1e-6))
+            .cloned()
+            .collect();
+        let a = build(&half, &rest);
+        pixels_per_vertex("hemisphere", &a, &rest);
+        check_layout(&a, &half, 1);
+        let img = image(&a, &rest);
+        let hw = a.h * a.w;
+        for px in 0..hw {
+            let v = [img[px], img[hw + px], img[2 * hw + px]];
+            assert!(v.iter().all(|x| x.abs() < 3.0 * r), "pixel {px} wandered off to {v:?}");
+        }
+    }
+
+    #[test]
+    fn a_torus_is_refused_naming_its_handle() {
+        let (n, m) = (12usize, 8usize);
+        let rest: Vec<[f32; 3]> = (0..m)
+            .flat_map(|j| (0..n).map(move |i| (i, j)))
+            .map(|(i, j)| {
+                let (u, v) = (
+                    std::f32::consts::TAU * i as f32 / n as f32,
+                    std::f32::consts::TAU * j as f32 / m as f32,
+                );
+                [(0.3 + 0.1 * v.cos()) * u.cos(), (0.3 + 0.1 * v.cos()) * u.sin(), 0.1 * v.sin()]
+            })
+            .collect();
+        let faces = quads(n, m, |i, j| ((j % m) * n + i % n) as u32);
+        let e = Atlas::build(&AtlasInput { faces: &faces, rest: &rest, uv: None })
+            .err()
+            .expect("a torus has no disk layout");
+        assert!(e.to_string().contains("handle"), "{e}");
+    }
+
+    #[test]
+    fn odd_meshes_give_charts_or_clear_errors() {
+        // Two triangles sharing only a vertex (a bowtie), a mixed tri/quad strip, an isolated
+        // vertex: three charts.
+        let rest = vec![
+            [0.0, 0.0, 0.0],
+            [0.01, 0.0, 0.0],
+            [0.0, 0.01, 0.0],
+            [-0.01, 0.0, 0.0],
+            [0.0, -0.01, 0.0],
+            [1.0, 0.0, 0.0],
+            [1.01, 0.0, 0.0],
+            [1.01, 0.01, 0.0],
+            [1.0, 0.01, 0.0],
+            [1.02, 0.005, 0.0],
+            [5.0, 5.0, 5.0],
+        ];
+        let faces = vec![vec![0, 1, 2], vec![0, 3, 4], vec![5, 6, 7, 8], vec![6, 9, 7]];
+        let a = build(&faces, &rest);
+        check_layout(&a, &faces, 3);
+        let img = image(&a, &rest);
+        assert!(img.iter().all(|x| x.is_finite()));
+        // A piece collapsed to a point is named.
+        let mut rest2 = rest.clone();
+        (5..10).for_each(|v| rest2[v] = [1.0; 3]);
+        let e = Atlas::build(&AtlasInput { faces: &faces, rest: &rest2, uv: None })
+            .err()
+            .expect("collapsed piece");
+        assert!(e.to_string().contains("piece") && e.to_string().contains("face 2"), "{e}");
+        // A zero-area face inside a piece is laid out.
+        let (mut faces3, mut rest3) = sheet(5, 5, |i, j| [0.01 * i as f32, 0.01 * j as f32, 0.0]);
+        rest3[12] = rest3[13];
+        faces3.push(vec![0, 1, 2]);
+        faces3.remove(faces3.len() - 1);
+        build(&faces3, &rest3);
+        // An image larger than an LR frame may be is refused before it is allocated.
+        let mut rest4: Vec<[f32; 3]> = sheet(100, 100, |i, j| [1e-4 * i as f32, 1e-4 * j as f32, 0.0]).1;
+        let mut faces4 = sheet(100, 100, |_, _| [0.0; 3]).0;
+        let b = rest4.len() as u32;
+        rest4.extend([[10.0, 0.0, 0.0], [20.0, 0.0, 0.0], [10.0, 10.0, 0.0]]);
+        faces4.push(vec![b, b + 1, b + 2]);
+        let e =
+            Atlas::build(&AtlasInput { faces: &faces4, rest: &rest4, uv: None }).err().expect("too large");
+        assert!(e.to_string().contains("pixels an LR"), "{e}");
+        // Faces that name no vertex, or 5 of them, are refused.
+        assert!(Atlas::build(&AtlasInput { faces: &[vec![0, 1, 99]], rest: &rest, uv: None }).is_err());
+        assert!(Atlas::build(&AtlasInput { faces: &[vec![0, 1, 2, 3, 4]], rest: &rest, uv: None }).is_err());
+        assert!(Atlas::build(&AtlasInput { faces: &[], rest: &rest, uv: None }).is_err());
+    }
+
+    #[test]
+    fn unusable_uvs_fall_back_to_arap_saying_why() {
+        let ((faces, rest), ..) = tilted_sheet();
+        let good: Vec<[f32; 2]> =
+            (0..9).flat_map(|j| (0..12).map(move |i| [i as f32 / 11.0, j as f32 / 8.0])).collect();
+        let try_uv = |uv: &[[f32; 2]]| {
+            Atlas::build(&AtlasInput { faces: &faces, rest: &rest, uv: Some((uv, &faces)) }).unwrap()
+        };
+        // One vertex dragged across its neighbours: flipped triangles.
+        let mut flipped = good.clone();
+        flipped[5 * 12 + 5] = [7.5 / 11.0, 5.0 / 8.0];
+        let a = try_uv(&flipped);
+        assert_eq!(a.source, ChartSource::Arap);
+        assert!(a.uv_note().is_some_and(|n| n.contains("flipped")), "{:?}", a.uv_note());
+        // Stretched tenfold along one edge column.
+        let stretched: Vec<[f32; 2]> =
+            good.iter().map(|p| [if p[0] > 0.95 { p[0] * 10.0 } else { p[0] }, p[1]]).collect();
+        let a = try_uv(&stretched);
+        assert_eq!(a.source, ChartSource::Arap, "{:?}", a.uv_note());
+        // Two halves whose islands overlap in UV (the right half laid over the left).
+        let (nx, ny) = (12usize, 9usize);
+        let mut uv = good.clone();
+        let mut uvf: Vec<Vec<u32>> = faces.clone();
+        for (f, face) in faces.iter().enumerate() {
+            if f % (nx - 1) >= 6 {
+                uvf[f] = face.iter().map(|&v| v + (nx * ny) as u32).collect();
+            }
+        }
+        uv.extend(good.iter().map(|p| [p[0] - 5.5 / 11.0, p[1]]));
+        let a = Atlas::build(&AtlasInput { faces: &faces, rest: &rest, uv: Some((&uv, &uvf)) }).unwrap();
+        assert_eq!(a.source, ChartSource::Arap);
+        assert!(a.uv_note().is_some_and(|n| n.contains("overlap")), "{:?}", a.uv_note());
+        // The same halves side by side are two charts.
+        let uv2: Vec<[f32; 2]> =
+            good.iter().copied().chain(good.iter().map(|p| [p[0] + 0.5, p[1]])).collect();
+        let a = Atlas::build(&AtlasInput { faces: &faces, rest: &rest, uv: Some((&uv2, &uvf)) }).unwrap();
+        assert_eq!((a.source, a.charts), (ChartSource::Uv, 2), "{:?}", a.uv_note());
+        check_layout(&a, &faces, 2);
+    }
+
+    /// Time and shape of a large tube (run by hand: `cargo test --lib atlas -- --ignored`).
+    #[test]
+    #[ignore]
+    fn large_tube_timing() {
+        let (around, along) = (256usize, 200usize);
+        let rest: Vec<[f32; 3]> = (0..along)
+            .flat_map(|j| (0..around).map(move |i| (i, j)))
+            .map(|(i, j)| {
+                let t = std::f32::consts::TAU * i as f32 / around as f32;
+                [0.5 * t.cos(), 0.5 * t.sin() + 0.02 * (j as f32 * 0.3).sin(), 0.0123 * j as f32]
+            })
+            .collect();
+        let faces = quads(around, along - 1, |i, j| (j * around + i % around) as u32);
+        let t0 = std::time::Instant::now();
+        let a = build(&faces, &rest);
+        eprintln!(
+            "large tube: built in {:?}, edge error {:.2e}",
+            t0.elapsed(),
+            edge_error(&a, &faces, &rest)
+        );
+        pixels_per_vertex("large tube", &a, &rest);
+        let t0 = std::time::Instant::now();
+        image(&a, &rest);
+        eprintln!("image in {:?}", t0.elapsed());
     }
 }

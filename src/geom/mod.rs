@@ -4,6 +4,7 @@
 pub mod anisotropy;
 mod arap;
 pub mod atlas;
+mod charts;
 pub mod cloth_frame;
 pub mod geometry_image;
 pub mod laplacian;
