@@ -40,7 +40,7 @@ const ARAP_ABS_TOL: f64 = 1e-10;
 
 /// Most flipped triangles an ARAP chart may have (fraction of its triangles): a few flips in a
 /// strongly curved piece only blur the image there; more means the flattening failed.
-pub(crate) const FLIP_MAX_FRACTION: f64 = 0.01;
+const FLIP_MAX_FRACTION: f64 = 0.01;
 
 /// Shortest paths over the chart's edges, lengths on the rest mesh (m), from `sources` until
 /// `stop(v)` holds for a settled vertex: that vertex and the path to it (source first), or the
@@ -220,19 +220,21 @@ fn tutte(chart: &mut Chart, edges: &[Edge], boundary: &[u32], rest: &[[f32; 3]],
         .collect();
     let perimeter: f64 = lens.iter().sum();
     let radius = if perimeter > 0.0 { perimeter / std::f64::consts::TAU } else { 1.0 };
-    let mut row = vec![usize::MAX; n];
     let mut pos = vec![[0.0f64; 2]; n];
+    let mut on_boundary = vec![false; n];
     let mut arc = 0.0;
     for (i, &v) in boundary.iter().enumerate() {
         let frac = if perimeter > 0.0 { arc / perimeter } else { i as f64 / boundary.len() as f64 };
         let ang = std::f64::consts::TAU * frac;
         pos[v as usize] = [radius * ang.cos(), radius * ang.sin()];
-        row[v as usize] = usize::MAX - 1;
+        on_boundary[v as usize] = true;
         arc += lens[i];
     }
+    // Interior vertices, numbered in order: the rows of the uniform Laplacian.
+    let mut row: Vec<Option<usize>> = vec![None; n];
     let mut m = 0;
-    for r in row.iter_mut().filter(|r| **r == usize::MAX) {
-        *r = m;
+    for (r, _) in row.iter_mut().zip(&on_boundary).filter(|(_, b)| !**b) {
+        *r = Some(m);
         m += 1;
     }
     if m > 0 {
@@ -241,22 +243,21 @@ fn tutte(chart: &mut Chart, edges: &[Edge], boundary: &[u32], rest: &[[f32; 3]],
         for (i, _) in edge_runs(edges) {
             let (a, b) = (edges[i].a as usize, edges[i].b as usize);
             for (p, q) in [(a, b), (b, a)] {
-                if row[p] >= m {
-                    continue;
-                }
-                trip.push(Triplet::new(row[p], row[p], 1.0));
-                if row[q] < m {
-                    trip.push(Triplet::new(row[p], row[q], -1.0));
-                } else {
-                    rhs[(row[p], 0)] += pos[q][0];
-                    rhs[(row[p], 1)] += pos[q][1];
+                let Some(rp) = row[p] else { continue };
+                trip.push(Triplet::new(rp, rp, 1.0));
+                match row[q] {
+                    Some(rq) => trip.push(Triplet::new(rp, rq, -1.0)),
+                    None => {
+                        rhs[(rp, 0)] += pos[q][0];
+                        rhs[(rp, 1)] += pos[q][1];
+                    }
                 }
             }
         }
         factor(m, &trip, name)?.solve_in_place(rhs.as_mut());
-        for v in 0..n {
-            if row[v] < m {
-                pos[v] = [rhs[(row[v], 0)], rhs[(row[v], 1)]];
+        for (p, r) in pos.iter_mut().zip(&row) {
+            if let Some(r) = *r {
+                *p = [rhs[(r, 0)], rhs[(r, 1)]];
             }
         }
     }
@@ -385,7 +386,7 @@ fn arap(chart: &mut Chart, rest: &[[f32; 3]], name: &str) -> Result<usize> {
     Ok(iters)
 }
 
-/// Flattens one piece (a chart straight from [`pieces`]) in metres: cut to a disk, oriented,
+/// Flattens one piece (a chart straight from [`super::charts::pieces`]) in metres: cut to a disk, oriented,
 /// Tutte then ARAP. Triangles keep the winding most of the piece's faces have, and that winding
 /// has the sign `winding_sign` of [`orient2`] in the chart's (column, row) axes. `name` names
 /// the piece in errors.

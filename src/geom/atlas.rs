@@ -9,15 +9,19 @@
 //! `[c, r]` — the convention of the align-corners resampling the nets use.
 //!
 //! Pieces are the edge-connected parts of the mesh (two parts touching at one vertex are two
-//! pieces); ARAP and the helpers it shares with the UV path live in [`super::arap`]. Charts are
-//! turned so a face wound as [`super::mesh::GridMesh::quads`] winds the way a grid's face does
-//! in its image, and, the same layout from the same mesh, every time (no hash order anywhere).
+//! pieces). [`super::charts`] finds them and the UV islands and judges the UVs (a UV island is
+//! used through the linear map that best matches its lengths to the rest mesh, so a layout
+//! squeezed into the unit square still has one texel per LR edge); [`super::arap`] flattens a
+//! piece without usable UVs. Charts are turned so a face wound as
+//! [`super::mesh::GridMesh::quads`] winds the way a grid's face does in its image; the same
+//! mesh gives the same layout, bit for bit (no hash order anywhere).
 
 use super::arap;
 use super::charts::{self, area3, bary, bbox, corners, orient2, orient2_of, p3, turn, Chart};
 use super::layout::MAX_LR_VERTICES;
 use super::vec3::{norm, sub};
 use crate::error::{Error, Result};
+
 /// Empty pixels between two charts' boxes: room for the extrapolated rings of both, so a 3×3
 /// convolution near one chart's border sees that chart continued, not its neighbour.
 pub const GAP: usize = 6;
@@ -442,9 +446,9 @@ fn extrapolation(h: usize, w: usize, covered: &[bool]) -> (Vec<u32>, Vec<u32>, V
         let first = src.len();
         let mut terms = 0usize;
         for &(dr, dc) in &NEIGHBOURS {
-            let Some(n) = at(r, c, dr, dc, 1).filter(|&n| dist[n] + 1 == d) else { continue };
+            let Some(n) = at(r, c, dr, dc, 1).filter(|&n| dist[n] == d - 1) else { continue };
             terms += 1;
-            let far = at(r, c, dr, dc, 2).filter(|&m| dist[m] == 0 || dist[m] + 1 < d);
+            let far = at(r, c, dr, dc, 2).filter(|&m| dist[m] == 0 || dist[m] < d - 1);
             match far {
                 Some(m) if d <= LINEAR_RINGS => {
                     src.extend([n as u32, m as u32]);

@@ -432,7 +432,7 @@ pub(crate) fn uv_charts(
         if let Some(t) = (0..a3.len()).find(|&t| bad(t)) {
             return Err(format!("{name}: face {}'s UVs are flipped or degenerate", c.origin[t].face));
         }
-        let a = uv_metric(&p3s, c).ok_or_else(|| format!("{name}: its UVs have no consistent metric"))?;
+        let a = uv_metric(c, rest).ok_or_else(|| format!("{name}: its UVs have no consistent metric"))?;
         let stretched: f64 = (0..a3.len())
             .filter(|&t| {
                 let q = corners(c, t).map(|p| apply(a, p));
@@ -464,45 +464,60 @@ fn apply(m: [[f64; 2]; 2], p: [f64; 2]) -> [f64; 2] {
     [m[0][0] * p[0] + m[0][1] * p[1], m[1][0] * p[0] + m[1][1] * p[1]]
 }
 
-/// The linear map (2×2, metres per UV unit) that best turns the island's UVs into lengths on
-/// the rest mesh: the square root of the 3D metric pulled back to UV, averaged over the island
-/// by UV area. A layout squeezed into the unit square (a 11 × 8 sheet at u = i/11, v = j/8) is
-/// made isometric again; `None` when that metric is not positive definite.
-fn uv_metric(p3s: &[[[f64; 3]; 3]], c: &Chart) -> Option<[[f64; 2]; 2]> {
-    let mut g = [[0.0f64; 2]; 2];
-    for (t, p) in p3s.iter().enumerate() {
-        let q = corners(c, t);
-        let u = [[q[1][0] - q[0][0], q[2][0] - q[0][0]], [q[1][1] - q[0][1], q[2][1] - q[0][1]]];
-        let det = u[0][0] * u[1][1] - u[0][1] * u[1][0];
-        if det == 0.0 {
+/// The linear map (2×2 rows, metres per UV unit) that best turns the island's UVs into lengths
+/// on the rest mesh: the square root of the metric G (2×2 symmetric) whose lengths dᵀ·G·d of
+/// the UV edges d best match the squared rest lengths L², in relative least squares (a sliver
+/// UV triangle weighs no more than its three edges). A layout squeezed into the unit square (a
+/// 11 × 8 sheet at u = i/11, v = j/8) is made isometric again; `None` when G is not positive
+/// definite.
+fn uv_metric(c: &Chart, rest: &[[f32; 3]]) -> Option<[[f64; 2]; 2]> {
+    // Normal equations of rows [d0², 2·d0·d1, d1²] / L² · (g00, g01, g11) = 1.
+    let (mut m, mut b) = ([[0.0f64; 3]; 3], [0.0f64; 3]);
+    let e = edges(&c.tris);
+    for (i, _) in edge_runs(&e) {
+        let (va, vb) = (e[i].a as usize, e[i].b as usize);
+        let l2 = {
+            let l = norm(sub(p3(rest, c.vert[va]), p3(rest, c.vert[vb])));
+            l * l
+        };
+        if l2 <= 0.0 {
             continue;
         }
-        let (e1, e2) = (sub(p[1], p[0]), sub(p[2], p[0]));
-        let gram = [[dot(e1, e1), dot(e1, e2)], [dot(e1, e2), dot(e2, e2)]];
-        let inv = [[u[1][1] / det, -u[0][1] / det], [-u[1][0] / det, u[0][0] / det]];
-        // U⁻ᵀ · Gram · U⁻¹, weighted by the triangle's UV area |det| / 2.
-        for (r, gr) in g.iter_mut().enumerate() {
-            for (cc, gc) in gr.iter_mut().enumerate() {
-                let mut acc = 0.0;
-                for i in 0..2 {
-                    for j in 0..2 {
-                        acc += inv[i][r] * gram[i][j] * inv[j][cc];
-                    }
-                }
-                *gc += 0.5 * det.abs() * acc;
+        let d = [c.pos[va][0] - c.pos[vb][0], c.pos[va][1] - c.pos[vb][1]];
+        let row = [d[0] * d[0] / l2, 2.0 * d[0] * d[1] / l2, d[1] * d[1] / l2];
+        for (mr, rr) in m.iter_mut().zip(row) {
+            for (mrc, rc) in mr.iter_mut().zip(row) {
+                *mrc += rr * rc;
             }
         }
+        b.iter_mut().zip(row).for_each(|(bk, rk)| *bk += rk);
     }
-    let det = g[0][0] * g[1][1] - g[0][1] * g[1][0];
-    if !(det > 0.0 && g[0][0] > 0.0 && det.is_finite()) {
+    let [g00, g01, g11] = solve3(m, b)?;
+    let det = g00 * g11 - g01 * g01;
+    if !(det > 0.0 && g00 > 0.0 && det.is_finite()) {
         return None;
     }
-    // The symmetric square root of a 2×2 SPD matrix: (G + √det I) / √(tr G + 2√det).
-    let (sd, tr) = (det.sqrt(), g[0][0] + g[1][1]);
-    let k = 1.0 / (tr + 2.0 * sd).sqrt();
-    let area: f64 = (0..c.tris.len()).map(|t| 0.5 * orient2_of(&corners(c, t)).abs()).sum();
-    let n = 1.0 / area.sqrt();
-    Some([[(g[0][0] + sd) * k * n, g[0][1] * k * n], [g[1][0] * k * n, (g[1][1] + sd) * k * n]])
+    // The symmetric square root of a 2×2 SPD matrix: (G + √det·I) / √(tr G + 2√det).
+    let sd = det.sqrt();
+    let k = 1.0 / (g00 + g11 + 2.0 * sd).sqrt();
+    Some([[(g00 + sd) * k, g01 * k], [g01 * k, (g11 + sd) * k]])
+}
+
+/// `m⁻¹ · b` for a 3×3 matrix (Cramer's rule), or `None` when `m` is singular.
+fn solve3(m: [[f64; 3]; 3], b: [f64; 3]) -> Option<[f64; 3]> {
+    let det3 = |a: [[f64; 3]; 3]| {
+        a[0][0] * (a[1][1] * a[2][2] - a[1][2] * a[2][1]) - a[0][1] * (a[1][0] * a[2][2] - a[1][2] * a[2][0])
+            + a[0][2] * (a[1][0] * a[2][1] - a[1][1] * a[2][0])
+    };
+    let d = det3(m);
+    if d == 0.0 || !d.is_finite() {
+        return None;
+    }
+    Some(std::array::from_fn(|k| {
+        let mut mk = m;
+        (0..3).for_each(|r| mk[r][k] = b[r]);
+        det3(mk) / d
+    }))
 }
 
 /// Two UV islands that overlap, if any: where the boxes of islands meet, the islands are drawn
