@@ -2,7 +2,9 @@
 //! and the 3-vector helpers ([`vec3`]) everything geometric shares.
 
 pub mod anisotropy;
+mod arap;
 pub mod atlas;
+mod charts;
 pub mod cloth_frame;
 pub mod geometry_image;
 pub mod laplacian;
