@@ -193,11 +193,11 @@ fn a_point_cache_of_a_mesh_gives_the_obj_sequences_vertices() {
 fn meshes_that_are_not_cloth_surfaces_and_grid_only_options_are_refused() {
     let dir = TempDir::new("any-mesh-refused");
     let m = meshes::t_shape(9, 9, 3);
-    // An edge in three faces.
+    // An edge in three faces: a fin on an edge between two cells.
     let mut fin = m.clone();
     let f0 = fin.faces[0].clone();
     fin.pos.push([0.0, 0.0, 0.3]);
-    fin.faces.push(vec![f0[0], f0[1], (fin.pos.len() - 1) as u32]);
+    fin.faces.push(vec![f0[1], f0[2], (fin.pos.len() - 1) as u32]);
     let input = write_frames(&dir.path().join("fin"), &[fin]);
     let e = run(UpscaleJob::new(vec![input], dir.join("o1"))).unwrap_err().to_string();
     assert!(e.contains("shared by 3 faces") && e.contains("f_0000.obj"), "{e}");

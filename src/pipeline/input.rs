@@ -707,6 +707,12 @@ fn lay_out(m: &ObjMesh, rest: &[[f32; 3]], file: &Path, messages: &mut Vec<Strin
         .then_some((m.uv.as_slice(), m.face_uv.as_slice()));
     let layout = MeshLayout::new(surface, rest, uv).map_err(|e| e.in_file(file))?;
     let a = &layout.atlas;
+    if let Some(why) = a.uv_note() {
+        messages.push(format!(
+            "note: {}: its UVs are not used to lay it out ({why}); flattened by ARAP instead",
+            file.display()
+        ));
+    }
     messages.push(format!(
         "note: {}: a mesh of {} vertices and {} faces, not a regular grid: laid out as {} chart(s) \
          ({}) in a {}x{} geometry image at {:.1} mm a pixel (its mean edge length); the output is \

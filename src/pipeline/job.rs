@@ -646,7 +646,8 @@ fn open_outputs(
         ("npy", _) => out.geometry = Some(NpyWriter::create(&plan.npy("geometry"), &[n, 3, hh, hw])?),
         (_, Some(c)) => {
             let path = job.out.join(plan.cache_name.as_deref().unwrap_or("cache"));
-            let mut header = CacheHeader::new(c.header.format, hw * hh, n, 1.0);
+            let points = shot.mesh().map_or(hw * hh, |(m, _)| m.sub.hr_vertices());
+            let mut header = CacheHeader::new(c.header.format, points, n, 1.0);
             // The slice's timing: PC2 start frame and sampling, MDD per-frame times.
             header.sample_rate = c.header.sample_rate;
             header.start_frame = c.header.start_frame + plan.range.start as f32 * c.header.sample_rate;
