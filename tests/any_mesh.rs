@@ -218,3 +218,44 @@ fn meshes_that_are_not_cloth_surfaces_and_grid_only_options_are_refused() {
     let e = run(job).unwrap_err().to_string();
     assert!(e.contains("write OBJ frames or a point cache"), "{e}");
 }
+
+#[test]
+fn eval_meshes_matches_an_hr_run_in_any_vertex_order_and_scores_it() {
+    use anisocb::eval::mesh::{evaluate_mesh_run, MeshRun};
+    let dir = TempDir::new("any-mesh-eval");
+    let m = meshes::skirt(16, 5);
+    let frames = [m.clone(), m.rippled(0.01, 0.3), m.rippled(0.02, 0.6)];
+    // The HR run: the LR frames subdivided, with its vertices in another order (reversed).
+    let sub = Subdivision::of(m.pos.len(), &m.faces);
+    let n = sub.hr_vertices() as u32;
+    let hr: Vec<Mesh> = frames
+        .iter()
+        .map(|f| {
+            let p = sub.apply(&f.pos);
+            Mesh {
+                pos: p.iter().rev().copied().collect(),
+                faces: sub.faces.iter().map(|f| f.iter().map(|v| n - 1 - v).collect()).collect(),
+                uv: None,
+                tags: Vec::new(),
+                normals: false,
+            }
+        })
+        .collect();
+    write_frames(&dir.path().join("run"), &frames);
+    std::fs::rename(dir.join("run/in"), dir.join("run/lr")).unwrap();
+    write_frames(&dir.path().join("run"), &hr);
+    std::fs::rename(dir.join("run/in"), dir.join("run/hr")).unwrap();
+    let run = MeshRun::read(&dir.join("run")).unwrap();
+    let e = evaluate_mesh_run(&Cpu, &embedded_model().unwrap(), &Default::default(), &run).unwrap();
+    let by = |name: &str| e.scores.iter().find(|s| s.method == name).unwrap();
+    // The truth is the linear subdivision: it scores 0 against it, and has no detail.
+    assert!(by("linear subdivision").rmse < 1e-6, "{:?}", by("linear subdivision"));
+    assert!(by("HR run (truth)").detail < 1e-6);
+    assert!(by("anisocb").rmse > 0.0 && by("Catmull-Clark").rmse > 0.0);
+    // An HR run that is not the LR mesh subdivided is refused.
+    std::fs::remove_dir_all(dir.join("run/hr")).unwrap();
+    write_frames(&dir.path().join("run"), &frames);
+    std::fs::rename(dir.join("run/in"), dir.join("run/hr")).unwrap();
+    let err = MeshRun::read(&dir.join("run")).err().unwrap().to_string();
+    assert!(err.contains("subdivided once"), "{err}");
+}

@@ -177,7 +177,7 @@ fn sphere_prop_renders_as_a_disc_and_hides_cloth_behind_it() {
     let s = sphere_mesh([0.0, 0.0, 0.0], 0.5, 32);
     let view = View { azimuth_deg: 0.0, elevation_deg: 0.0, fov_deg: 0.0, margin: 0.1 };
     let cam = Camera::fit_meshes(&view, &[&s], 100, 100).unwrap();
-    let red = Layer { mesh: &s, colors: None, tint: Some([1.0, 0.0, 0.0]) };
+    let red = Layer { tris: None, mesh: &s, colors: None, tint: Some([1.0, 0.0, 0.0]) };
     let img = render_layers(&[red], &cam, &Shading::default()).unwrap();
     let cover = cloth_pixels(&img) as f32 / 1e4;
     let want = std::f32::consts::PI * 0.4 * 0.4;
@@ -187,14 +187,14 @@ fn sphere_prop_renders_as_a_disc_and_hides_cloth_behind_it() {
     for p in &mut sheet.pos {
         *p = [p[0] - 0.5, p[1] - 0.5, -0.6];
     }
-    let blue = Layer { mesh: &sheet, colors: None, tint: Some([0.0, 0.0, 1.0]) };
+    let blue = Layer { tris: None, mesh: &sheet, colors: None, tint: Some([0.0, 0.0, 1.0]) };
     let img = render_layers(&[blue, red], &cam, &Shading::default()).unwrap();
     let c = img.get(50, 50);
     assert!(c[0] > c[2], "sphere in front: {c:?}");
     for p in &mut sheet.pos {
         p[2] = 0.6;
     }
-    let blue = Layer { mesh: &sheet, colors: None, tint: Some([0.0, 0.0, 1.0]) };
+    let blue = Layer { tris: None, mesh: &sheet, colors: None, tint: Some([0.0, 0.0, 1.0]) };
     let img = render_layers(&[red, blue], &cam, &Shading::default()).unwrap();
     let c = img.get(50, 50);
     assert!(c[2] > c[0], "sheet in front: {c:?}");

@@ -13,7 +13,7 @@ use crate::cloth::run_io::read_pair;
 use crate::error::Result;
 use crate::eval::invariance::invariance_markdown;
 use crate::eval::linear::LinearUpsampler;
-use crate::eval::mesh::{evaluate_mesh_run, mesh_markdown, MeshRun, MeshScores};
+use crate::eval::mesh::{evaluate_mesh_run, mesh_markdown, triangles, MeshRun, MeshRunEval, MeshScores};
 use crate::eval::methods::{default_method, evaluate_run, Contenders, EvalOptions, Method, RunEval, PHYSICS};
 use crate::eval::metrics::vertex_errors;
 use crate::eval::report::{cells_json, results_document, Cell};
@@ -123,7 +123,9 @@ pub fn run(a: Args) -> Result<()> {
         let pb = progress(a.meshes.len() as u64, "eval meshes");
         for dir in &a.meshes {
             let run = MeshRun::read(dir)?;
-            rows.push((run.name.clone(), evaluate_mesh_run(ops.as_ref(), &model, &params, &run)?));
+            let e = evaluate_mesh_run(ops.as_ref(), &model, &params, &run)?;
+            write_mesh_pictures(&a.out, &run, &e)?;
+            rows.push((run.name.clone(), e.scores));
             pb.inc(1);
         }
         pb.finish_and_clear();
@@ -131,6 +133,11 @@ pub fn run(a: Args) -> Result<()> {
         write_atomic_bytes(&a.out.join("meshes.md"), md.as_bytes())?;
         write_json(&a.out.join("meshes.json"), &mesh_json(&rows), Layout::Rows)?;
         println!("{md}");
+        println!(
+            "wrote {}/: meshes.md, meshes.json, <run>-meshes.png (LR | the subdivisions | anisocb | HR run, \
+             middle and last frame, the collider in grey; the second picture shaded by normals)",
+            a.out.display()
+        );
         if a.runs.is_empty() {
             return Ok(());
         }
@@ -176,6 +183,48 @@ pub fn run(a: Args) -> Result<()> {
         if a.flipbook { ", <scenario>-flipbook.png (animated close-up)" } else { "" }
     );
     Ok(())
+}
+
+/// `<run>-meshes.png`: for the middle and the last frame, the LR frame and every method's HR
+/// frame side by side (one camera for all), the collider in grey; below, the same shaded by
+/// normals, where folds and faceting show.
+fn write_mesh_pictures(out: &Path, run: &MeshRun, e: &MeshRunEval) -> Result<()> {
+    use crate::viz::render::{render_layers, Camera, Layer, PROP_TINT};
+    let t = run.lr.frames.len();
+    let (lr_tris, hr_tris) = (triangles(&run.lr.faces), triangles(&e.hr_faces));
+    let col_tris = run.collider.as_ref().map(|c| triangles(&c.faces));
+    let one_row = |p: &[[f32; 3]]| GridMesh::new(p.len(), 1, p.to_vec());
+    let view = View::default();
+    let mut rows = Vec::new();
+    for look in [Shading::default(), Shading::normals(1.5)] {
+        for f in [t / 2, t - 1] {
+            let mut all: Vec<[f32; 3]> = run.lr.frames[f].clone();
+            for (_, m) in &e.frames {
+                all.extend_from_slice(&m[f]);
+            }
+            let (lo, hi) = crate::geom::mesh::bounds(&all);
+            let cam = Camera::fit(&view, lo, hi, 320, 320)?;
+            let prop = run.collider.as_ref().map(|c| one_row(&c.frames[f.min(c.frames.len() - 1)]));
+            let mut tiles = Vec::new();
+            let mut tile = |pos: &[[f32; 3]], tris: &[[usize; 3]], label: &str| -> Result<()> {
+                let m = one_row(pos);
+                let mut layers = vec![Layer { tris: Some(tris), mesh: &m, colors: None, tint: None }];
+                if let (Some(p), Some(ct)) = (&prop, &col_tris) {
+                    layers.push(Layer { tris: Some(ct), mesh: p, colors: None, tint: Some(PROP_TINT) });
+                }
+                let mut pic = render_layers(&layers, &cam, &look)?;
+                pic.label(&format!("{label}, frame {f}"), 1);
+                tiles.push(pic);
+                Ok(())
+            };
+            tile(&run.lr.frames[f], &lr_tris, "LR")?;
+            for (name, m) in &e.frames {
+                tile(&m[f], &hr_tris, name)?;
+            }
+            rows.push(crate::viz::image::hstack(&tiles, 6, [255; 3]));
+        }
+    }
+    save_png(&out.join(format!("{}-meshes.png", run.name)), &vstack(&rows, 6, [255; 3]))
 }
 
 /// The mesh runs' scores as JSON rows (metres, degrees, shares).

@@ -310,32 +310,49 @@ pub fn point_triangle_distance(p: [f32; 3], t: [[f32; 3]; 3]) -> f32 {
     at(std::array::from_fn(|k| a[k] + ab[k] * v + ac[k] * w))
 }
 
-/// Every method on `run`: the linear and smooth subdivisions and anisocb (`model`, `params`).
+/// What [`evaluate_mesh_run`] gives: each method's scores and frames (HR numbering), and the
+/// HR faces they share.
+pub struct MeshRunEval {
+    pub scores: Vec<MeshScores>,
+    pub frames: Vec<(String, Vec<Vec<[f32; 3]>>)>,
+    pub hr_faces: Vec<Vec<u32>>,
+}
+
+/// Every method on `run`: the linear and smooth subdivisions and anisocb (`model`, `params`),
+/// and the truth scored against itself (its detail and flicker are the yardsticks).
 pub fn evaluate_mesh_run(
     ops: &dyn Ops,
     model: &AnisoCb,
     params: &UpscaleParams,
     run: &MeshRun,
-) -> Result<Vec<MeshScores>> {
+) -> Result<MeshRunEval> {
     let path = PathBuf::from(&run.name);
     let surface = Surface::new(run.lr.frames[0].len(), run.lr.faces.clone(), &path)?;
     let uv = (!run.first.uv.is_empty() && run.first.face_uv.iter().all(|t| !t.is_empty()))
         .then_some((run.first.uv.as_slice(), run.first.face_uv.as_slice()));
     let layout = MeshLayout::new(surface, &run.lr.frames[0], uv)?;
     let sub = &layout.sub;
-    let linear: Vec<Vec<[f32; 3]>> = run.lr.frames.iter().map(|f| sub.apply(f)).collect();
-    let mut out = vec![score("linear subdivision", &linear, run, sub)];
+    let mut frames: Vec<(String, Vec<Vec<[f32; 3]>>)> =
+        vec![("linear subdivision".to_string(), run.lr.frames.iter().map(|f| sub.apply(f)).collect())];
     let smooth: Option<Vec<Vec<[f32; 3]>>> =
         run.lr.frames.iter().map(|f| sub.apply_smooth(&run.lr.faces, f)).collect();
     if let Some(s) = smooth {
         let name =
             if run.lr.faces.iter().all(|f| f.len() == 3) { "Loop subdivision" } else { "Catmull-Clark" };
-        out.push(score(name, &s, run, sub));
+        frames.push((name.to_string(), s));
     }
-    let ours = upscale_mesh_frames(ops, model, &layout, &run.lr.frames, params)?;
-    out.push(score("anisocb", &ours, run, sub));
-    out.push(score("HR run (truth)", &run.hr, run, sub));
-    Ok(out)
+    frames.push(("anisocb".to_string(), upscale_mesh_frames(ops, model, &layout, &run.lr.frames, params)?));
+    frames.push(("HR run (truth)".to_string(), run.hr.clone()));
+    let scores = frames.iter().map(|(name, f)| score(name, f, run, sub)).collect();
+    Ok(MeshRunEval { scores, frames, hr_faces: sub.faces.clone() })
+}
+
+/// Triangles of faces of 3 or 4 vertices (a quad by 0-1-2, 0-2-3), for drawing.
+pub fn triangles(faces: &[Vec<u32>]) -> Vec<[usize; 3]> {
+    faces
+        .iter()
+        .flat_map(|f| (1..f.len() - 1).map(move |k| [f[0] as usize, f[k] as usize, f[k + 1] as usize]))
+        .collect()
 }
 
 /// The markdown table of the runs' scores.

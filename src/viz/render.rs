@@ -258,7 +258,10 @@ fn to_srgb8(c: f32) -> u8 {
 /// sphere drawn in a flat `tint`.
 #[derive(Clone, Copy, Debug)]
 pub struct Layer<'a> {
+    /// The vertices (a grid's; any other mesh as a one-row "grid" of its vertices, with `tris`).
     pub mesh: &'a GridMesh,
+    /// The triangles to draw, for a mesh that is not a grid (`None`: the grid's own).
+    pub tris: Option<&'a [[usize; 3]]>,
     pub colors: Option<ScalarColors<'a>>,
     /// sRGB colour for both sides instead of the cloth colours (props).
     pub tint: Option<V3>,
@@ -271,7 +274,7 @@ pub fn render_mesh(
     shade: &Shading,
     colors: Option<ScalarColors<'_>>,
 ) -> Result<Rgb8> {
-    render_layers(&[Layer { mesh, colors, tint: None }], cam, shade)
+    render_layers(&[Layer { tris: None, mesh, colors, tint: None }], cam, shade)
 }
 
 /// [`render_mesh`] without per-vertex colours, shaded with the given unit per-vertex
@@ -282,7 +285,7 @@ pub fn render_mesh_with_normals(
     cam: &Camera,
     shade: &Shading,
 ) -> Result<Rgb8> {
-    rasterize(&[Layer { mesh, colors: None, tint: None }], &[normals], cam, shade)
+    rasterize(&[Layer { tris: None, mesh, colors: None, tint: None }], &[normals], cam, shade)
 }
 
 /// Renders several meshes into one z-buffer (cloth and props), as seen by `cam`.
@@ -325,7 +328,14 @@ fn rasterize(layers: &[Layer<'_>], normals: &[&[V3]], cam: &Camera, shade: &Shad
     }
     for (li, layer) in layers.iter().enumerate() {
         let (mesh, colors) = (layer.mesh, layer.colors);
-        let normals = normals.get(li).map_or_else(|| vertex_normals(mesh), |n| n.to_vec());
+        let tris = layer.tris.map_or_else(|| mesh.triangles(), <[[usize; 3]]>::to_vec);
+        let normals = normals.get(li).map_or_else(
+            || match layer.tris {
+                Some(t) => triangle_normals(&mesh.pos, t),
+                None => vertex_normals(mesh),
+            },
+            |n| n.to_vec(),
+        );
         let scr: Vec<(f32, f32, f32)> = mesh.pos.iter().map(|&p| cam_s.project(p)).collect();
         // Vertex normals in camera space.
         let ncam: Vec<V3> =
@@ -342,8 +352,7 @@ fn rasterize(layers: &[Layer<'_>], normals: &[&[V3]], cam: &Camera, shade: &Shad
         };
         let key = normalize(shade.key_dir);
         let half = normalize([key[0], key[1], key[2] + 1.0]);
-        for t in mesh.triangles() {
-            let [a, b, c] = t;
+        for &[a, b, c] in &tris {
             let (p0, p1, p2) = (scr[a], scr[b], scr[c]);
             let area = (p1.0 - p0.0) * (p2.1 - p0.1) - (p2.0 - p0.0) * (p1.1 - p0.1);
             if area.abs() < 1e-12 || !area.is_finite() {
@@ -414,6 +423,21 @@ fn rasterize(layers: &[Layer<'_>], normals: &[&[V3]], cam: &Camera, shade: &Shad
     Ok(out)
 }
 
+/// Area-weighted unit vertex normals of the triangles `tris` over `pos` ((0, 0, 1) for a vertex
+/// in none).
+pub fn triangle_normals(pos: &[V3], tris: &[[usize; 3]]) -> Vec<V3> {
+    let mut n = vec![[0.0f32; 3]; pos.len()];
+    for &[a, b, c] in tris {
+        let f = cross(sub(pos[b], pos[a]), sub(pos[c], pos[a]));
+        for v in [a, b, c] {
+            for k in 0..3 {
+                n[v][k] += f[k];
+            }
+        }
+    }
+    n.into_iter().map(|v| crate::geom::vec3::normalize_or(v, [0.0, 0.0, 1.0])).collect()
+}
+
 /// A UV sphere as a grid mesh (`2·segments + 1` columns around, `segments + 1` rows from pole
 /// to pole; seam and poles duplicated), e.g. a collision sphere to draw beside the cloth.
 /// `center`, `radius` in metres.
@@ -473,8 +497,13 @@ pub fn render_row_with_props(
     let scale = if tile_h >= 256 { 2 } else { 1 };
     let mut pics = Vec::with_capacity(tiles.len());
     for t in tiles {
-        let mut layers = vec![Layer { mesh: t.mesh, colors: t.colors, tint: None }];
-        layers.extend(props.iter().map(|m| Layer { mesh: m, colors: None, tint: Some(PROP_TINT) }));
+        let mut layers = vec![Layer { tris: None, mesh: t.mesh, colors: t.colors, tint: None }];
+        layers.extend(props.iter().map(|m| Layer {
+            tris: None,
+            mesh: m,
+            colors: None,
+            tint: Some(PROP_TINT),
+        }));
         let mut p = render_layers(&layers, &cam, shade)?;
         if !t.label.is_empty() {
             p.label(t.label, scale);
