@@ -207,22 +207,29 @@ fn validate(input: &AtlasInput) -> Result<()> {
     for (f, face) in input.faces.iter().enumerate() {
         if !(3..=4).contains(&face.len()) {
             return Err(Error::shape(format!(
-                "any-mesh layout: face {f} (counting from 0) has {} vertices; only triangles and quads are laid out",
+                "any-mesh layout: face {} has {} vertices; only triangles and quads are laid out",
+                f + 1,
                 face.len()
             )));
         }
         for (k, &v) in face.iter().enumerate() {
             let p = input.rest.get(v as usize).ok_or_else(|| {
                 Error::shape(format!(
-                    "any-mesh layout: face {f} names vertex {v}, but the mesh has {}",
+                    "any-mesh layout: face {} names vertex {}, but the mesh has {}",
+                    f + 1,
+                    v + 1,
                     input.rest.len()
                 ))
             })?;
             if face[..k].contains(&v) {
-                return Err(Error::shape(format!("any-mesh layout: face {f} names vertex {v} twice")));
+                return Err(Error::shape(format!(
+                    "any-mesh layout: face {} names vertex {} twice",
+                    f + 1,
+                    v + 1
+                )));
             }
             if !p.iter().all(|x| x.is_finite()) {
-                return Err(Error::shape(format!("any-mesh layout: vertex {v} is not finite: {p:?}")));
+                return Err(Error::shape(format!("any-mesh layout: vertex {} is not finite: {p:?}", v + 1)));
             }
         }
     }
@@ -256,7 +263,7 @@ fn arap_charts(input: &AtlasInput, texel: f64) -> Result<Vec<Chart>> {
     let pieces = charts::pieces(faces, rest, |f, k| faces[f][k])?;
     let mut out = Vec::with_capacity(pieces.len());
     for (i, c) in pieces.into_iter().enumerate() {
-        let name = format!("piece {i} (the part with face {}, counting from 0)", c.origin[0].face);
+        let name = format!("piece {} (the part with face {})", i + 1, c.origin[0].face + 1);
         let area: f64 = c
             .tris
             .iter()
@@ -844,7 +851,7 @@ mod tests {
         let e = Atlas::build(&AtlasInput { faces: &faces, rest: &rest2, uv: None })
             .err()
             .expect("collapsed piece");
-        assert!(e.to_string().contains("piece") && e.to_string().contains("face 2"), "{e}");
+        assert!(e.to_string().contains("piece") && e.to_string().contains("face 3)"), "{e}");
         // A zero-area face inside a piece is laid out.
         let (mut faces3, mut rest3) = sheet(5, 5, |i, j| [0.01 * i as f32, 0.01 * j as f32, 0.0]);
         rest3[12] = rest3[13];

@@ -300,11 +300,12 @@ pub(crate) fn pieces<K: Ord>(
     let e = edges(&whole.tris);
     for (i, n) in edge_runs(&e) {
         if n > 2 {
-            let fs: Vec<u32> = e[i..i + n].iter().map(|x| whole.origin[x.t as usize].face).collect();
+            let fs: Vec<u32> = e[i..i + n].iter().map(|x| whole.origin[x.t as usize].face + 1).collect();
             return Err(Error::shape(format!(
-                "the edge between vertices {} and {} is in {n} triangles (of faces {fs:?}, counting from 0): \
+                "the edge between vertices {} and {} is in {n} triangles (of faces {fs:?}): \
                  a quad's diagonal that is also an edge of another face; split that quad into triangles",
-                whole.vert[e[i].a as usize], whole.vert[e[i].b as usize]
+                whole.vert[e[i].a as usize] + 1,
+                whole.vert[e[i].b as usize] + 1
             )));
         }
     }
@@ -389,12 +390,12 @@ pub(crate) fn uv_charts(
     }
     for (f, (face, uvs)) in faces.iter().zip(uvf).enumerate() {
         if uvs.len() != face.len() {
-            return Err(format!("face {f} has {} corners but {} UVs", face.len(), uvs.len()));
+            return Err(format!("face {} has {} corners but {} UVs", f + 1, face.len(), uvs.len()));
         }
         if let Some(&i) =
             uvs.iter().find(|&&i| coords.get(i as usize).is_none_or(|c| !c.iter().all(|x| x.is_finite())))
         {
-            return Err(format!("face {f}'s UV {i} is missing or not finite"));
+            return Err(format!("face {}'s UV {} is missing or not finite", f + 1, i + 1));
         }
     }
     // UV indices with the same coordinates are one UV (exporters that write one per corner).
@@ -417,7 +418,7 @@ pub(crate) fn uv_charts(
                 c.pos[tri[k] as usize] = [uv[0] as f64, uv[1] as f64];
             }
         }
-        let name = format!("UV island {ii} (with face {})", c.origin[0].face);
+        let name = format!("UV island {} (with face {})", ii + 1, c.origin[0].face + 1);
         let p3s: Vec<[[f64; 3]; 3]> =
             c.tris.iter().map(|t| t.map(|v| p3(rest, c.vert[v as usize]))).collect();
         let a3: Vec<f64> = p3s.iter().map(|p| area3(p[0], p[1], p[2])).collect();
@@ -430,7 +431,7 @@ pub(crate) fn uv_charts(
         let (m3, muv) = (a3_sum / a3.len() as f64, auv_sum.abs() / auv.len() as f64);
         let bad = |t: usize| a3[t] > DEGENERATE_REL * m3 && sign * auv[t] <= DEGENERATE_REL * muv;
         if let Some(t) = (0..a3.len()).find(|&t| bad(t)) {
-            return Err(format!("{name}: face {}'s UVs are flipped or degenerate", c.origin[t].face));
+            return Err(format!("{name}: face {}'s UVs are flipped or degenerate", c.origin[t].face + 1));
         }
         let a = uv_metric(c, rest).ok_or_else(|| format!("{name}: its UVs have no consistent metric"))?;
         let stretched: f64 = (0..a3.len())
@@ -451,7 +452,7 @@ pub(crate) fn uv_charts(
         maps.push([[a[0][0] / texel, a[0][1] / texel], [my * a[1][0] / texel, my * a[1][1] / texel]]);
     }
     if let Some((a, b)) = uv_overlap(&islands) {
-        return Err(format!("UV islands {a} and {b} overlap"));
+        return Err(format!("UV islands {} and {} overlap", a + 1, b + 1));
     }
     for (c, m) in islands.iter_mut().zip(&maps) {
         c.pos.iter_mut().for_each(|p| *p = apply(*m, *p));
