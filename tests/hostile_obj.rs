@@ -334,3 +334,62 @@ fn upscale_warns_of_gaps_in_the_frame_numbers() {
     // A shot exported every other frame has no gap.
     assert!(!run(&every_other).contains("missing"));
 }
+
+/// `renumbered_obj` with one UV per vertex (the unnumbered grid's `u = i/(w−1)`,
+/// `v = j/(h−1)`, carried along with its vertex when `s` renumbers it).
+fn renumbered_obj_with_uv(
+    w: usize,
+    h: usize,
+    pos: &[[f32; 3]],
+    s: anisocb::geom::mesh::GridSymmetry,
+) -> String {
+    let src = s.source_index(w, h);
+    let plain = renumbered_obj(w, h, pos, s, "template");
+    let mut text = String::new();
+    for &k in &src {
+        let (i, j) = (k % w, k / w);
+        text += &format!("vt {} {}\n", i as f32 / (w - 1) as f32, j as f32 / (h - 1) as f32);
+    }
+    for line in plain.lines() {
+        match line.strip_prefix("f ") {
+            Some(f) => {
+                let c: Vec<String> = f.split_whitespace().map(|v| format!("{v}/{v}")).collect();
+                text += &format!("f {}\n", c.join(" "));
+            }
+            None => text += &format!("{line}\n"),
+        }
+    }
+    text
+}
+
+#[test]
+fn a_sheet_that_really_turns_180_degrees_with_the_same_uvs_is_not_renumbered() {
+    use anisocb::geom::mesh::GridSymmetry;
+    let [id, _, _, both, ..] = GridSymmetry::all();
+    let d = scratch("really_turns");
+    let (turned, renum) = (d.join("turned"), d.join("renumbered"));
+    for dir in [&turned, &renum] {
+        std::fs::create_dir_all(dir).unwrap();
+    }
+    let p0 = moving_sheet(0);
+    // Frame 1: the sheet turned 180° about the z axis through its middle, vertex by vertex.
+    let p1: Vec<[f32; 3]> = p0.iter().map(|p| [0.6 - p[0], 0.4 - p[1], p[2]]).collect();
+    write(&turned, "frame_0.obj", renumbered_obj_with_uv(7, 5, &p0, id).as_bytes());
+    write(&turned, "frame_1.obj", renumbered_obj_with_uv(7, 5, &p1, id).as_bytes());
+    // The same positions exported renumbered: its UVs moved with the vertices.
+    write(&renum, "frame_0.obj", renumbered_obj_with_uv(7, 5, &p0, id).as_bytes());
+    write(&renum, "frame_1.obj", renumbered_obj_with_uv(7, 5, &p0, both).as_bytes());
+    let s = |p: &Path| p.to_str().unwrap().to_string();
+    for (input, renumbered) in [(&turned, false), (&renum, true)] {
+        let out = d.join(format!("out_{renumbered}"));
+        let o = anisocb(&["upscale", &s(input), "--out", &s(&out)]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(err.contains("vertices numbered differently"), renumbered, "{err}");
+        // Where HR vertex 0 (the corner at LR vertex 0) ends up says which way it was read.
+        let hr = anisocb::geom::obj::read_obj_grid(&out.join("frame_1.obj")).unwrap();
+        let lr0 = if renumbered { p0[0] } else { p1[0] };
+        let d0 = (0..3).map(|k| (hr.pos[0][k] - lr0[k]).powi(2)).sum::<f32>().sqrt();
+        assert!(d0 < 0.05, "renumbered {renumbered}: HR vertex 0 is {d0} m from LR vertex 0");
+    }
+}

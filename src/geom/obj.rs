@@ -413,7 +413,7 @@ pub struct ObjGrid {
 }
 
 /// The file's UVs per grid vertex, or why there are none (see [`ObjGrid::uv`]).
-fn grid_uv(m: &ObjMesh, order: &[u32]) -> (Option<Vec<[f32; 2]>>, Option<String>) {
+pub(crate) fn grid_uv(m: &ObjMesh, order: &[u32]) -> (Option<Vec<[f32; 2]>>, Option<String>) {
     if m.uv.is_empty() {
         return (None, None);
     }

@@ -74,7 +74,10 @@ pub fn list_obj_files(dir: &Path) -> Result<Vec<PathBuf>> {
 /// those of the previous frame keeps the previous frame's numbering unless another symmetry
 /// fits [`CLEARLY_BETTER`] times better; a frame with other faces takes the best fit, and is
 /// refused, naming it, when two symmetries fit about equally (a sheet folded exactly onto
-/// itself). Frames are aligned in order from the first, so reading frame k first aligns the
+/// itself). Where the files have one UV per vertex, the UVs decide first: a frame whose UVs sit
+/// on the same vertices as the frame before's is numbered as it was, however far the cloth
+/// turned (a sheet that really turns 180° between two frames stays itself), and one whose UVs
+/// moved with a symmetry is renumbered by it. Frames are aligned in order from the first, so reading frame k first aligns the
 /// frames before it once (a farm slice reads the shot's earlier frames): every run gives
 /// frame k the same orientation.
 pub struct ObjSequence {
@@ -96,8 +99,9 @@ struct Alignment {
     /// known for frames `0..=last`.
     sym: Vec<Option<GridSymmetry>>,
     last: usize,
-    /// The last aligned frame's positions (first file's order) and its faces.
+    /// The last aligned frame's positions and UVs (first file's order) and its faces.
     last_pos: Vec<[f32; 3]>,
+    last_uv: Option<Vec<[f32; 2]>>,
     last_faces: Vec<Vec<u32>>,
     /// Frames found renumbered, for the caller to report ([`ObjSequence::take_notes`]).
     notes: Vec<String>,
@@ -106,6 +110,8 @@ struct Alignment {
 /// A frame as read: its grid in the order the file's numbering gives, faces and attributes.
 struct RawFrame {
     grid: GridMesh,
+    /// One UV per grid vertex (the grid's order as read), when the file has them.
+    uv: Option<Vec<[f32; 2]>>,
     faces: Vec<Vec<u32>>,
     attrs: ObjAttrs,
 }
@@ -122,6 +128,7 @@ impl ObjSequence {
             sym,
             last: 0,
             last_pos: first.mesh.pos.clone(),
+            last_uv: first.uv.clone(),
             last_faces: m.faces.clone(),
             notes: Vec::new(),
         });
@@ -176,7 +183,8 @@ impl ObjSequence {
         if m.faces == self.faces && m.pos.len() == self.vertices {
             let grid =
                 GridMesh::new(g0.mesh.w, g0.mesh.h, g0.order.iter().map(|&v| m.pos[v as usize]).collect());
-            return Ok(RawFrame { grid, faces: m.faces, attrs: m.attrs });
+            let uv = grid_uv(&m, &g0.order).0;
+            return Ok(RawFrame { grid, uv, faces: m.faces, attrs: m.attrs });
         }
         let g = obj_to_grid(&m, p)?;
         let fits = |s: GridSymmetry| s.dims(g.mesh.w, g.mesh.h) == (g0.mesh.w, g0.mesh.h);
@@ -189,7 +197,7 @@ impl ObjSequence {
                 ),
             ));
         }
-        Ok(RawFrame { grid: g.mesh, faces: m.faces, attrs: g.attrs })
+        Ok(RawFrame { grid: g.mesh, uv: g.uv, faces: m.faces, attrs: g.attrs })
     }
 
     /// Find frame `n`'s symmetry (frame `n - 1` is the last aligned one) and make it the last.
@@ -212,7 +220,18 @@ impl ObjSequence {
         let same_faces = raw.faces == al.last_faces;
         let (best_cost, best) = fits[0];
         let rms_mm = |c: f64| 1e3 * (c / (w * h) as f64).sqrt();
-        let s = if same_faces {
+        // The UVs' say: the symmetries under which this frame's UVs are the last frame's.
+        let uv_fits: Vec<GridSymmetry> = match (&raw.uv, &al.last_uv) {
+            (Some(uv), Some(last)) => fits
+                .iter()
+                .map(|f| f.1)
+                .filter(|s| s.source_index(gw, gh).iter().zip(last).all(|(&k, q)| uv[k] == *q))
+                .collect(),
+            _ => Vec::new(),
+        };
+        let s = if let [only] = uv_fits.as_slice() {
+            *only
+        } else if same_faces {
             let keep = fits.iter().find(|f| f.1 == prev).map_or(f64::INFINITY, |f| f.0);
             if best != prev && best_cost < CLEARLY_BETTER * keep {
                 best
@@ -252,6 +271,7 @@ impl ObjSequence {
         al.sym[n] = Some(s);
         al.last = n;
         al.last_pos = s.apply(&raw.grid).pos;
+        al.last_uv = raw.uv.as_ref().map(|uv| s.source_index(gw, gh).iter().map(|&k| uv[k]).collect());
         al.last_faces.clone_from(&raw.faces);
         Ok(s)
     }
