@@ -259,3 +259,18 @@ fn eval_meshes_matches_an_hr_run_in_any_vertex_order_and_scores_it() {
     let err = MeshRun::read(&dir.join("run")).err().unwrap().to_string();
     assert!(err.contains("subdivided once"), "{err}");
 }
+
+#[test]
+fn a_regular_grid_gives_the_bytes_it_gave_before_any_mesh_input() {
+    let fixture = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/grid_bytes");
+    let dir = TempDir::new("any-mesh-grid-bytes");
+    let out = dir.join("out");
+    let done = run(UpscaleJob::new(vec![fixture.join("lr")], &out)).unwrap();
+    assert_eq!((done.lr, done.mesh), ((12, 10), None), "read as a grid");
+    for k in 0..3 {
+        let name = format!("f_{k:04}.obj");
+        let (now, then) =
+            (std::fs::read(out.join(&name)).unwrap(), std::fs::read(fixture.join("hr").join(&name)).unwrap());
+        assert!(now == then, "{name}: not the bytes upscale wrote before any-mesh input");
+    }
+}
