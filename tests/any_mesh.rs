@@ -274,3 +274,41 @@ fn a_regular_grid_gives_the_bytes_it_gave_before_any_mesh_input() {
         assert!(now == then, "{name}: not the bytes upscale wrote before any-mesh input");
     }
 }
+
+#[test]
+fn the_upscaler_gives_a_mesh_the_vertices_upscale_writes() {
+    use anisocb::pipeline::Upscaler;
+    let dir = TempDir::new("any-mesh-upscaler");
+    let m = meshes::mixed_textured(8);
+    let frames: Vec<Mesh> = (0..5).map(|k| m.rippled(0.01, 0.4 * k as f32)).collect();
+    let input = write_frames(&dir, &frames);
+    let out = dir.join("out");
+    let mut job = UpscaleJob::new(vec![input], &out);
+    job.params.temporal = 1;
+    run(job).unwrap();
+    let (uv, fuv) = m.uv.clone().unwrap();
+    let params = anisocb::sr::params::UpscaleParams { temporal: 1, ..Default::default() };
+    let mut up = Upscaler::new(embedded_model().unwrap(), params)
+        .unwrap()
+        .with_mesh(m.faces.clone(), &frames[0].pos, Some((&uv, &fuv)))
+        .unwrap();
+    assert_eq!(up.hr_faces().unwrap(), Subdivision::of(m.pos.len(), &m.faces).faces.as_slice());
+    let mut got = Vec::new();
+    for f in &frames {
+        got.extend(up.push_mesh(&f.pos).unwrap());
+    }
+    assert_eq!(got.len(), 4, "one frame held back at temporal radius 1");
+    got.extend(up.flush_mesh().unwrap());
+    for (k, hr) in got.iter().enumerate() {
+        let file = read(&out.join(format!("f_{k:04}.obj")));
+        assert!(file.pos == *hr, "frame {k}: the Upscaler's vertices are not upscale's");
+    }
+    // A grid frame given to a mesh Upscaler is refused, and so is the physics pass.
+    assert!(up.push(&anisocb::geom::GridMesh::flat(4, 4, 1.0, 1.0)).is_err());
+    let e = Upscaler::embedded()
+        .unwrap()
+        .with_mesh(m.faces.clone(), &m.pos, None)
+        .unwrap()
+        .with_physics(FollowParams::default());
+    assert!(e.is_err());
+}

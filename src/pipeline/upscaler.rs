@@ -11,7 +11,8 @@ use super::stream::{at_frame, temporal_radius, FrameWindow};
 use super::worker::Worker;
 use crate::cloth::follow::FollowParams;
 use crate::error::{Error, Result};
-use crate::geom::layout::{GridLayout, Layout};
+use crate::geom::layout::{GridLayout, Layout, MeshLayout};
+use crate::geom::surface::{FaceUvs, Surface};
 use crate::geom::{Domain, GridMesh};
 use crate::nn::bundle::AnisoCb;
 use crate::nn::weights::embedded_model;
@@ -19,6 +20,7 @@ use crate::ops::conv2d::PackedConv;
 use crate::ops::{Cpu, Ops};
 use crate::sr::params::UpscaleParams;
 use crate::sr::upscale::{finish, run_nets_into, Predictions};
+use crate::tensor::Tensor;
 
 /// A model ready to upscale a shot frame by frame (see the module docs).
 ///
@@ -43,6 +45,10 @@ pub struct Upscaler {
     domain: Domain,
     /// The shot's LR grid, fixed by its first frame.
     grid: Option<GridLayout>,
+    /// A mesh that is not a grid ([`Upscaler::with_mesh`]), fixed for every shot, and the LR
+    /// frames pushed whose HR frames are not handed out yet (their subdivision is the base).
+    mesh: Option<Box<MeshLayout>>,
+    lr_held: std::collections::VecDeque<Vec<[f32; 3]>>,
     /// The nets' outputs for the frames of the shot that a frame still to come out reads.
     window: FrameWindow,
     /// Frames given to [`Upscaler::push`] and handed out so far.
@@ -74,6 +80,8 @@ impl Upscaler {
             physics: None,
             domain: Domain::UNIT,
             grid: None,
+            mesh: None,
+            lr_held: Default::default(),
             pushed: 0,
             emitted: 0,
             scratch: Scratch::default(),
@@ -102,8 +110,80 @@ impl Upscaler {
     /// it. Frames are read as metres.
     pub fn with_physics(mut self, params: FollowParams) -> Result<Upscaler> {
         params.validate()?;
+        if self.mesh.is_some() {
+            return Err(Error::invalid(
+                "physics",
+                "the physics pass runs on a regular grid only so far, not with a mesh",
+            ));
+        }
         self.physics = Some(PhysicsPass::new(params));
         Ok(self)
+    }
+
+    /// Upscale a mesh that is not a regular grid (any triangles and quads: a garment, a round
+    /// tablecloth; docs/options.md, "Any mesh") instead of grids: `faces` (3 or 4 vertex
+    /// indices each) over the vertices of `rest` (metres: the first frame, or the rest pose),
+    /// laid out by `uv` (the mesh's texture coordinates and each face's indices into them) when
+    /// they are a usable layout, else by ARAP. Frames then go in through
+    /// [`Upscaler::push_mesh`] and come out as the vertices of the mesh's subdivision, whose
+    /// faces [`Upscaler::hr_faces`] gives; the same vertices `anisocb upscale` writes for them.
+    /// Not with the physics pass (grids only so far).
+    pub fn with_mesh(
+        mut self,
+        faces: Vec<Vec<u32>>,
+        rest: &[[f32; 3]],
+        uv: Option<FaceUvs>,
+    ) -> Result<Upscaler> {
+        if self.physics.is_some() {
+            return Err(Error::invalid(
+                "physics",
+                "the physics pass runs on a regular grid only so far, not with a mesh",
+            ));
+        }
+        let surface = Surface::new(rest.len(), faces, std::path::Path::new("the mesh"))?;
+        self.mesh = Some(Box::new(MeshLayout::new(surface, rest, uv)?));
+        Ok(self)
+    }
+
+    /// The faces of the HR mesh (four per face of the mesh, in its order) after
+    /// [`Upscaler::with_mesh`]; `None` for grids.
+    pub fn hr_faces(&self) -> Option<&[Vec<u32>]> {
+        self.mesh.as_ref().map(|m| m.sub.faces.as_slice())
+    }
+
+    /// [`Upscaler::push`] for a mesh set by [`Upscaler::with_mesh`]: the next LR frame's
+    /// vertices (metres, the mesh's order) in; the next HR frame's vertices out once its
+    /// temporal context is in.
+    pub fn push_mesh(&mut self, lr: &[[f32; 3]]) -> Result<Option<Vec<[f32; 3]>>> {
+        let Some(m) = self.mesh.as_ref() else {
+            return Err(Error::config("push_mesh needs a mesh: call with_mesh first (push takes grids)"));
+        };
+        let img = m.to_image(lr, &self.domain).map_err(|e| at_frame(e, self.pushed))?;
+        self.lr_held.push_back(lr.to_vec());
+        if !self.take_image(&img)? {
+            return Ok(None);
+        }
+        self.emit_mesh_vertices().map(Some)
+    }
+
+    /// [`Upscaler::flush`] for a mesh: the HR frames still held back at the end of the shot;
+    /// the next [`Upscaler::push_mesh`] starts a new shot.
+    pub fn flush_mesh(&mut self) -> Result<Vec<Vec<[f32; 3]>>> {
+        let mut out = Vec::new();
+        while self.emitted < self.pushed {
+            out.push(self.emit_mesh_vertices()?);
+        }
+        self.flush_one()?;
+        self.lr_held.clear();
+        Ok(out)
+    }
+
+    /// [`Upscaler::emit`] of a mesh frame into a new list of HR vertices.
+    fn emit_mesh_vertices(&mut self) -> Result<Vec<[f32; 3]>> {
+        let n = self.mesh.as_ref().map_or(0, |m| m.sub.hr_vertices());
+        let mut out = vec![[0.0; 3]; n];
+        self.emit(&mut out)?;
+        Ok(out)
     }
 
     /// Run on another op table (`crate::cuda::ops_for_device("cuda")`).
@@ -179,6 +259,11 @@ impl Upscaler {
     /// Run the nets on the next LR frame (`w` × `h` positions `lr`) and keep their outputs;
     /// whether a frame is then ready to hand out.
     fn take_frame(&mut self, w0: usize, h0: usize, lr: &[[f32; 3]]) -> Result<bool> {
+        if self.mesh.is_some() {
+            return Err(Error::config(
+                "this Upscaler is set for a mesh (with_mesh): give its frames to push_mesh",
+            ));
+        }
         let g = *self.grid.get_or_insert(GridLayout { w: w0, h: h0 });
         if (w0, h0) != (g.w, g.h) {
             return Err(Error::shape(format!(
@@ -189,11 +274,17 @@ impl Upscaler {
         }
         GridLayout::new(g.w, g.h)?;
         let img = g.to_image(lr, &self.domain)?;
+        self.take_image(&img)
+    }
+
+    /// Run the nets on the next LR frame's geometry image `img` (1, 3, H, W) and keep their
+    /// outputs; whether a frame is then ready to hand out.
+    fn take_image(&mut self, img: &Tensor) -> Result<bool> {
         let (ops, domain, params) = (self.ops.as_ref(), &self.domain, &self.params);
         let nets = self.model.packed_with(&self.packed);
         let new = self.scratch.fresh.get_or_insert_with(Predictions::none);
         let frame = self.pushed;
-        in_pool(&self.pool, || run_nets_into(ops, &nets, &img, domain, params, &mut |_| {}, new))
+        in_pool(&self.pool, || run_nets_into(ops, &nets, img, domain, params, &mut |_| {}, new))
             .map_err(|e| at_frame(e, frame))?;
         self.window.append(frame, new);
         self.pushed += 1;
@@ -249,7 +340,7 @@ impl Upscaler {
     /// into `out` and release what no later frame reads.
     fn emit(&mut self, out: &mut [[f32; 3]]) -> Result<()> {
         let e = self.emitted;
-        let g = self.grid.expect("frames were pushed");
+        let g = self.grid.unwrap_or(GridLayout { w: 0, h: 0 });
         let context = self.window.context(e..e + 1, self.pushed);
         let mut window = self.scratch.context.take().unwrap_or_else(Predictions::none);
         self.window.copy_into(context.clone(), &mut window);
@@ -262,7 +353,13 @@ impl Upscaler {
             Some(p) => p.apply(&mut up.hr, f, e, &self.domain, (g.w, g.h)),
             None => Ok(()),
         };
-        let done = physics.map(|()| g.to_vertices(&up.hr, f, &self.domain, out));
+        let done = physics.map(|()| match (&self.mesh, self.lr_held.pop_front()) {
+            (Some(m), Some(lr)) => {
+                let hr = m.hr_frame(&up.hr, &up.interpolated(), f, &self.domain, &lr);
+                out.copy_from_slice(&hr);
+            }
+            _ => g.to_vertices(&up.hr, f, &self.domain, out),
+        });
         self.scratch.context = Some(up.into_nets());
         self.window.release_before((e + 1).saturating_sub(self.latency()));
         self.emitted += 1;
