@@ -8,7 +8,9 @@ mod meshes;
 #[path = "common/tempdir.rs"]
 mod tempdir;
 
-use anisocb::cloth::follow::FollowParams;
+use anisocb::cloth::follow::{FollowOutput, FollowParams, PinnedEdges};
+use anisocb::cloth::follow_mesh::MeshFollower;
+use anisocb::eval::mesh::mesh_detail;
 use anisocb::geom::obj::parse_obj;
 use anisocb::geom::surface::Subdivision;
 use anisocb::io::point_cache::{write_frame, write_header, CacheFormat, CacheHeader};
@@ -207,12 +209,12 @@ fn meshes_that_are_not_cloth_surfaces_and_grid_only_options_are_refused() {
     let input = write_frames(&dir.path().join("topo"), &[m.clone(), other]);
     let e = run(UpscaleJob::new(vec![input], dir.join("o2"))).unwrap_err().to_string();
     assert!(e.contains("frame 1 has another topology") && e.contains("f_0001.obj"), "{e}");
-    // Grid-only options.
+    // Grid-only options: held grid edges, geometry.npy output.
     let input = write_frames(&dir.path().join("ok"), std::slice::from_ref(&m));
     let mut job = UpscaleJob::new(vec![input.clone()], dir.join("o3"));
-    job.physics = Some(FollowParams::default());
+    job.physics = Some(FollowParams { pins: PinnedEdges::parse("top").unwrap(), ..FollowParams::default() });
     let e = run(job).unwrap_err().to_string();
-    assert!(e.contains("physics pass runs on a regular grid"), "{e}");
+    assert!(e.contains("held grid edges") && e.contains("mesh"), "{e}");
     let mut job = UpscaleJob::new(vec![input], dir.join("o4"));
     job.format = OutputFormat::Npy;
     let e = run(job).unwrap_err().to_string();
@@ -303,7 +305,8 @@ fn the_upscaler_gives_a_mesh_the_vertices_upscale_writes() {
         let file = read(&out.join(format!("f_{k:04}.obj")));
         assert!(file.pos == *hr, "frame {k}: the Upscaler's vertices are not upscale's");
     }
-    // A grid frame given to a mesh Upscaler is refused, and so is the physics pass.
+    // A grid frame given to a mesh Upscaler is refused, and so is the physics pass (the
+    // library's frame-by-frame pass takes grids only so far).
     assert!(up.push(&anisocb::geom::GridMesh::flat(4, 4, 1.0, 1.0)).is_err());
     let e = Upscaler::embedded()
         .unwrap()
@@ -311,4 +314,91 @@ fn the_upscaler_gives_a_mesh_the_vertices_upscale_writes() {
         .unwrap()
         .with_physics(FollowParams::default());
     assert!(e.is_err());
+}
+
+/// RMS of `v`.
+fn rms(v: &[f32]) -> f32 {
+    (v.iter().map(|x| x * x).sum::<f32>() / v.len().max(1) as f32).sqrt()
+}
+
+#[test]
+fn the_physics_pass_forms_folds_finer_than_the_lr_mesh_on_a_mesh_that_is_not_a_grid() {
+    // A flat sheet with a hole and a flat disk of triangles, pushed together along x by 15 %
+    // over 40 frames: the LR mesh holds no fold; the HR cloth cannot shorten, so it buckles.
+    for (name, m) in [("holed", meshes::holed_sheet(13)), ("disk", meshes::tablecloth(20, 5, 0.5))] {
+        let flat: Vec<[f32; 3]> = m.pos.iter().map(|p| [p[0], 1.0, p[2] + p[1]]).collect();
+        let sub = Subdivision::of(m.pos.len(), &m.faces);
+        let n = m.pos.len();
+        let mut rng = anisocb::rng::Rng::new(7);
+        let frames: Vec<Vec<[f32; 3]>> = (0..40)
+            .map(|k| {
+                let s = 1.0 - 0.15 * k as f32 / 39.0;
+                let lr: Vec<[f32; 3]> = flat.iter().map(|p| [p[0] * s, p[1], p[2]]).collect();
+                let mut hr = sub.apply(&lr);
+                hr.iter_mut().for_each(|p| p[1] += rng.uniform_in(-5e-5, 5e-5));
+                hr
+            })
+            .collect();
+        for output in [FollowOutput::Cloth, FollowOutput::Detail] {
+            let p = FollowParams { gravity: [0.0; 3], output, ..FollowParams::default() };
+            let run = |frames: &[Vec<[f32; 3]>]| -> Vec<Vec<[f32; 3]>> {
+                let mut f = MeshFollower::new(&frames[0], sub.clone(), n, &p).unwrap();
+                let mut out = vec![frames[0].clone()];
+                for (k, t) in frames.iter().enumerate().skip(1) {
+                    out.push(f.step(t, k).unwrap());
+                }
+                out
+            };
+            let out = run(&frames);
+            let (last, shot) = (out.last().unwrap(), frames.last().unwrap());
+            let input = rms(&mesh_detail(&sub, n, shot));
+            let folds = rms(&mesh_detail(&sub, n, last));
+            // The coarse shape: the tent averages the tracking holds (one per LR vertex).
+            let r = anisocb::cloth::tracking::Restriction::of_subdivision(&sub, n);
+            let coarse: Vec<f32> = r
+                .apply(last)
+                .iter()
+                .zip(r.apply(shot))
+                .map(|(a, b)| (0..3).map(|c| (a[c] - b[c]).powi(2)).sum::<f32>().sqrt())
+                .collect();
+            eprintln!(
+                "{name} {output:?}: folds {:.2} mm (shot {:.3} mm), coarse off {:.2} mm",
+                1e3 * folds,
+                1e3 * input,
+                1e3 * rms(&coarse)
+            );
+            assert!(input < 1e-4, "{name}: the shot itself holds detail {input}");
+            assert!(folds > 1e-3, "{name} {output:?}: the HR cloth did not buckle: {folds} m");
+            assert!(
+                rms(&coarse) < 0.5 * folds,
+                "{name} {output:?}: coarse shape {} m off for {folds} m of folds",
+                rms(&coarse)
+            );
+            assert!(out == run(&frames), "{name}: two passes over one shot differ");
+        }
+    }
+}
+
+#[test]
+fn upscale_physics_on_a_mesh_keeps_the_output_out_of_a_named_sphere() {
+    use anisocb::cloth::collision::Sphere;
+    let dir = TempDir::new("any-mesh-physics");
+    // A round tablecloth settling over a ball: each frame a little lower over it.
+    let m = meshes::tablecloth(20, 5, 0.5);
+    let frames: Vec<Mesh> = (0..12).map(|k| m.moved(0.0, [0.0, 0.3 - 0.01 * k as f32, 0.0])).collect();
+    let input = write_frames(&dir, &frames);
+    let sphere = Sphere { center: [0.0, -0.05, 0.0], radius: 0.2 };
+    let mut job = UpscaleJob::new(vec![input], dir.join("out"));
+    job.physics = Some(FollowParams { sphere: Some(sphere), fps: 24.0, ..FollowParams::default() });
+    let done = run(job).unwrap();
+    assert_eq!(done.frames, 12);
+    let mut deepest = 0.0f32;
+    for k in 0..12 {
+        let hr = read(&dir.join(format!("out/f_{k:04}.obj")));
+        for p in &hr.pos {
+            let d = (0..3).map(|c| (p[c] - sphere.center[c]).powi(2)).sum::<f32>().sqrt();
+            deepest = deepest.max(sphere.radius - d);
+        }
+    }
+    assert!(deepest <= 1e-3, "an output vertex is {deepest} m inside the sphere");
 }

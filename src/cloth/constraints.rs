@@ -113,17 +113,55 @@ fn cot(a: [f32; 3], b: [f32; 3]) -> f32 {
 
 /// Isometric bending constraints on every interior edge of the triangulation.
 pub fn bend_constraints(rest: &GridMesh, mat: MaterialOf) -> Coloured<Bend> {
-    let tris = rest.triangles();
+    bend_constraints_of(&rest.pos, &rest.triangles(), mat)
+}
+
+/// Stretch constraints on every edge of a mesh of triangles and quads at its rest positions
+/// `pos`, and shear constraints on both diagonals of each quad (as on a grid's cells); a
+/// triangle's shear is held by its own edges.
+pub fn mesh_distance_constraints(
+    pos: &[[f32; 3]],
+    faces: &[Vec<u32>],
+    mat: MaterialOf,
+) -> Coloured<Distance> {
+    let mut seen = std::collections::HashSet::new();
+    let mut items = Vec::new();
+    let push = |a: u32, b: u32, shear: bool, items: &mut Vec<Distance>| {
+        let (ma, mb) = (mat(a as usize), mat(b as usize));
+        let alpha = if shear {
+            0.5 * (ma.shear_compliance + mb.shear_compliance)
+        } else {
+            0.5 * (ma.stretch_compliance + mb.stretch_compliance)
+        };
+        items.push(Distance { a, b, rest: dist(pos[a as usize], pos[b as usize]), alpha });
+    };
+    for f in faces {
+        for i in 0..f.len() {
+            let (a, b) = (f[i], f[(i + 1) % f.len()]);
+            if seen.insert((a.min(b), a.max(b))) {
+                push(a, b, false, &mut items);
+            }
+        }
+        if f.len() == 4 {
+            push(f[0], f[2], true, &mut items);
+            push(f[1], f[3], true, &mut items);
+        }
+    }
+    colour(pos.len(), items, |d| vec![d.a, d.b])
+}
+
+/// [`bend_constraints`] on the triangles `tris` over the rest positions `pos`.
+pub fn bend_constraints_of(pos: &[[f32; 3]], tris: &[[usize; 3]], mat: MaterialOf) -> Coloured<Bend> {
     // Edge → (triangle, opposite vertex); a sorted list instead of a map keeps it deterministic.
     let mut half: Vec<(u32, u32, u32)> = Vec::with_capacity(tris.len() * 3);
-    for t in &tris {
+    for t in tris {
         for k in 0..3 {
             let (a, b, c) = (t[k], t[(k + 1) % 3], t[(k + 2) % 3]);
             half.push((a.min(b) as u32, a.max(b) as u32, c as u32));
         }
     }
     half.sort_unstable();
-    let p = &rest.pos;
+    let p = pos;
     let mut items = Vec::new();
     let mut k = 0;
     while k < half.len() {
@@ -154,5 +192,5 @@ pub fn bend_constraints(rest: &GridMesh, mat: MaterialOf) -> Coloured<Bend> {
             k += 1;
         }
     }
-    colour(rest.w * rest.h, items, |b| b.v.to_vec())
+    colour(pos.len(), items, |b| b.v.to_vec())
 }

@@ -24,6 +24,7 @@
 pub mod collision;
 pub mod constraints;
 pub mod follow;
+pub mod follow_mesh;
 pub mod held_edges;
 pub mod kinematics;
 pub mod params;

@@ -7,7 +7,10 @@
 //! project contacts with friction; `v ← (x − x_prev)/h`.
 
 use super::collision::Colliders;
-use super::constraints::{bend_constraints, distance_constraints, Bend, Coloured, Distance};
+use super::constraints::{
+    bend_constraints, bend_constraints_of, distance_constraints, mesh_distance_constraints, Bend, Coloured,
+    Distance,
+};
 use super::kinematics::{Kinematics, Pin};
 use super::params::{Material, SimParams};
 use super::tracking::{CoarseTrack, TrackTargets};
@@ -55,12 +58,47 @@ pub struct Cloth {
 impl Cloth {
     /// A cloth at rest in `rest` (flat), with per-vertex material and pinned vertices.
     pub fn new(rest: &GridMesh, material: &dyn Fn(usize) -> Material, pins: Vec<Pin>) -> Cloth {
-        let n = rest.pos.len();
+        let dist = distance_constraints(rest, material);
+        let bend = bend_constraints(rest, material);
+        Cloth::assemble((rest.w, rest.h), &rest.pos, &rest.triangles(), dist, bend, material, pins)
+    }
+
+    /// A cloth of any mesh of triangles and quads (`faces` over the rest positions `rest`, m):
+    /// stretch on every edge, shear on each quad's diagonals, isometric bending on every
+    /// interior edge of its triangles (a quad split along its 0–2 diagonal: bending needs no
+    /// grid, and a flat rest is the flat fabric a garment is cut from). Its `w × h` is
+    /// `vertices × 1` (a mesh is not a grid: [`Cloth::mesh`] and [`Cloth::normals`] are for
+    /// grids).
+    pub fn from_mesh(
+        rest: &[[f32; 3]],
+        faces: &[Vec<u32>],
+        material: &dyn Fn(usize) -> Material,
+        pins: Vec<Pin>,
+    ) -> Cloth {
+        let tris: Vec<[usize; 3]> = faces
+            .iter()
+            .flat_map(|f| (1..f.len() - 1).map(move |k| [f[0] as usize, f[k] as usize, f[k + 1] as usize]))
+            .collect();
+        let dist = mesh_distance_constraints(rest, faces, material);
+        let bend = bend_constraints_of(rest, &tris, material);
+        Cloth::assemble((rest.len(), 1), rest, &tris, dist, bend, material, pins)
+    }
+
+    /// A cloth at rest at `pos` (its triangles `tris`, constraints `dist` and `bend`).
+    fn assemble(
+        (w, h): (usize, usize),
+        pos: &[[f32; 3]],
+        tris: &[[usize; 3]],
+        dist: Coloured<Distance>,
+        bend: Coloured<Bend>,
+        material: &dyn Fn(usize) -> Material,
+        pins: Vec<Pin>,
+    ) -> Cloth {
+        let n = pos.len();
         let mut area = vec![0.0f32; n];
-        for t in rest.triangles() {
-            let a =
-                0.5 * norm(cross(sub(rest.pos[t[1]], rest.pos[t[0]]), sub(rest.pos[t[2]], rest.pos[t[0]])));
-            for &v in &t {
+        for t in tris {
+            let a = 0.5 * norm(cross(sub(pos[t[1]], pos[t[0]]), sub(pos[t[2]], pos[t[0]])));
+            for &v in t {
                 area[v] += a / 3.0;
             }
         }
@@ -77,8 +115,6 @@ impl Cloth {
         for p in &pins {
             inv_mass[p.vertex] = 0.0;
         }
-        let dist = distance_constraints(rest, material);
-        let bend = bend_constraints(rest, material);
         let bend_w = Coloured {
             items: bend
                 .items
@@ -100,7 +136,7 @@ impl Cloth {
                 }
                 let (mut best, mut bd) = (0usize, f32::INFINITY);
                 for (k, p) in pins.iter().enumerate() {
-                    let d = crate::geom::mesh::dist(rest.pos[v], p.anchor);
+                    let d = crate::geom::mesh::dist(pos[v], p.anchor);
                     if d < bd {
                         (best, bd) = (k, d);
                     }
@@ -111,11 +147,11 @@ impl Cloth {
         Cloth {
             tethers,
             bend_w,
-            w: rest.w,
-            h: rest.h,
-            x: rest.pos.clone(),
+            w,
+            h,
+            x: pos.to_vec(),
             v: vec![[0.0; 3]; n],
-            prev: rest.pos.clone(),
+            prev: pos.to_vec(),
             inv_mass,
             area,
             lambda_d: vec![0.0; dist.items.len()],

@@ -155,6 +155,31 @@ impl Restriction {
         Restriction { lr: (lr_w, lr_h), hr: (hr_w, hr_h), ptr, idx, w }
     }
 
+    /// The restriction of a mesh's linear subdivision `sub` to its `lr` vertices (any mesh,
+    /// issue 45): node I averages the HR vertices with the weights the subdivision gives I in
+    /// them (1 at I, ½ at the midpoint of each of its edges, ¼ at the centre of each of its
+    /// quads), normalised: the transpose of the prolongation, row-normalised, as on a grid.
+    /// Its `lr` and `hr` are `(vertices, 1)`; [`Restriction::targets`] is for grids, a mesh's
+    /// targets are `apply(sub.apply(lr))`.
+    pub fn of_subdivision(sub: &crate::geom::surface::Subdivision, lr: usize) -> Restriction {
+        let mut rows: Vec<Vec<(u32, f32)>> = vec![Vec::new(); lr];
+        for (k, w) in sub.weights().into_iter().enumerate() {
+            for (i, wi) in w {
+                rows[i as usize].push((k as u32, wi));
+            }
+        }
+        let (mut ptr, mut idx, mut w) = (vec![0usize], Vec::new(), Vec::new());
+        for row in rows {
+            let sum: f32 = row.iter().map(|r| r.1).sum();
+            for (k, wk) in row {
+                idx.push(k);
+                w.push(if sum > 0.0 { wk / sum } else { 0.0 });
+            }
+            ptr.push(idx.len());
+        }
+        Restriction { lr: (lr, 1), hr: (sub.hr_vertices(), 1), ptr, idx, w }
+    }
+
     /// Number of LR nodes.
     pub fn nodes(&self) -> usize {
         self.ptr.len() - 1

@@ -225,6 +225,16 @@ impl Subdivision {
         out
     }
 
+    /// Per HR vertex, the LR vertices it is the mean of and their weights (the prolongation
+    /// matrix's rows: a vertex 1 on itself, an edge's ½ on each end, a quad's centre ¼ on each
+    /// corner).
+    pub fn weights(&self) -> Vec<Vec<(u32, f32)>> {
+        let mut out: Vec<Vec<(u32, f32)>> = (0..self.lr as u32).map(|v| vec![(v, 1.0)]).collect();
+        out.extend(self.edges.iter().map(|&(a, b)| vec![(a, 0.5), (b, 0.5)]));
+        out.extend(self.centres.iter().map(|c| c.iter().map(|&v| (v, 0.25)).collect()));
+        out
+    }
+
     /// The smooth subdivision of the LR positions `lr` on `faces` (the faces this was made
     /// from), in the same numbering as [`Subdivision::apply`]: Loop's rules on a mesh of
     /// triangles, Catmull–Clark's on a mesh of quads (both with their border rules: a border

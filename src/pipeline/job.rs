@@ -6,7 +6,7 @@
 use super::folder::{self, Ownership};
 use super::input::{open_input, shot_bounds, CacheIn, FrameAttrs, Input, MeshOut, Shot};
 use super::output::{refuse_duplicate_outputs, refuse_out_over_input, CacheSink, Decode, ObjSink, Outputs};
-use super::physics::PhysicsSink;
+use super::physics::{MeshPhysicsPass, PhysicsSink};
 use crate::cloth::follow::{FollowOutput, FollowParams};
 use crate::cloth::run_io::DOMAIN_MARGIN;
 use crate::error::{Error, Result};
@@ -22,8 +22,10 @@ use crate::ops::Ops;
 use crate::pipeline::stream::{upscale_stream, DEFAULT_CHUNK};
 use crate::sr::params::UpscaleParams;
 use crate::sr::upscale::upscale_meshes;
+use std::cell::RefCell;
 use std::ops::Range;
 use std::path::PathBuf;
+use std::rc::Rc;
 use std::time::Instant;
 
 /// The output format of a job.
@@ -327,11 +329,12 @@ pub fn upscale_files(
     };
     let mut physics;
     let sink: &mut dyn super::stream::HrSink = match &job.physics {
-        Some(p) => {
+        // A mesh's pass runs on its HR vertices, in the sinks' decoding (`decode`).
+        Some(p) if shot.mesh().is_none() => {
             physics = PhysicsSink::new(&mut out, domain, p.clone(), (w, h));
             &mut physics
         }
-        None => &mut out,
+        _ => &mut out,
     };
     upscale_stream(ops, model, &mut shot, &domain, range.clone(), params, job.chunk, sink, &mut on_frames)?;
     out.finish()?;
@@ -367,14 +370,15 @@ pub fn upscale_files(
     Ok(Summary { frames: n, lr: (w, h), hr: (r * w, r * h), mesh, seconds: secs, format: plan.fmt })
 }
 
-/// Refuse, for a mesh that is not a regular grid, what runs on grids only so far: the physics
-/// pass, and geometry.npy output (atlas images, with no mesh to go back to).
+/// Refuse, for a mesh that is not a regular grid, what runs on grids only so far: held grid
+/// edges in the physics pass, and geometry.npy output (atlas images, with no mesh to go back
+/// to).
 fn refuse_for_mesh(job: &UpscaleJob) -> Result<()> {
-    if job.physics.is_some() {
+    if job.physics.as_ref().is_some_and(|p| !p.pins.is_empty()) {
         return Err(Error::invalid(
-            "physics",
-            "the physics pass runs on a regular grid of vertices only so far, and this input is a \
-             mesh of another outline: upscale it without the physics pass",
+            "pins",
+            "held grid edges (top, left, …) name a grid's sides, and this input is a mesh of \
+             another outline: leave them out (pins on meshes are not supported yet)",
         ));
     }
     if job.format == OutputFormat::Npy {
@@ -604,10 +608,16 @@ fn write_hr_rest_mesh(
     write_atomic_bytes(&job.out.join(name), mesh_out.obj_text(&hr[0], &mesh_out.attrs).as_bytes())
 }
 
-/// How `shot`'s HR images become vertices.
-fn decode(shot: &Shot) -> Decode {
+/// How `shot`'s HR images become vertices (through `job`'s physics pass for a mesh).
+fn decode(shot: &Shot, job: &UpscaleJob) -> Decode {
     match shot.mesh() {
-        Some((layout, lr)) => Decode::Mesh(layout.clone(), lr.clone()),
+        Some((layout, lr)) => {
+            let physics = job.physics.as_ref().map(|p| {
+                let pass = MeshPhysicsPass::new(p.clone(), layout.sub.clone(), layout.lr_vertices());
+                Rc::new(RefCell::new(pass))
+            });
+            Decode::Mesh(layout.clone(), lr.clone(), physics)
+        }
         None => Decode::Grid,
     }
 }
@@ -640,8 +650,13 @@ fn open_outputs(
                 Shot::Obj { attrs, .. } | Shot::Mesh { attrs, .. } => attrs.clone(),
                 _ => FrameAttrs::default(),
             };
-            out.obj =
-                Some(ObjSink { dir: job.out.clone(), domain, mesh: mesh_out, attrs, decode: decode(shot) });
+            out.obj = Some(ObjSink {
+                dir: job.out.clone(),
+                domain,
+                mesh: mesh_out,
+                attrs,
+                decode: decode(shot, job),
+            });
         }
         ("npy", _) => out.geometry = Some(NpyWriter::create(&plan.npy("geometry"), &[n, 3, hh, hw])?),
         (_, Some(c)) => {
@@ -656,7 +671,7 @@ fn open_outputs(
             }
             let mut file = AtomicFile::create(&path)?;
             write_header(file.writer(), &header).map_err(|e| Error::io(&path, e))?;
-            let decode = decode(shot);
+            let decode = decode(shot, job);
             out.cache =
                 Some(CacheSink { file, format: header.format, domain, frames: n, written: 0, decode });
         }

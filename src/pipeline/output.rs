@@ -3,6 +3,7 @@
 //! and the checks that keep a run from overwriting its input or writing a file twice.
 
 use super::input::{folder_of, same_file, FrameAttrs, LrFrames, MeshOut};
+use super::physics::MeshPhysicsPass;
 use crate::error::{Error, Result};
 use crate::geom::geometry_image::image_to_mesh;
 use crate::geom::layout::MeshLayout;
@@ -12,6 +13,7 @@ use crate::io::npy::NpyWriter;
 use crate::io::point_cache::{write_frame, CacheFormat};
 use crate::pipeline::stream::HrSink;
 use crate::sr::upscale::Upscaled;
+use std::cell::RefCell;
 use std::ops::Range;
 use std::path::{Path, PathBuf};
 use std::rc::Rc;
@@ -23,8 +25,9 @@ pub enum Decode {
     #[default]
     Grid,
     /// A mesh that is not a grid: its subdivision of the LR frame (waiting in the
-    /// [`LrFrames`]) plus the nets' detail at each vertex's chart position.
-    Mesh(Rc<MeshLayout>, LrFrames),
+    /// [`LrFrames`]) plus the nets' detail at each vertex's chart position; then, with
+    /// `--physics`, through the pass's cloth, in shot order.
+    Mesh(Rc<MeshLayout>, LrFrames, Option<Rc<RefCell<MeshPhysicsPass>>>),
 }
 
 impl Decode {
@@ -38,14 +41,18 @@ impl Decode {
     ) -> Result<Vec<Vec<[f32; 3]>>> {
         match self {
             Decode::Grid => Ok(keep.map(|f| image_to_mesh(&up.hr, f, domain).pos).collect()),
-            Decode::Mesh(layout, lr) => {
+            Decode::Mesh(layout, lr, physics) => {
                 let base = up.interpolated();
                 keep.enumerate()
                     .map(|(k, f)| {
                         let pos = lr.borrow_mut().remove(&(first + k)).ok_or_else(|| {
                             Error::shape(format!("frame {}: its LR positions were not kept", first + k))
                         })?;
-                        Ok(layout.hr_frame(&up.hr, &base, f, domain, &pos))
+                        let hr = layout.hr_frame(&up.hr, &base, f, domain, &pos);
+                        match physics {
+                            Some(p) => p.borrow_mut().apply(hr, first + k),
+                            None => Ok(hr),
+                        }
                     })
                     .collect()
             }

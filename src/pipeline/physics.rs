@@ -3,11 +3,12 @@
 //! out, in shot order.
 
 use crate::cloth::follow::{FollowParams, Follower};
+use crate::cloth::follow_mesh::MeshFollower;
 use crate::error::{Error, Result};
 use crate::geom::geometry_image::image_to_mesh;
 use crate::geom::mesh::{bounds, dist};
+use crate::geom::surface::Subdivision;
 use crate::geom::Domain;
-use crate::geom::GridMesh;
 use crate::pipeline::stream::HrSink;
 use crate::sr::upscale::Upscaled;
 use crate::tensor::Tensor;
@@ -49,7 +50,7 @@ impl PhysicsPass {
             }
             Some(fo) => {
                 let cloth = fo.step(&target, k)?;
-                check_follows(&cloth, &target, k)?;
+                check_follows(&cloth.pos, &target.pos, k)?;
                 cloth
             }
         };
@@ -67,6 +68,38 @@ impl PhysicsPass {
     /// Forget the shot: the next frame starts a new cloth.
     pub fn reset(&mut self) {
         self.follower = None;
+    }
+}
+
+/// One shot's physics pass on a mesh that is not a grid ([`MeshFollower`]): the HR frames'
+/// vertices go in in shot order, the cloth's come out.
+pub struct MeshPhysicsPass {
+    pub params: FollowParams,
+    sub: Subdivision,
+    lr: usize,
+    follower: Option<MeshFollower>,
+}
+
+impl MeshPhysicsPass {
+    /// A pass with `params` on the subdivision `sub` of a mesh of `lr` vertices.
+    pub fn new(params: FollowParams, sub: Subdivision, lr: usize) -> MeshPhysicsPass {
+        MeshPhysicsPass { params, sub, lr, follower: None }
+    }
+
+    /// The pass's cloth for frame `k` of the shot whose HR vertices the nets gave as `hr`; the
+    /// first call starts the cloth on it (and gives it back as it was).
+    pub fn apply(&mut self, hr: Vec<[f32; 3]>, k: usize) -> Result<Vec<[f32; 3]>> {
+        match &mut self.follower {
+            None => {
+                self.follower = Some(MeshFollower::new(&hr, self.sub.clone(), self.lr, &self.params)?);
+                Ok(hr)
+            }
+            Some(fo) => {
+                let cloth = fo.step(&hr, k)?;
+                check_follows(&cloth, &hr, k)?;
+                Ok(cloth)
+            }
+        }
     }
 }
 
@@ -88,14 +121,14 @@ pub const MAX_TRAIL_FRACTION: f32 = 0.05;
 /// Refuse frame `k` of the pass's `cloth` if a vertex lies further than
 /// [`MAX_FOLLOW_FRACTION`] of the frame's size from `target`, the frame it follows, or the
 /// cloth as a whole further than [`MAX_TRAIL_FRACTION`].
-fn check_follows(cloth: &GridMesh, target: &GridMesh, k: usize) -> Result<()> {
-    let (lo, hi) = bounds(&target.pos);
+fn check_follows(cloth: &[[f32; 3]], target: &[[f32; 3]], k: usize) -> Result<()> {
+    let (lo, hi) = bounds(target);
     let size = dist(lo, hi);
-    let far = cloth.pos.iter().zip(&target.pos).map(|(a, b)| dist(*a, *b)).fold(0.0f32, f32::max);
+    let far = cloth.iter().zip(target).map(|(a, b)| dist(*a, *b)).fold(0.0f32, f32::max);
     // The mean offset: a cloth that trails the shot as a whole.
-    let n = cloth.pos.len().max(1) as f32;
+    let n = cloth.len().max(1) as f32;
     let mut mean = [0.0f32; 3];
-    for (a, b) in cloth.pos.iter().zip(&target.pos) {
+    for (a, b) in cloth.iter().zip(target) {
         (0..3).for_each(|i| mean[i] += (a[i] - b[i]) / n);
     }
     let trail = dist(mean, [0.0; 3]);
