@@ -248,7 +248,7 @@ fn eval_meshes_matches_an_hr_run_in_any_vertex_order_and_scores_it() {
     write_frames(&dir.path().join("run"), &hr);
     std::fs::rename(dir.join("run/in"), dir.join("run/hr")).unwrap();
     let run = MeshRun::read(&dir.join("run")).unwrap();
-    let e = evaluate_mesh_run(&Cpu, &embedded_model().unwrap(), &Default::default(), &run).unwrap();
+    let e = evaluate_mesh_run(&Cpu, &embedded_model().unwrap(), &Default::default(), &run, None).unwrap();
     let by = |name: &str| e.scores.iter().find(|s| s.method == name).unwrap();
     // The truth is the linear subdivision: it scores 0 against it, and has no detail.
     assert!(by("linear subdivision").rmse < 1e-6, "{:?}", by("linear subdivision"));

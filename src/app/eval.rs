@@ -123,7 +123,8 @@ pub fn run(a: Args) -> Result<()> {
         let pb = progress(a.meshes.len() as u64, "eval meshes");
         for dir in &a.meshes {
             let run = MeshRun::read(dir)?;
-            let e = evaluate_mesh_run(ops.as_ref(), &model, &params, &run)?;
+            let physics = a.physics.then(crate::cloth::follow::FollowParams::blender_shot);
+            let e = evaluate_mesh_run(ops.as_ref(), &model, &params, &run, physics.as_ref())?;
             write_mesh_pictures(&a.out, &run, &e)?;
             rows.push((run.name.clone(), e.scores));
             pb.inc(1);

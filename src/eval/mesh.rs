@@ -16,6 +16,7 @@
 //! tool): its vertices are put in anisocb's HR numbering by matching its first frame to the
 //! linear subdivision of the LR run's first frame.
 
+use crate::cloth::follow::FollowParams;
 use crate::error::{Error, Result};
 use crate::geom::layout::MeshLayout;
 use crate::geom::obj::{list_obj_files, mesh_normals, parse_obj, read_obj_text, ObjMesh};
@@ -23,6 +24,7 @@ use crate::geom::surface::{Subdivision, Surface};
 use crate::geom::vec3::{cross, dot, sub};
 use crate::nn::bundle::AnisoCb;
 use crate::ops::Ops;
+use crate::pipeline::physics::MeshPhysicsPass;
 use crate::sr::params::UpscaleParams;
 use crate::sr::upscale::upscale_mesh_frames;
 use std::path::{Path, PathBuf};
@@ -43,6 +45,8 @@ pub struct MeshRun {
     pub collider: Option<MeshFrames>,
     /// The LR mesh's UVs and such, for the layout.
     pub first: ObjMesh,
+    /// Frames per second (`DIR/scene.json`'s `fps`, else 24), for the physics pass.
+    pub fps: f32,
 }
 
 /// The OBJ frames of folder `dir` (fixed topology).
@@ -80,7 +84,13 @@ impl MeshRun {
         let hr = hr_raw.frames[..t].iter().map(|f| order.iter().map(|&v| f[v]).collect()).collect();
         let name = dir.file_name().unwrap_or_default().to_string_lossy().into_owned();
         let lr = MeshFrames { faces: lr.faces, frames: lr.frames[..t].to_vec() };
-        Ok(MeshRun { name, lr, hr, collider, first })
+        let scene = dir.join("scene.json");
+        let fps = if scene.exists() {
+            crate::io::json::read_json(&scene)?.get("fps").and_then(|v| v.as_f64()).map_or(24.0, |f| f as f32)
+        } else {
+            24.0
+        };
+        Ok(MeshRun { name, lr, hr, collider, first, fps })
     }
 }
 
@@ -319,12 +329,14 @@ pub struct MeshRunEval {
 }
 
 /// Every method on `run`: the linear and smooth subdivisions and anisocb (`model`, `params`),
+/// with `physics` also anisocb's frames through the physics pass (at the run's frame rate),
 /// and the truth scored against itself (its detail and flicker are the yardsticks).
 pub fn evaluate_mesh_run(
     ops: &dyn Ops,
     model: &AnisoCb,
     params: &UpscaleParams,
     run: &MeshRun,
+    physics: Option<&FollowParams>,
 ) -> Result<MeshRunEval> {
     let path = PathBuf::from(&run.name);
     let surface = Surface::new(run.lr.frames[0].len(), run.lr.faces.clone(), &path)?;
@@ -341,7 +353,15 @@ pub fn evaluate_mesh_run(
             if run.lr.faces.iter().all(|f| f.len() == 3) { "Loop subdivision" } else { "Catmull-Clark" };
         frames.push((name.to_string(), s));
     }
-    frames.push(("anisocb".to_string(), upscale_mesh_frames(ops, model, &layout, &run.lr.frames, params)?));
+    let ours = upscale_mesh_frames(ops, model, &layout, &run.lr.frames, params)?;
+    if let Some(p) = physics {
+        let p = FollowParams { fps: run.fps, ..p.clone() };
+        let mut pass = MeshPhysicsPass::new(p, sub.clone(), run.lr.frames[0].len());
+        let cloth =
+            ours.iter().enumerate().map(|(k, f)| pass.apply(f.clone(), k)).collect::<Result<Vec<_>>>()?;
+        frames.push(("anisocb --physics".to_string(), cloth));
+    }
+    frames.push(("anisocb".to_string(), ours));
     frames.push(("HR run (truth)".to_string(), run.hr.clone()));
     let scores = frames.iter().map(|(name, f)| score(name, f, run, sub)).collect();
     Ok(MeshRunEval { scores, frames, hr_faces: sub.faces.clone() })
