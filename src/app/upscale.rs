@@ -44,7 +44,8 @@ charts of a geometry image (its UV islands when they are a usable layout, else A
 for the nets. The output is written the way the input was: OBJ with the same file names, faces in
 the same order and winding, UVs subdivided (seams stay seams), normals recomputed,
 mtllib/usemtl/o/g/s kept face by face; or a point cache; geometry.npy + domain.npy for grids.
-Every frame of a shot must have the first frame's topology. --physics runs on grids only so far.
+Every frame of a shot must have the first frame's topology. --physics runs on any mesh;
+--physics-pin (held grid edges) only on grids.
 
 Finished or not: OUT/upscale.json (upscale.A-B.json for a --frames slice) is written first, before
 any frame, with \"complete\": false, and replaced by the run's summary with \"complete\": true only
