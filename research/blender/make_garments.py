@@ -77,41 +77,14 @@ try:
 except ImportError:
     sys.exit("make_garments.py needs Blender's bpy module: pip install -r research/blender/requirements.txt")
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from blender_common import add_collider, apply_transform, cloth_modifier, deselect_all, quiet, reset  # noqa: E402
+
 QUALITY = None  # --quality: overrides every scene's cloth quality (substeps per frame)
 FPS = 24
 
 
 # --------------------------------------------------------------------------- scene building
-
-
-def reset():
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    scene = bpy.context.scene
-    scene.render.fps = FPS
-    scene.gravity = (0.0, 0.0, -9.81)
-    scene.use_gravity = True
-    return scene
-
-
-def deselect_all():
-    for o in bpy.context.view_layer.objects:
-        o.select_set(False)
-
-
-def apply_transform(obj):
-    deselect_all()
-    obj.select_set(True)
-    bpy.context.view_layer.objects.active = obj
-    bpy.ops.object.transform_apply(location=True, rotation=True, scale=True)
-
-
-def add_collider(obj, thickness=0.01, friction=5.0):
-    obj.modifiers.new("Collision", "COLLISION")
-    c = obj.collision
-    c.thickness_outer = thickness
-    c.cloth_friction = friction
-    c.damping = 0.5
-    return obj
 
 
 def floor(z, size=6.0):
@@ -186,29 +159,8 @@ def add_cloth(obj, hr, n_lr, frames, p, pin_fn=None):
         vg = obj.vertex_groups.new(name="pin")
         vg.add(pins, 1.0, "REPLACE")
 
-    mod = obj.modifiers.new("Cloth", "CLOTH")
+    mod = cloth_modifier(obj, p, QUALITY or p["quality"], mass, m_scale, k_scale, frames, bool(pins))
     s = mod.settings
-    s.quality = QUALITY or p["quality"]
-    s.mass = mass
-    s.air_damping = p["air"] * m_scale
-    s.bending_model = "ANGULAR"
-    for attr in ("tension", "compression", "shear"):
-        setattr(s, f"{attr}_stiffness", p[attr] * k_scale)
-        setattr(s, f"{attr}_stiffness_max", p[attr] * k_scale)
-        setattr(s, f"{attr}_damping", p["damp"])
-    s.bending_stiffness = p["bend"]
-    s.bending_stiffness_max = p["bend"]
-    s.bending_damping = p["bend_damp"]
-    if pins:
-        s.vertex_group_mass = "pin"
-        s.pin_stiffness = 1.0
-    cs = mod.collision_settings
-    cs.use_collision = True
-    cs.use_self_collision = False
-    cs.distance_min = 0.01
-    cs.collision_quality = 3
-    mod.point_cache.frame_start = 1
-    mod.point_cache.frame_end = frames
     return dict(pinned=len(pins), mass_per_vertex=mass, quality=s.quality,
                 stretch_stiffness=p["tension"] * k_scale, shear_stiffness=p["shear"] * k_scale,
                 bending_stiffness=p["bend"], air_damping=s.air_damping)
@@ -446,27 +398,6 @@ SCENES = {
 }
 
 
-class quiet:
-    """Send C-level output on file descriptor `fd` (1 stdout, 2 stderr) to /dev/null."""
-
-    def __init__(self, fd=1):
-        self.fd = fd
-
-    def __enter__(self):
-        sys.stdout.flush()
-        sys.stderr.flush()
-        self.saved = os.dup(self.fd)
-        self.null = os.open(os.devnull, os.O_WRONLY)
-        os.dup2(self.null, self.fd)
-
-    def __exit__(self, *exc):
-        sys.stdout.flush()
-        sys.stderr.flush()
-        os.dup2(self.saved, self.fd)
-        os.close(self.saved)
-        os.close(self.null)
-
-
 def export(objs, path, uv):
     deselect_all()
     for o in objs:
@@ -504,7 +435,7 @@ def simulate_and_export(build, hr, frames, scene_dir):
     clear(out_dir, "cloth")
     if col_dir:
         clear(col_dir, "collider")
-    scene = reset()
+    scene = reset(FPS)
     scene.frame_start = 1
     scene.frame_end = frames
     scene.frame_set(1)

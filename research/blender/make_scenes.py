@@ -56,33 +56,15 @@ try:
 except ImportError:
     sys.exit("make_scenes.py needs Blender's bpy module: pip install -r research/blender/requirements.txt")
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from blender_common import add_collider, apply_transform, cloth_modifier, deselect_all, quiet, reset  # noqa: E402
+
 LR_N = 32  # LR grid: 32 x 32 vertices
 HR_N = 64  # HR grid: 64 x 64 vertices
 QUALITY = None  # --quality: overrides every scene's cloth quality (substeps per frame)
 
 
 # --------------------------------------------------------------------------- scene building
-
-
-def reset():
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    scene = bpy.context.scene
-    scene.render.fps = 24
-    scene.gravity = (0.0, 0.0, -9.81)
-    scene.use_gravity = True
-    return scene
-
-
-def deselect_all():
-    for o in bpy.context.view_layer.objects:
-        o.select_set(False)
-
-
-def apply_transform(obj):
-    deselect_all()
-    obj.select_set(True)
-    bpy.context.view_layer.objects.active = obj
-    bpy.ops.object.transform_apply(location=True, rotation=True, scale=True)
 
 
 def make_grid(n, size, location, rotation=(0.0, 0.0, 0.0), name="cloth"):
@@ -116,15 +98,6 @@ def make_grid(n, size, location, rotation=(0.0, 0.0, 0.0), name="cloth"):
     return obj
 
 
-def add_collider(obj, thickness=0.01, friction=5.0):
-    obj.modifiers.new("Collision", "COLLISION")
-    c = obj.collision
-    c.thickness_outer = thickness
-    c.cloth_friction = friction
-    c.damping = 0.5
-    return obj
-
-
 def floor(z, size=8.0):
     bpy.ops.mesh.primitive_plane_add(size=size, location=(0, 0, z))
     return add_collider(bpy.context.object)
@@ -142,30 +115,7 @@ def add_cloth(obj, n, size, frames, p, pins=()):
         vg = obj.vertex_groups.new(name="pin")
         vg.add(list(pins), 1.0, "REPLACE")
 
-    mod = obj.modifiers.new("Cloth", "CLOTH")
-    s = mod.settings
-    s.quality = QUALITY or p["quality"]
-    s.mass = mass
-    s.air_damping = p["air"] * m_scale
-    s.bending_model = "ANGULAR"
-    for attr in ("tension", "compression", "shear"):
-        setattr(s, f"{attr}_stiffness", p[attr] * k_scale)
-        setattr(s, f"{attr}_stiffness_max", p[attr] * k_scale)
-        setattr(s, f"{attr}_damping", p["damp"])
-    s.bending_stiffness = p["bend"]
-    s.bending_stiffness_max = p["bend"]
-    s.bending_damping = p["bend_damp"]
-    if pins:
-        s.vertex_group_mass = "pin"
-        s.pin_stiffness = 1.0
-    cs = mod.collision_settings
-    cs.use_collision = True
-    cs.use_self_collision = False
-    cs.distance_min = 0.01
-    cs.collision_quality = 3
-    mod.point_cache.frame_start = 1
-    mod.point_cache.frame_end = frames
-    return mod
+    return cloth_modifier(obj, p, QUALITY or p["quality"], mass, m_scale, k_scale, frames, bool(pins))
 
 
 def grid_index(n, i, j):
@@ -429,27 +379,6 @@ SECOND_TEST_SCENES = {
     "hammock": scene_hammock,
 }
 ALL_SCENES = {**SCENES, **VALIDATION_SCENES, **SECOND_TEST_SCENES}
-
-
-class quiet:
-    """Send C-level output on file descriptor `fd` (1 stdout, 2 stderr) to /dev/null."""
-
-    def __init__(self, fd=1):
-        self.fd = fd
-
-    def __enter__(self):
-        sys.stdout.flush()
-        sys.stderr.flush()
-        self.saved = os.dup(self.fd)
-        self.null = os.open(os.devnull, os.O_WRONLY)
-        os.dup2(self.null, self.fd)
-
-    def __exit__(self, *exc):
-        sys.stdout.flush()
-        sys.stderr.flush()
-        os.dup2(self.saved, self.fd)
-        os.close(self.saved)
-        os.close(self.null)
 
 
 def simulate_and_export(build, n, frames, out_dir):

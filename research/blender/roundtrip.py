@@ -55,6 +55,9 @@ try:
 except ImportError:
     sys.exit("roundtrip.py needs Blender's bpy module: pip install -r research/blender/requirements.txt")
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from blender_common import quiet  # noqa: E402
+
 N = 16  # LR grid: N x N vertices
 SIZE = 1.0  # metres
 FRAMES = 12
@@ -68,27 +71,6 @@ def check(name, ok, numbers):
     print(f"[{'PASS' if ok else 'FAIL'}] {name}: {numbers}", flush=True)
     if not ok:
         FAILED.append(name)
-
-
-class quiet:
-    """Send C-level output on file descriptor `fd` (1 stdout, 2 stderr) to /dev/null."""
-
-    def __init__(self, fd=1):
-        self.fd = fd
-
-    def __enter__(self):
-        sys.stdout.flush()
-        sys.stderr.flush()
-        self.saved = os.dup(self.fd)
-        self.null = os.open(os.devnull, os.O_WRONLY)
-        os.dup2(self.null, self.fd)
-
-    def __exit__(self, *exc):
-        sys.stdout.flush()
-        sys.stderr.flush()
-        os.dup2(self.saved, self.fd)
-        os.close(self.saved)
-        os.close(self.null)
 
 
 # --------------------------------------------------------------------------- the LR shot
