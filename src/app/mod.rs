@@ -144,6 +144,8 @@ fn flag(field: &'static str) -> &'static str {
         "drift_seconds" => "--physics-drift",
         "substeps_per_second" => "--physics-substeps",
         "pins" => "--physics-pin",
+        "colliders" => "--collider",
+        "collider_thickness" => "--collider-thickness",
         "val_frac" => "--val-frac",
         "resume" => "--resume",
         f => f,

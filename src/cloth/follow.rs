@@ -13,13 +13,14 @@
 //! the shape the LR grid carries, frame by frame, blending linearly over the substeps; gravity,
 //! the material, the frame rate and which edges the artist holds ([`PinnedEdges`]: those HR
 //! vertices follow the shot's frames exactly) come from [`FollowParams`], and so do the
-//! colliders the artist names (a floor, a sphere, a box: the output stays out of them); there
-//! is no wind, and a collider not named is not seen (the tracking and the drift correction keep
+//! colliders the artist names (a floor, a sphere, a box, triangle meshes static or animated:
+//! the output stays out of them); there is no wind, and a collider not named is not seen (the tracking and the drift correction keep
 //! the cloth where the shot's cloth is; its folds may dip into it).
 
 use super::collision::{Colliders, Cuboid, Sphere};
 pub use super::held_edges::PinnedEdges;
 use super::kinematics::{Kinematics, Pin};
+use super::mesh_collider::{ColliderMesh, MeshCollider, COLLIDER_THICKNESS, MAX_COLLIDER_THICKNESS};
 use super::params::{Material, SimParams};
 use super::scenarios::{Scenario, ScenarioSpec};
 use super::solver::{Cloth, Scene};
@@ -32,6 +33,7 @@ use crate::geom::GridMesh;
 use crate::io::json::Value;
 use crate::ops::resample::resize;
 use crate::ops::Interp;
+use std::sync::Arc;
 
 /// What the physics pass simulates with; units are the shot's, taken as metres.
 #[derive(Clone, Debug, PartialEq)]
@@ -85,6 +87,13 @@ pub struct FollowParams {
     /// vertex is left inside them.
     pub sphere: Option<Sphere>,
     pub cuboid: Option<Cuboid>,
+    /// Triangle-mesh colliders (`--collider`, [`super::mesh_collider`]): bodies the cloth lies
+    /// on, static or animated (one frame per shot frame). The pass's cloth collides with them
+    /// and no output vertex is left inside them. Loaded once and shared: cloning the
+    /// parameters copies pointers, comparing them compares checksums.
+    pub colliders: Vec<Arc<ColliderMesh>>,
+    /// The gap (m) the cloth keeps from the mesh colliders (`--collider-thickness`).
+    pub collider_thickness: f32,
 }
 
 /// What [`Follower::step`] returns.
@@ -118,6 +127,8 @@ impl Default for FollowParams {
             ground: None,
             sphere: None,
             cuboid: None,
+            colliders: Vec::new(),
+            collider_thickness: COLLIDER_THICKNESS,
         }
     }
 }
@@ -228,6 +239,29 @@ impl FollowParams {
                 ),
             ));
         }
+        let t = self.collider_thickness;
+        if !(t.is_finite() && t > 0.0 && t <= MAX_COLLIDER_THICKNESS) {
+            return Err(Error::invalid(
+                "collider_thickness",
+                format!(
+                    "the gap kept from mesh colliders must be above 0 and at most \
+                     {MAX_COLLIDER_THICKNESS} m, got {t}; give it in metres (5 mm is 0.005)"
+                ),
+            ));
+        }
+        for m in &self.colliders {
+            let (lo, hi) = m.bounds();
+            if lo.iter().chain(&hi).any(|c| c.abs() > MAX_COLLIDER_METRES) {
+                return Err(Error::invalid(
+                    "colliders",
+                    format!(
+                        "{} reaches {lo:?} to {hi:?}, beyond ±{MAX_COLLIDER_METRES} m of the shot's \
+                         origin; give it in the shot's units (metres)",
+                        m.source().display()
+                    ),
+                ));
+            }
+        }
         if self.drift_seconds.is_nan() || self.drift_seconds < 0.0 {
             return Err(Error::invalid("drift_seconds", format!(
                 "the drift correction's time constant must be a time in seconds ≥ 0 (inf turns the correction off), got {}",
@@ -240,6 +274,22 @@ impl FollowParams {
                 format!(
                     "the physics pass's substeps must be 1 to 1e5 per second, got {}",
                     self.substeps_per_second
+                ),
+            ));
+        }
+        Ok(())
+    }
+
+    /// Refuse an animated collider whose frame count is not the shot's `frames`, naming its
+    /// folder and both counts.
+    pub fn check_shot_frames(&self, frames: usize) -> Result<()> {
+        for m in self.colliders.iter().filter(|m| m.is_animated() && m.frames() != frames) {
+            return Err(Error::format(
+                m.source(),
+                format!(
+                    "holds {} collider frames and the shot {frames}: an animated collider needs \
+                     one OBJ frame per frame of the shot (a static one is a single OBJ file)",
+                    m.frames()
                 ),
             ));
         }
@@ -348,6 +398,8 @@ pub struct Follower {
     lr: (usize, usize),
     /// The floor ([`FollowParams::ground`]) as (unit up, height).
     floor: Option<([f32; 3], f32)>,
+    /// The shot frame the cloth is at (the mesh colliders' pose).
+    frame: usize,
     output: FollowOutput,
     /// `cloth` output: the weight of the last frame in the drift correction's moving average,
     /// `exp(−1/(fps·drift_seconds))` (1 = off).
@@ -377,7 +429,8 @@ impl Follower {
         let cloth = Cloth::new(first, &|_| material, pins);
         let track = CoarseTrack::new(Restriction::new(lr.0, lr.1, first.w, first.h), &cloth.inv_mass);
         let colliders = Colliders { sphere: p.sphere, cuboid: p.cuboid, ground: None };
-        let scene = Scene { kinematics: Kinematics::Static, wind: Wind::none(), colliders };
+        let meshes = p.colliders.iter().map(|m| MeshCollider::new(m.clone(), p.collider_thickness)).collect();
+        let scene = Scene { kinematics: Kinematics::Static, wind: Wind::none(), colliders, meshes };
         let mut f = Follower {
             cloth,
             scene,
@@ -396,8 +449,12 @@ impl Follower {
                 (p.gravity.map(|g| -g / n), h)
             }),
             drift: Vec::new(),
+            frame: 0,
         };
+        // A first frame that dips into a mesh collider starts outside it.
+        f.push_cloth_out();
         f.settle(first);
+        f.push_cloth_out();
         f.from = f.targets(first);
         Ok(f)
     }
@@ -495,6 +552,9 @@ impl Follower {
             )));
         }
         check_frame(target, k)?;
+        for m in &mut self.scene.meshes {
+            m.set_span(self.frame, k)?;
+        }
         let to = self.targets(target);
         let pin_to: Vec<[f32; 3]> = self.cloth.pins.iter().map(|p| target.pos[p.vertex]).collect();
         let tt = TrackTargets {
@@ -506,6 +566,8 @@ impl Follower {
             pins: Some(PinPath { from: &self.pin_from, to: &pin_to }),
         };
         self.cloth.step(&self.sim, &self.scene, Some(&tt));
+        self.frame = k;
+        self.push_cloth_out();
         self.from = to;
         self.pin_from = pin_to;
         let mut out = self.cloth.mesh();
@@ -531,6 +593,10 @@ impl Follower {
             let (before, free) = (out.pos.clone(), vec![1.0; out.pos.len()]);
             c.project(&mut out.pos, &before, &free, 0.0, 0.0);
         }
+        // Back across any mesh surface the way from the cloth (outside) enters, and out.
+        for m in &self.scene.meshes {
+            m.push_out(&mut out.pos, Some(&self.cloth.x), None);
+        }
         if let Some((up, h)) = self.floor {
             for o in &mut out.pos {
                 let below = h - (0..3).map(|c| o[c] * up[c]).sum::<f32>();
@@ -554,6 +620,16 @@ impl Follower {
 }
 
 impl Follower {
+    /// Take the cloth's free vertices out of the mesh colliders at the current frame (a closed
+    /// one's inside at any depth), once a frame: the substeps' contacts look only a few
+    /// thicknesses from each vertex.
+    fn push_cloth_out(&mut self) {
+        let c = &mut self.cloth;
+        for m in &self.scene.meshes {
+            m.push_out(&mut c.x, None, Some(&c.inv_mass));
+        }
+    }
+
     /// `cloth` output: move `out` (the cloth) by the moving average of how far its coarse shape
     /// lies from the shot's, `drift ← keep·drift + (1 − keep)·(S(target) − S(out))`, the
     /// first frame's offset taken as it is.
