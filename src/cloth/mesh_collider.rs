@@ -29,7 +29,7 @@
 //! close triangles the lowest index wins; each vertex's result depends on that vertex alone,
 //! so the rayon split over vertices gives the same bits on any number of threads.
 
-use super::collision::resolve;
+use super::collision::{resolve, Cuboid, Sphere};
 use crate::error::{Error, Result};
 use crate::geom::obj::{list_obj_files, parse_obj, read_obj_text};
 use crate::geom::vec3::{add, cross, dot, norm, normalize_or, scale, sub};
@@ -75,6 +75,24 @@ const PUSH_OUT_PASSES: usize = 4;
 
 /// Vertices per parallel task.
 const CHUNK: usize = 256;
+
+/// Below this many vertices the contacts run on the calling thread: handing each substep to
+/// the pool costs more than it saves (as the solver's `parallel_min_colour`).
+const PARALLEL_MIN_VERTICES: usize = 4096;
+
+/// Run `f(v, &mut x[v])` for every vertex, in parallel chunks when there are enough of them
+/// (each vertex's result depends on that vertex alone: the same bits either way).
+fn for_vertices(x: &mut [[f32; 3]], f: impl Fn(usize, &mut [f32; 3]) + Sync) {
+    if x.len() < PARALLEL_MIN_VERTICES {
+        x.iter_mut().enumerate().for_each(|(v, xv)| f(v, xv));
+        return;
+    }
+    x.par_chunks_mut(CHUNK).enumerate().for_each(|(c, xs)| {
+        for (i, xv) in xs.iter_mut().enumerate() {
+            f(c * CHUNK + i, xv);
+        }
+    });
+}
 
 /// No triangle across an edge (a rim).
 const NONE: u32 = u32::MAX;
@@ -457,6 +475,9 @@ fn closest_on_triangle(p: [f32; 3], a: [f32; 3], b: [f32; 3], c: [f32; 3]) -> ([
 struct Pose {
     pos: Vec<[f32; 3]>,
     face_n: Vec<[f32; 3]>,
+    /// Per triangle, a sphere around it (centroid, radius; m): most triangles of a cell are
+    /// rejected by it before the closest-point test.
+    ball: Vec<([f32; 3], f32)>,
     vert_n: Vec<[f32; 3]>,
     grid: Grid,
 }
@@ -464,11 +485,14 @@ struct Pose {
 impl Pose {
     fn new(mesh: &ColliderMesh, pos: Vec<[f32; 3]>) -> Pose {
         let mut face_n = Vec::with_capacity(mesh.tris.len());
+        let mut ball = Vec::with_capacity(mesh.tris.len());
         let mut vert_n = vec![[0.0f32; 3]; pos.len()];
         for t in &mesh.tris {
             let p = t.map(|v| pos[v as usize]);
             let n = normalize_or(cross(sub(p[1], p[0]), sub(p[2], p[0])), [0.0; 3]);
             face_n.push(n);
+            let c = scale(add(add(p[0], p[1]), p[2]), 1.0 / 3.0);
+            ball.push((c, p.iter().map(|q| norm(sub(*q, c))).fold(0.0f32, f32::max)));
             for k in 0..3 {
                 let (u, w) = (sub(p[(k + 1) % 3], p[k]), sub(p[(k + 2) % 3], p[k]));
                 let angle = norm(cross(u, w)).atan2(dot(u, w));
@@ -478,7 +502,7 @@ impl Pose {
         }
         vert_n.iter_mut().for_each(|n| *n = normalize_or(*n, [0.0; 3]));
         let grid = Grid::new(&pos, &mesh.tris, mesh.cell);
-        Pose { pos, face_n, vert_n, grid }
+        Pose { pos, face_n, ball, vert_n, grid }
     }
 
     fn corners(&self, tris: &[[u32; 3]], t: u32) -> [[f32; 3]; 3] {
@@ -650,6 +674,11 @@ impl ColliderMesh {
         let mut best: Option<Hit> = None;
         let r2 = r * r;
         pose.grid.visit(sub(p, [r; 3]), add(p, [r; 3]), |t| {
+            let (centre, radius) = pose.ball[t as usize];
+            let e = sub(p, centre);
+            if dot(e, e) > (r + radius) * (r + radius) {
+                return;
+            }
             let [a, b, c] = pose.corners(&self.tris, t);
             let (point, bary, feature) = closest_on_triangle(p, a, b, c);
             let d = sub(p, point);
@@ -731,6 +760,11 @@ impl ColliderMesh {
                 }
                 None => p0,
             };
+            // Only from the front of the triangle's plane to its back.
+            let n = pose.face_n[t as usize];
+            if !(dot(sub(start, a), n) >= 0.0 && dot(sub(p1, a), n) < 0.0) {
+                return;
+            }
             // Möller & Trumbore 1997; det > 0: the motion runs against the face normal.
             let dir = sub(p1, start);
             let (e1, e2) = (sub(b, a), sub(c, a));
@@ -864,32 +898,36 @@ impl MeshCollider {
             .map_or(0.0, |b| pose.pos.iter().zip(b).map(|(p, q)| norm(sub(*p, *q))).fold(0.0, f32::max));
         let reach = REACH * self.thickness;
         let m = &*self.mesh;
-        x.par_chunks_mut(CHUNK).enumerate().for_each(|(c, xs)| {
-            for (i, xv) in xs.iter_mut().enumerate() {
-                let v = c * CHUNK + i;
-                if inv_mass[v] <= 0.0 {
-                    continue;
-                }
+        for_vertices(x, |v, xv| {
+            if inv_mass[v] <= 0.0 {
+                return;
+            }
+            // The motion's start (carried by any triangle) lies within `way` of `x`: it
+            // can cross no surface when the closest one is farther.
+            let mut near = m.closest_within(pose, *xv, reach);
+            let way = norm(sub(*xv, prev[v])) + moved;
+            if way >= near.map_or(reach, |h| h.d2.sqrt()) {
                 if let Some(e) = m.first_entry(pose, before, moved, prev[v], *xv) {
                     let n = pose.face_n[e.tri as usize];
                     let pen = self.thickness - dot(sub(*xv, e.point), n);
                     resolve(xv, e.start, n, pen, mu);
+                    near = m.closest_within(pose, *xv, reach);
                 }
-                if let Some(h) = m.closest_within(pose, *xv, reach) {
-                    if let Some((n, pen)) = m.push(pose, &h, *xv, self.thickness) {
-                        // The start carried with the surface: friction on the relative motion.
-                        let start = match before {
-                            Some(b) => {
-                                let t = m.tris[h.tri as usize];
-                                let was: [f32; 3] = std::array::from_fn(|k| {
-                                    (0..3).map(|j| h.bary[j] * b[t[j] as usize][k]).sum::<f32>()
-                                });
-                                add(prev[v], sub(h.point, was))
-                            }
-                            None => prev[v],
-                        };
-                        resolve(xv, start, n, pen, mu);
-                    }
+            }
+            if let Some(h) = near {
+                if let Some((n, pen)) = m.push(pose, &h, *xv, self.thickness) {
+                    // The start carried with the surface: friction on the relative motion.
+                    let start = match before {
+                        Some(b) => {
+                            let t = m.tris[h.tri as usize];
+                            let was: [f32; 3] = std::array::from_fn(|k| {
+                                (0..3).map(|j| h.bary[j] * b[t[j] as usize][k]).sum::<f32>()
+                            });
+                            add(prev[v], sub(h.point, was))
+                        }
+                        None => prev[v],
+                    };
+                    resolve(xv, start, n, pen, mu);
                 }
             }
         });
@@ -903,94 +941,86 @@ impl MeshCollider {
         let (pose, m, t) = (&*self.end, &*self.mesh, self.thickness);
         let reach = REACH * t;
         let (lo, hi) = (sub(m.bounds.0, [reach; 3]), add(m.bounds.1, [reach; 3]));
-        x.par_chunks_mut(CHUNK).enumerate().for_each(|(c, xs)| {
-            for (i, xv) in xs.iter_mut().enumerate() {
-                let v = c * CHUNK + i;
-                if free.is_some_and(|f| f[v] <= 0.0) {
-                    continue;
+        for_vertices(x, |v, xv| {
+            if free.is_some_and(|f| f[v] <= 0.0) {
+                return;
+            }
+            if let Some(f) = from {
+                if let Some(e) = m.first_entry(pose, None, 0.0, f[v], *xv) {
+                    let n = pose.face_n[e.tri as usize];
+                    let pen = t - dot(sub(*xv, e.point), n);
+                    *xv = add(*xv, scale(n, pen));
                 }
-                if let Some(f) = from {
-                    if let Some(e) = m.first_entry(pose, None, 0.0, f[v], *xv) {
-                        let n = pose.face_n[e.tri as usize];
-                        let pen = t - dot(sub(*xv, e.point), n);
-                        *xv = add(*xv, scale(n, pen));
-                    }
+            }
+            for _ in 0..PUSH_OUT_PASSES {
+                if (0..3).any(|k| xv[k] < lo[k] || xv[k] > hi[k]) {
+                    break;
                 }
-                for _ in 0..PUSH_OUT_PASSES {
-                    if (0..3).any(|k| xv[k] < lo[k] || xv[k] > hi[k]) {
-                        break;
-                    }
-                    let h = if m.closed {
-                        Some(m.closest_anywhere(pose, *xv))
-                    } else {
-                        m.closest_within(pose, *xv, reach)
-                    };
-                    match h.and_then(|h| m.push(pose, &h, *xv, t)) {
-                        Some((n, pen)) => *xv = add(*xv, scale(n, pen)),
-                        None => break,
-                    }
+                let h = if m.closed {
+                    Some(m.closest_anywhere(pose, *xv))
+                } else {
+                    m.closest_within(pose, *xv, reach)
+                };
+                match h.and_then(|h| m.push(pose, &h, *xv, t)) {
+                    Some((n, pen)) => *xv = add(*xv, scale(n, pen)),
+                    None => break,
                 }
             }
         });
     }
 }
 
+/// The mesh of an axis-aligned box: 8 corners and 6 quads wound outward (counter-clockwise
+/// seen from outside), corner `i` at `center ± half` by the bits of `i` (x, y, z).
+pub fn cuboid(b: Cuboid) -> (Vec<[f32; 3]>, Vec<Vec<u32>>) {
+    let pos = (0..8)
+        .map(|i| std::array::from_fn(|c| b.center[c] + (((i >> c) & 1) as f32 * 2.0 - 1.0) * b.half[c]))
+        .collect();
+    let faces = [[0, 2, 3, 1], [4, 5, 7, 6], [0, 1, 5, 4], [2, 6, 7, 3], [0, 4, 6, 2], [1, 3, 7, 5]];
+    (pos, faces.iter().map(|f| f.to_vec()).collect())
+}
+
+/// The mesh of a UV sphere inscribed in `s`: `segments` around its y axis, `rings` from pole to
+/// pole (a triangle fan at each pole, quads between), wound outward. Its facets lie inside
+/// the sphere by at most `r·(1 − cos(π/rings)·cos(π/segments))`.
+pub fn uv_sphere(s: Sphere, segments: usize, rings: usize) -> (Vec<[f32; 3]>, Vec<Vec<u32>>) {
+    let (c, r) = (s.center, s.radius);
+    let mut pos = vec![[c[0], c[1] + r, c[2]]];
+    for j in 1..rings {
+        let th = std::f32::consts::PI * j as f32 / rings as f32;
+        for i in 0..segments {
+            let ph = 2.0 * std::f32::consts::PI * i as f32 / segments as f32;
+            pos.push([c[0] + r * th.sin() * ph.cos(), c[1] + r * th.cos(), c[2] - r * th.sin() * ph.sin()]);
+        }
+    }
+    pos.push([c[0], c[1] - r, c[2]]);
+    let ring = |j: usize, i: usize| (1 + (j - 1) * segments + i % segments) as u32;
+    let last = pos.len() as u32 - 1;
+    let mut faces = Vec::new();
+    for i in 0..segments {
+        faces.push(vec![0, ring(1, i), ring(1, i + 1)]);
+        for j in 1..rings - 1 {
+            faces.push(vec![ring(j, i), ring(j + 1, i), ring(j + 1, i + 1), ring(j, i + 1)]);
+        }
+        faces.push(vec![ring(rings - 1, i), last, ring(rings - 1, i + 1)]);
+    }
+    (pos, faces)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
 
-    /// An axis-aligned box mesh: 8 corners, 6 quads wound outward (or inward).
     fn box_mesh(center: [f32; 3], half: [f32; 3], inward: bool) -> ColliderMesh {
-        let pos: Vec<[f32; 3]> = (0..8)
-            .map(|i| {
-                let s = [
-                    (i & 1) as f32 * 2.0 - 1.0,
-                    ((i >> 1) & 1) as f32 * 2.0 - 1.0,
-                    ((i >> 2) & 1) as f32 * 2.0 - 1.0,
-                ];
-                std::array::from_fn(|c| center[c] + s[c] * half[c])
-            })
-            .collect();
-        // Outward (counter-clockwise seen from outside).
-        let mut faces: Vec<Vec<u32>> = vec![
-            vec![0, 2, 3, 1],
-            vec![4, 5, 7, 6],
-            vec![0, 1, 5, 4],
-            vec![2, 6, 7, 3],
-            vec![0, 4, 6, 2],
-            vec![1, 3, 7, 5],
-        ];
+        let (pos, mut faces) = cuboid(Cuboid { center, half });
         if inward {
             faces.iter_mut().for_each(|f| f.reverse());
         }
         ColliderMesh::new("box", &faces, vec![pos]).unwrap()
     }
 
-    /// A UV sphere: `seg` segments around, `rings` rings, poles single vertices.
-    fn uv_sphere(center: [f32; 3], r: f32, seg: usize, rings: usize) -> ColliderMesh {
-        let mut pos = vec![[center[0], center[1] + r, center[2]]];
-        for j in 1..rings {
-            let th = std::f32::consts::PI * j as f32 / rings as f32;
-            for i in 0..seg {
-                let ph = 2.0 * std::f32::consts::PI * i as f32 / seg as f32;
-                pos.push([
-                    center[0] + r * th.sin() * ph.cos(),
-                    center[1] + r * th.cos(),
-                    center[2] - r * th.sin() * ph.sin(),
-                ]);
-            }
-        }
-        pos.push([center[0], center[1] - r, center[2]]);
-        let ring = |j: usize, i: usize| (1 + (j - 1) * seg + i % seg) as u32;
-        let last = pos.len() as u32 - 1;
-        let mut faces = Vec::new();
-        for i in 0..seg {
-            faces.push(vec![0, ring(1, i), ring(1, i + 1)]);
-            for j in 1..rings - 1 {
-                faces.push(vec![ring(j, i), ring(j + 1, i), ring(j + 1, i + 1), ring(j, i + 1)]);
-            }
-            faces.push(vec![ring(rings - 1, i), last, ring(rings - 1, i + 1)]);
-        }
+    fn uv_sphere(center: [f32; 3], radius: f32, segments: usize, rings: usize) -> ColliderMesh {
+        let (pos, faces) = super::uv_sphere(Sphere { center, radius }, segments, rings);
         ColliderMesh::new("sphere", &faces, vec![pos]).unwrap()
     }
 
