@@ -310,7 +310,7 @@ impl ColliderMesh {
 
     /// Signed distance (m) of each of `pts` from the surface in frame `frame` (negative
     /// inside; an open mesh's rim has no inside), through the same closest-point search and
-    /// inside test as the contacts. For tests and reports.
+    /// inside test as the contacts (frames past the last are the last). For tests and reports.
     pub fn signed_distances(&self, frame: usize, pts: &[[f32; 3]]) -> Vec<f32> {
         let pose = Pose::new(self, self.frames[frame.min(self.frames.len() - 1)].clone());
         pts.iter()
@@ -679,10 +679,7 @@ impl ColliderMesh {
             if dot(e, e) > (r + radius) * (r + radius) {
                 return;
             }
-            let [a, b, c] = pose.corners(&self.tris, t);
-            let (point, bary, feature) = closest_on_triangle(p, a, b, c);
-            let d = sub(p, point);
-            let h = Hit { point, d2: dot(d, d), tri: t, bary, feature };
+            let h = self.hit(pose, p, t);
             if h.d2 <= r2 && h.beats(&best) {
                 best = Some(h);
             }
@@ -691,29 +688,39 @@ impl ColliderMesh {
     }
 
     /// The closest point of `pose`'s surface to `p`, however far: the search box doubles
-    /// until it holds one (beyond the grid, every triangle is tested).
+    /// until it holds one, and past the grid's far corner every triangle is tested.
     fn closest_anywhere(&self, pose: &Pose, p: [f32; 3]) -> Hit {
         let g = &pose.grid;
         let far_corner: [f32; 3] = std::array::from_fn(|c| {
             let (lo, hi) = (g.origin[c], g.origin[c] + g.dims[c] as f32 * g.cell);
             (p[c] - lo).abs().max((p[c] - hi).abs())
         });
-        let r_max = norm(far_corner) + g.cell;
+        // NaN (a cloth that blew up) skips the loop.
+        let r_max = norm(far_corner);
         let mut r = g.cell;
-        loop {
-            if let Some(h) = self.closest_within(pose, p, r.min(r_max)) {
+        while r < r_max {
+            if let Some(h) = self.closest_within(pose, p, r) {
                 return h;
-            }
-            if r >= r_max {
-                // Every triangle lies within r_max: unreachable but for NaN input.
-                let t = 0;
-                let [a, b, c] = pose.corners(&self.tris, t);
-                let (point, bary, feature) = closest_on_triangle(p, a, b, c);
-                let d = sub(p, point);
-                return Hit { point, d2: dot(d, d), tri: t, bary, feature };
             }
             r *= 2.0;
         }
+        // A collider has at least one triangle ([`ColliderMesh::new`]).
+        let mut best = self.hit(pose, p, 0);
+        for t in 1..self.tris.len() as u32 {
+            let h = self.hit(pose, p, t);
+            if h.beats(&Some(best)) {
+                best = h;
+            }
+        }
+        best
+    }
+
+    /// The closest point to `p` on triangle `t` of `pose`.
+    fn hit(&self, pose: &Pose, p: [f32; 3], t: u32) -> Hit {
+        let [a, b, c] = pose.corners(&self.tris, t);
+        let (point, bary, feature) = closest_on_triangle(p, a, b, c);
+        let d = sub(p, point);
+        Hit { point, d2: dot(d, d), tri: t, bary, feature }
     }
 
     /// The normal that says which side of the closest feature `h` is outside: the face's, an
@@ -942,7 +949,7 @@ impl MeshCollider {
         let reach = REACH * t;
         let (lo, hi) = (sub(m.bounds.0, [reach; 3]), add(m.bounds.1, [reach; 3]));
         for_vertices(x, |v, xv| {
-            if free.is_some_and(|f| f[v] <= 0.0) {
+            if free.is_some_and(|f| f[v] <= 0.0) || !xv.iter().all(|c| c.is_finite()) {
                 return;
             }
             if let Some(f) = from {
@@ -1072,10 +1079,7 @@ mod tests {
         for p in rng_points(2000, -0.9, 0.9, 9) {
             let mut best: Option<Hit> = None;
             for t in 0..m.tris.len() as u32 {
-                let [a, b, c] = pose.corners(&m.tris, t);
-                let (point, bary, feature) = closest_on_triangle(p, a, b, c);
-                let d = sub(p, point);
-                let h = Hit { point, d2: dot(d, d), tri: t, bary, feature };
+                let h = m.hit(&pose, p, t);
                 if h.beats(&best) {
                     best = Some(h);
                 }
