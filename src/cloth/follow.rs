@@ -283,7 +283,7 @@ impl FollowParams {
     /// Refuse an animated collider whose frame count is not the shot's `frames`, naming its
     /// folder and both counts.
     pub fn check_shot_frames(&self, frames: usize) -> Result<()> {
-        for m in self.colliders.iter().filter(|m| m.is_animated() && m.frames() != frames) {
+        if let Some(m) = self.colliders.iter().find(|m| m.is_animated() && m.frames() != frames) {
             return Err(Error::format(
                 m.source(),
                 format!(
@@ -543,7 +543,9 @@ impl Follower {
     }
 
     /// Simulate one frame toward `target` (the next HR frame of the shot, same grid as the
-    /// first) and return the cloth there; `k` is the frame's number, for errors.
+    /// first) and return the cloth there; `k` is the frame's number in the shot: animated mesh
+    /// colliders move from their frame of the last step to their frame `k` over its substeps
+    /// (an error naming the collider when it has no frame `k`), and errors name it.
     pub fn step(&mut self, target: &GridMesh, k: usize) -> Result<GridMesh> {
         if (target.w, target.h) != (self.cloth.w, self.cloth.h) {
             return Err(Error::shape(format!(
