@@ -237,6 +237,31 @@ fn upscale_records_its_colliders_so_another_collider_is_another_run() {
     assert_eq!(c.get("triangles").and_then(|f| f.as_u64()), Some(12));
     assert!(c.get("checksum").and_then(|f| f.as_str()).is_some_and(|s| s.len() == 16));
     assert_eq!(phys.get("collider_thickness_m").and_then(|t| t.as_f64()), Some(0.004));
+    // A slice made with another collider, or with this one's file changed, would mix two
+    // settings in the folder: refused before any work, as any other setting.
+    let o = out.to_str().unwrap();
+    let slice = |collider: &Path| {
+        let c = collider.to_str().unwrap();
+        let args = [
+            inp,
+            "--out",
+            o,
+            "--physics",
+            "--frames",
+            "0:2",
+            "--collider",
+            c,
+            "--collider-thickness",
+            "0.004",
+        ];
+        upscale_refused(&args, 1, &["other settings"]);
+    };
+    let (pos, faces) = cuboid(Cuboid { center: [0.15, 0.15, -0.3], half: [0.1; 3] });
+    slice(&write(&d, "other.obj", obj(&pos, &faces).as_bytes()));
+    let (pos, faces) = cuboid(Cuboid { center: [0.15, 0.15, -0.35], half: [0.1; 3] });
+    write(&three, "box_2.obj", obj(&pos, &faces).as_bytes());
+    slice(&three);
+    assert!(!out.join("upscale.0-2.json").exists());
 }
 
 #[test]
