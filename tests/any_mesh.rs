@@ -8,8 +8,7 @@ mod meshes;
 #[path = "common/tempdir.rs"]
 mod tempdir;
 
-use anisocb::cloth::follow::{FollowOutput, FollowParams, PinnedEdges};
-use anisocb::cloth::follow_mesh::MeshFollower;
+use anisocb::cloth::follow::{FollowOutput, FollowParams, Follower, PinnedEdges};
 use anisocb::eval::mesh::mesh_detail;
 use anisocb::geom::obj::parse_obj;
 use anisocb::geom::surface::Subdivision;
@@ -342,10 +341,10 @@ fn the_physics_pass_forms_folds_finer_than_the_lr_mesh_on_a_mesh_that_is_not_a_g
         for output in [FollowOutput::Cloth, FollowOutput::Detail] {
             let p = FollowParams { gravity: [0.0; 3], output, ..FollowParams::default() };
             let run = |frames: &[Vec<[f32; 3]>]| -> Vec<Vec<[f32; 3]>> {
-                let mut f = MeshFollower::new(&frames[0], sub.clone(), n, &p).unwrap();
+                let mut f = Follower::new_mesh(&frames[0], sub.clone(), n, &p).unwrap();
                 let mut out = vec![frames[0].clone()];
                 for (k, t) in frames.iter().enumerate().skip(1) {
-                    out.push(f.step(t, k).unwrap());
+                    out.push(f.step_mesh(t, k).unwrap());
                 }
                 out
             };

@@ -42,7 +42,7 @@ pub enum Command {
     /// Assemble GeometryNet, BoundaryNet and EnhanceNet from separate weights files into one bundle.
     Bundle(bundle::Args),
     /// Upscale an OBJ sequence or a geometry.npy to twice the resolution with wrinkles.
-    Upscale(upscale::Args),
+    Upscale(Box<upscale::Args>),
     /// Simulate a held-out scenario, upscale it with the embedded weights, compare, write pictures.
     Demo(demo::Args),
     /// Evaluate anisocb against baselines on held-out runs (metrics tables, plots, renders).
@@ -102,7 +102,7 @@ where
         Command::Dataset(a) => dataset::run(a),
         Command::Train(a) => train::run(a),
         Command::Bundle(a) => bundle::run(a),
-        Command::Upscale(a) => upscale::run(a),
+        Command::Upscale(a) => upscale::run(*a),
         Command::Demo(a) => demo::run(a),
         Command::Eval(a) => eval::run(a),
         Command::Audit(a) => audit::run(a),
@@ -144,6 +144,8 @@ fn flag(field: &'static str) -> &'static str {
         "drift_seconds" => "--physics-drift",
         "substeps_per_second" => "--physics-substeps",
         "pins" => "--physics-pin",
+        "colliders" => "--collider",
+        "collider_thickness" => "--collider-thickness",
         "val_frac" => "--val-frac",
         "resume" => "--resume",
         f => f,

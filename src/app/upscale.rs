@@ -7,6 +7,7 @@ use super::setup::{load_model, parse_threads, set_threads};
 use super::ui::progress;
 use crate::cloth::collision::{Cuboid, Sphere};
 use crate::cloth::follow::{FollowOutput, FollowParams, PinnedEdges};
+use crate::cloth::mesh_collider::{ColliderMesh, COLLIDER_THICKNESS};
 use crate::cloth::run_io::DOMAIN_MARGIN;
 use crate::cloth::Material;
 use crate::cuda::Device;
@@ -19,6 +20,7 @@ use crate::sr::compose::DEFAULT_ETA;
 use crate::sr::params::UpscaleParams;
 use indicatif::ProgressBar;
 use std::path::PathBuf;
+use std::sync::Arc;
 
 #[derive(clap::Args, Debug)]
 #[command(after_help = "Examples:
@@ -28,6 +30,7 @@ use std::path::PathBuf;
   anisocb upscale run/lr/geometry.npy --out hr/ --eta 1.0 --maps
   anisocb upscale frames/ --out hr/ --frames 0:100   # one slice of a shot (a render-farm task)
   anisocb upscale frames/ --out hr/ --physics --gravity 0,0,-9.81 --fps 24   # folds by simulation
+  anisocb upscale frames/ --out hr/ --physics --collider body/ --collider chair.obj   # on meshes
 
 From Blender and back (OBJ sequence):
   1. File > Export > Wavefront (.obj): Animation on, Apply Modifiers on, UV Coordinates and
@@ -243,6 +246,17 @@ pub struct Args {
     /// makes the cloth stiffer against stretching and costs time in proportion.
     #[arg(help_heading = "Physics pass (--physics)", long, default_value_t = crate::cloth::follow::FollowParams::default().substeps_per_second)]
     pub physics_substeps: f32,
+    /// With --physics: a triangle mesh the cloth lies on (a body, a chair, a floor), in the
+    /// shot's axes and metres: an OBJ file (static), or a folder of OBJ frames in natural order,
+    /// one per frame of the shot (animated; the substeps blend between frames). Faces of 3 or 4
+    /// corners. A closed mesh has an inside at any depth; an open one is one-sided, its faces'
+    /// front (counter-clockwise) outside. The pass's cloth collides with it, never passes
+    /// through it, and no output vertex is left inside it. Repeat for several.
+    #[arg(help_heading = "Physics pass (--physics)", long, value_name = "PATH")]
+    pub collider: Vec<PathBuf>,
+    /// With --physics: the gap (m) the cloth keeps from the --collider meshes [default: 0.005].
+    #[arg(help_heading = "Physics pass (--physics)", long, value_name = "M")]
+    pub collider_thickness: Option<f32>,
 }
 
 /// Progress bars and messages on stderr.
@@ -275,6 +289,19 @@ impl Report for Stderr {
 
 /// The options as a typed job, checked once ([`UpscaleJob::check`]).
 fn job(a: &Args) -> Result<CheckedJob> {
+    if !a.physics {
+        if let Some(c) = a.collider.first() {
+            return Err(Error::config(format!(
+                "--collider {}: colliders are the physics pass's: add --physics",
+                c.display()
+            )));
+        }
+        if a.collider_thickness.is_some() {
+            return Err(Error::config(
+                "--collider-thickness sets the physics pass's gap to its colliders: add --physics",
+            ));
+        }
+    }
     let physics = match (a.physics, &a.preset) {
         (false, Some(p)) => {
             return Err(Error::config(format!(
@@ -310,6 +337,12 @@ fn job(a: &Args) -> Result<CheckedJob> {
                     .map(|[x, y, z, hx, hy, hz]| Cuboid { center: [x, y, z], half: [hx, hy, hz] }),
                 pins: PinnedEdges::parse(&a.physics_pin)?,
                 substeps_per_second: a.physics_substeps,
+                colliders: a
+                    .collider
+                    .iter()
+                    .map(|p| ColliderMesh::read(p).map(Arc::new))
+                    .collect::<Result<_>>()?,
+                collider_thickness: a.collider_thickness.unwrap_or(COLLIDER_THICKNESS),
             })
         }
     };

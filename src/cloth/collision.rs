@@ -27,9 +27,11 @@ pub struct Colliders {
 }
 
 /// Push `x` out along unit normal `n` by `pen` (m) and remove tangential motion since `prev`
-/// up to `mu · pen` (static friction below that, kinetic above).
+/// up to `mu · pen` (static friction below that, kinetic above). A moving collider
+/// ([`super::mesh_collider`]) passes `prev` carried along with its surface, so the friction
+/// acts on the motion relative to it.
 #[inline]
-fn resolve(x: &mut [f32; 3], prev: [f32; 3], n: [f32; 3], pen: f32, mu: f32) {
+pub(super) fn resolve(x: &mut [f32; 3], prev: [f32; 3], n: [f32; 3], pen: f32, mu: f32) {
     for k in 0..3 {
         x[k] += n[k] * pen;
     }

@@ -13,13 +13,20 @@
 //! the shape the LR grid carries, frame by frame, blending linearly over the substeps; gravity,
 //! the material, the frame rate and which edges the artist holds ([`PinnedEdges`]: those HR
 //! vertices follow the shot's frames exactly) come from [`FollowParams`], and so do the
-//! colliders the artist names (a floor, a sphere, a box: the output stays out of them); there
-//! is no wind, and a collider not named is not seen (the tracking and the drift correction keep
+//! colliders the artist names (a floor, a sphere, a box, triangle meshes static or animated:
+//! the output stays out of them); there is no wind, and a collider not named is not seen (the tracking and the drift correction keep
 //! the cloth where the shot's cloth is; its folds may dip into it).
+//!
+//! Any mesh (issue 45, [`Follower::new_mesh`]): the same pass on the HR mesh of a mesh's linear
+//! subdivision ([`Cloth::from_mesh`]), one coarse constraint per LR vertex on the HR vertices
+//! its subdivision reaches ([`Restriction::of_subdivision`]), and `S` (the part of a frame the
+//! LR shape holds) the linear subdivision of the frame's LR vertices instead of the round trip
+//! through the LR grid.
 
 use super::collision::{Colliders, Cuboid, Sphere};
 pub use super::held_edges::PinnedEdges;
 use super::kinematics::{Kinematics, Pin};
+use super::mesh_collider::{ColliderMesh, MeshCollider, COLLIDER_THICKNESS, MAX_COLLIDER_THICKNESS};
 use super::params::{Material, SimParams};
 use super::scenarios::{Scenario, ScenarioSpec};
 use super::solver::{Cloth, Scene};
@@ -27,11 +34,13 @@ use super::tracking::{CoarseTrack, PinPath, Restriction, TrackTargets};
 use super::wind::Wind;
 use crate::error::{Error, Result};
 use crate::geom::geometry_image::{image_to_mesh, lr_round_trip, sequence_to_images};
+use crate::geom::surface::{edge_key, Subdivision};
 use crate::geom::Domain;
 use crate::geom::GridMesh;
 use crate::io::json::Value;
 use crate::ops::resample::resize;
 use crate::ops::Interp;
+use std::sync::Arc;
 
 /// What the physics pass simulates with; units are the shot's, taken as metres.
 #[derive(Clone, Debug, PartialEq)]
@@ -85,6 +94,13 @@ pub struct FollowParams {
     /// vertex is left inside them.
     pub sphere: Option<Sphere>,
     pub cuboid: Option<Cuboid>,
+    /// Triangle-mesh colliders (`--collider`, [`super::mesh_collider`]): bodies the cloth lies
+    /// on, static or animated (one frame per shot frame). The pass's cloth collides with them
+    /// and no output vertex is left inside them. Loaded once and shared: cloning the
+    /// parameters copies pointers, comparing them compares checksums.
+    pub colliders: Vec<Arc<ColliderMesh>>,
+    /// The gap (m) the cloth keeps from the mesh colliders (`--collider-thickness`).
+    pub collider_thickness: f32,
 }
 
 /// What [`Follower::step`] returns.
@@ -118,6 +134,8 @@ impl Default for FollowParams {
             ground: None,
             sphere: None,
             cuboid: None,
+            colliders: Vec::new(),
+            collider_thickness: COLLIDER_THICKNESS,
         }
     }
 }
@@ -228,6 +246,29 @@ impl FollowParams {
                 ),
             ));
         }
+        let t = self.collider_thickness;
+        if !(t.is_finite() && t > 0.0 && t <= MAX_COLLIDER_THICKNESS) {
+            return Err(Error::invalid(
+                "collider_thickness",
+                format!(
+                    "the gap kept from mesh colliders must be above 0 and at most \
+                     {MAX_COLLIDER_THICKNESS} m, got {t}; give it in metres (5 mm is 0.005)"
+                ),
+            ));
+        }
+        for m in &self.colliders {
+            let (lo, hi) = m.bounds();
+            if lo.iter().chain(&hi).any(|c| c.abs() > MAX_COLLIDER_METRES) {
+                return Err(Error::invalid(
+                    "colliders",
+                    format!(
+                        "{} reaches {lo:?} to {hi:?}, beyond ±{MAX_COLLIDER_METRES} m of the shot's \
+                         origin; give it in the shot's units (metres)",
+                        m.source().display()
+                    ),
+                ));
+            }
+        }
         if self.drift_seconds.is_nan() || self.drift_seconds < 0.0 {
             return Err(Error::invalid("drift_seconds", format!(
                 "the drift correction's time constant must be a time in seconds ≥ 0 (inf turns the correction off), got {}",
@@ -240,6 +281,22 @@ impl FollowParams {
                 format!(
                     "the physics pass's substeps must be 1 to 1e5 per second, got {}",
                     self.substeps_per_second
+                ),
+            ));
+        }
+        Ok(())
+    }
+
+    /// Refuse an animated collider whose frame count is not the shot's `frames`, naming its
+    /// folder and both counts.
+    pub fn check_shot_frames(&self, frames: usize) -> Result<()> {
+        if let Some(m) = self.colliders.iter().find(|m| m.is_animated() && m.frames() != frames) {
+            return Err(Error::format(
+                m.source(),
+                format!(
+                    "holds {} collider frames and the shot {frames}: an animated collider needs \
+                     one OBJ frame per frame of the shot (a static one is a single OBJ file)",
+                    m.frames()
                 ),
             ));
         }
@@ -329,6 +386,35 @@ pub const DRIFT_SECONDS: f32 = 3.0;
 /// 0.33; the other four 2.00 → 2.06 in sum): the still sheet decided.
 pub const SETTLE_SECONDS: f32 = 2.0;
 
+/// The LR shape a cloth is tracked at: a grid, or any mesh (issue 45). It says what `S` (the
+/// part of an HR frame the LR shape can hold) and the coarse targets are.
+enum Coarse {
+    /// An LR grid of (columns, rows) under an HR grid of (columns, rows): `S` is the
+    /// Catmull-Rom round trip through the LR grid ([`lr_round_trip`]).
+    Grid { lr: (usize, usize), hr: (usize, usize) },
+    /// A mesh's linear subdivision ([`Restriction::of_subdivision`]'s tents): `S(x)` is the
+    /// subdivision of `x`'s LR vertices (HR vertices `0..lr`), and `taper` is each HR
+    /// vertex's share of the detail in `detail` output (0 on the mesh's border, ½ one edge in).
+    Mesh { sub: Subdivision, lr: usize, taper: Vec<f32> },
+}
+
+impl Coarse {
+    /// `S(x)`: the part of the HR positions `x` the LR shape holds.
+    fn smooth(&self, x: &[[f32; 3]]) -> Vec<[f32; 3]> {
+        match self {
+            Coarse::Grid { lr, hr } => lr_round_trip(&GridMesh::new(hr.0, hr.1, x.to_vec()), lr.0, lr.1).pos,
+            Coarse::Mesh { sub, lr, .. } => sub.apply(&x[..*lr]),
+        }
+    }
+
+    /// How much of the simulated detail HR vertex `v` takes in `detail` output.
+    fn taper(&self, v: usize) -> f32 {
+        match self {
+            Coarse::Grid { hr: (w, h), .. } => border_taper(v % w, v / w, *w, *h),
+            Coarse::Mesh { taper, .. } => taper[v],
+        }
+    }
+}
 /// The physics pass's state over one shot: the HR cloth and the last frame's coarse targets.
 pub struct Follower {
     cloth: Cloth,
@@ -344,10 +430,12 @@ pub struct Follower {
     rest_sag: Vec<[f32; 3]>,
     /// Where the pins were at the end of the last frame (m), in the cloth's pin order.
     pin_from: Vec<[f32; 3]>,
-    /// The LR grid (columns, rows).
-    lr: (usize, usize),
+    /// What "the part the LR shape holds" is for this cloth.
+    shape: Coarse,
     /// The floor ([`FollowParams::ground`]) as (unit up, height).
     floor: Option<([f32; 3], f32)>,
+    /// The shot frame the cloth is at (the mesh colliders' pose).
+    frame: usize,
     output: FollowOutput,
     /// `cloth` output: the weight of the last frame in the drift correction's moving average,
     /// `exp(−1/(fps·drift_seconds))` (1 = off).
@@ -369,15 +457,58 @@ impl Follower {
                 first.w, first.h, lr.0, lr.1
             )));
         }
-        check_frame(first, 0)?;
+        check_frame(&first.pos, 0)?;
         let material = p.material;
         let pins = p.pins.vertices(first.w, first.h);
         let pin_from: Vec<[f32; 3]> = pins.iter().map(|&v| first.pos[v]).collect();
         let pins = pins.iter().map(|&v| Pin { vertex: v, anchor: first.pos[v], side: 0.0 }).collect();
         let cloth = Cloth::new(first, &|_| material, pins);
         let track = CoarseTrack::new(Restriction::new(lr.0, lr.1, first.w, first.h), &cloth.inv_mass);
+        let shape = Coarse::Grid { lr, hr: (first.w, first.h) };
+        Follower::start(cloth, track, shape, pin_from, &first.pos, p)
+    }
+
+    /// A cloth of any mesh (issue 45): the HR mesh of `sub` (the linear subdivision of an LR
+    /// mesh of `lr` vertices) whose rest shape is `first` (the shot's first HR frame), at rest
+    /// there; coarse-tracked with one constraint per LR vertex ([`Restriction::of_subdivision`]),
+    /// `S` the linear subdivision of a frame's LR vertices. Held grid edges are refused (a mesh
+    /// has no sides to name).
+    pub fn new_mesh(first: &[[f32; 3]], sub: Subdivision, lr: usize, p: &FollowParams) -> Result<Follower> {
+        p.validate()?;
+        if !p.pins.is_empty() {
+            return Err(Error::invalid(
+                "pins",
+                "held grid edges (top, left, …) name a grid's sides; a mesh that is not a grid has \
+                 none: leave them out",
+            ));
+        }
+        if first.len() != sub.hr_vertices() || lr > first.len() {
+            return Err(Error::shape(format!(
+                "the physics pass's mesh has {} HR vertices, the frame {}",
+                sub.hr_vertices(),
+                first.len()
+            )));
+        }
+        check_frame(first, 0)?;
+        let material = p.material;
+        let cloth = Cloth::from_mesh(first, &sub.faces, &|_| material, Vec::new());
+        let track = CoarseTrack::new(Restriction::of_subdivision(&sub, lr), &cloth.inv_mass);
+        let taper = mesh_border_taper(&sub.faces, first.len());
+        Follower::start(cloth, track, Coarse::Mesh { sub, lr, taper }, Vec::new(), first, p)
+    }
+
+    /// The pass on `cloth` (tracked by `track` at `shape`), settled on the first frame `first`.
+    fn start(
+        cloth: Cloth,
+        track: CoarseTrack,
+        shape: Coarse,
+        pin_from: Vec<[f32; 3]>,
+        first: &[[f32; 3]],
+        p: &FollowParams,
+    ) -> Result<Follower> {
         let colliders = Colliders { sphere: p.sphere, cuboid: p.cuboid, ground: None };
-        let scene = Scene { kinematics: Kinematics::Static, wind: Wind::none(), colliders };
+        let meshes = p.colliders.iter().map(|m| MeshCollider::new(m.clone(), p.collider_thickness)).collect();
+        let scene = Scene { kinematics: Kinematics::Static, wind: Wind::none(), colliders, meshes };
         let mut f = Follower {
             cloth,
             scene,
@@ -388,7 +519,7 @@ impl Follower {
             from: Vec::new(),
             rest_sag: Vec::new(),
             pin_from,
-            lr,
+            shape,
             output: p.output,
             drift_keep: (-1.0 / (p.fps * p.drift_seconds)).exp(),
             floor: p.ground.map(|h| {
@@ -396,8 +527,12 @@ impl Follower {
                 (p.gravity.map(|g| -g / n), h)
             }),
             drift: Vec::new(),
+            frame: 0,
         };
+        // A first frame that dips into a mesh collider starts outside it.
+        f.push_cloth_out();
         f.settle(first);
+        f.push_cloth_out();
         f.from = f.targets(first);
         Ok(f)
     }
@@ -420,11 +555,11 @@ impl Follower {
     /// Catmull-Rom's; with the attachment undamped and the LR-grid targets it is 0.94×
     /// (docs/research/wrinkles.md, "The physics pass"). `cloth` output's drift correction takes the sag
     /// out of the output from the first frame.
-    fn settle(&mut self, first: &GridMesh) {
+    fn settle(&mut self, first: &[[f32; 3]]) {
         let (time, t) = (self.cloth.time, self.targets(first));
         let frames = (SETTLE_SECONDS * self.sim.dt.recip()).ceil().max(2.0) as usize;
         let n = (frames - frames.div_ceil(2)) as f32;
-        let mut mean = vec![[0.0f32; 3]; first.pos.len()];
+        let mut mean = vec![[0.0f32; 3]; first.len()];
         for k in 0..frames {
             let tt = TrackTargets {
                 from: &t,
@@ -441,13 +576,11 @@ impl Follower {
                 }
             }
         }
-        // The part finer than the LR grid: the coarse sag stays in the cloth.
+        // The part finer than the LR shape: the coarse sag stays in the cloth.
         let d: Vec<[f32; 3]> =
-            mean.iter().zip(&first.pos).map(|(x, f)| std::array::from_fn(|c| x[c] - f[c])).collect();
-        let d = GridMesh::new(first.w, first.h, d);
-        let coarse = lr_round_trip(&d, self.lr.0, self.lr.1);
-        self.rest_sag =
-            d.pos.iter().zip(&coarse.pos).map(|(a, b)| std::array::from_fn(|c| a[c] - b[c])).collect();
+            mean.iter().zip(first).map(|(x, f)| std::array::from_fn(|c| x[c] - f[c])).collect();
+        let coarse = self.shape.smooth(&d);
+        self.rest_sag = d.iter().zip(&coarse).map(|(a, b)| std::array::from_fn(|c| a[c] - b[c])).collect();
         let c = &mut self.cloth;
         for (v, (x, m)) in c.x.iter_mut().zip(&mean).enumerate() {
             if c.inv_mass[v] > 0.0 {
@@ -466,11 +599,18 @@ impl Follower {
     /// worth apart from those, and the folds form elsewhere: on the seed-6 validation runs
     /// the mean correlation was 0.427 that way, 0.447 this way (drape 0.61 → 0.69; with the
     /// true LR frames 0.456; docs/research/wrinkles.md, "The physics pass").
-    fn targets(&self, frame: &GridMesh) -> Vec<[f32; 3]> {
-        let img = sequence_to_images(std::slice::from_ref(frame), &Domain::UNIT);
-        // The simulator's own resampling, not a net op: the CPU function, not the op table.
-        let lr = resize(&img, self.lr.1, self.lr.0, Interp::CatmullRom);
-        self.track.restriction.targets(&image_to_mesh(&lr, 0, &Domain::UNIT))
+    /// On a mesh, the tent averages of its LR vertices' subdivision.
+    fn targets(&self, frame: &[[f32; 3]]) -> Vec<[f32; 3]> {
+        match &self.shape {
+            Coarse::Grid { lr, hr } => {
+                let frame = GridMesh::new(hr.0, hr.1, frame.to_vec());
+                let img = sequence_to_images(std::slice::from_ref(&frame), &Domain::UNIT);
+                // The simulator's own resampling, not a net op: the CPU function, not the op table.
+                let lr = resize(&img, lr.1, lr.0, Interp::CatmullRom);
+                self.track.restriction.targets(&image_to_mesh(&lr, 0, &Domain::UNIT))
+            }
+            Coarse::Mesh { .. } => self.track.restriction.apply(&self.shape.smooth(frame)),
+        }
     }
 
     /// The pass over a whole shot in memory (HR frames in shot order, LR grid `lr`): the first
@@ -486,7 +626,9 @@ impl Follower {
     }
 
     /// Simulate one frame toward `target` (the next HR frame of the shot, same grid as the
-    /// first) and return the cloth there; `k` is the frame's number, for errors.
+    /// first) and return the cloth there; `k` is the frame's number in the shot: animated mesh
+    /// colliders move from their frame of the last step to their frame `k` over its substeps
+    /// (an error naming the collider when it has no frame `k`), and errors name it.
     pub fn step(&mut self, target: &GridMesh, k: usize) -> Result<GridMesh> {
         if (target.w, target.h) != (self.cloth.w, self.cloth.h) {
             return Err(Error::shape(format!(
@@ -494,9 +636,30 @@ impl Follower {
                 target.w, target.h, self.cloth.w, self.cloth.h
             )));
         }
+        Ok(GridMesh::new(target.w, target.h, self.step_to(&target.pos, k)?))
+    }
+
+    /// [`Follower::step`] for a cloth of any mesh ([`Follower::new_mesh`]): `target` holds the
+    /// next HR frame's vertices.
+    pub fn step_mesh(&mut self, target: &[[f32; 3]], k: usize) -> Result<Vec<[f32; 3]>> {
+        if target.len() != self.cloth.x.len() {
+            return Err(Error::shape(format!(
+                "frame {k} has {} HR vertices, the physics pass's cloth {}",
+                target.len(),
+                self.cloth.x.len()
+            )));
+        }
+        self.step_to(target, k)
+    }
+
+    /// One frame toward `target` (as many positions as the cloth), the output positions.
+    fn step_to(&mut self, target: &[[f32; 3]], k: usize) -> Result<Vec<[f32; 3]>> {
         check_frame(target, k)?;
+        for m in &mut self.scene.meshes {
+            m.set_span(self.frame, k)?;
+        }
         let to = self.targets(target);
-        let pin_to: Vec<[f32; 3]> = self.cloth.pins.iter().map(|p| target.pos[p.vertex]).collect();
+        let pin_to: Vec<[f32; 3]> = self.cloth.pins.iter().map(|p| target[p.vertex]).collect();
         let tt = TrackTargets {
             from: &self.from,
             to: &to,
@@ -506,18 +669,22 @@ impl Follower {
             pins: Some(PinPath { from: &self.pin_from, to: &pin_to }),
         };
         self.cloth.step(&self.sim, &self.scene, Some(&tt));
+        self.frame = k;
+        self.push_cloth_out();
         self.from = to;
         self.pin_from = pin_to;
-        let mut out = self.cloth.mesh();
-        for (o, s) in out.pos.iter_mut().zip(&self.rest_sag) {
-            (0..3).for_each(|c| o[c] -= s[c]);
-        }
+        let mut out: Vec<[f32; 3]> = self
+            .cloth
+            .x
+            .iter()
+            .zip(&self.rest_sag)
+            .map(|(x, s)| std::array::from_fn(|c| x[c] - s[c]))
+            .collect();
         match self.output {
             FollowOutput::Detail => {
-                let s = lr_round_trip(&out, self.lr.0, self.lr.1);
-                let (w, h) = (out.w, out.h);
-                for (v, ((o, t), s)) in out.pos.iter_mut().zip(&target.pos).zip(&s.pos).enumerate() {
-                    let k = border_taper(v % w, v / w, w, h);
+                let s = self.shape.smooth(&out);
+                for (v, ((o, t), s)) in out.iter_mut().zip(target).zip(&s).enumerate() {
+                    let k = self.shape.taper(v);
                     *o = std::array::from_fn(|c| t[c] + k * (o[c] - s[c]));
                 }
             }
@@ -528,11 +695,15 @@ impl Follower {
         // their surfaces: `prev = out` leaves friction nothing to do.
         let c = &self.scene.colliders;
         if c.sphere.is_some() || c.cuboid.is_some() {
-            let (before, free) = (out.pos.clone(), vec![1.0; out.pos.len()]);
-            c.project(&mut out.pos, &before, &free, 0.0, 0.0);
+            let (before, free) = (out.clone(), vec![1.0; out.len()]);
+            c.project(&mut out, &before, &free, 0.0, 0.0);
+        }
+        // Back across any mesh surface the way from the cloth (outside) enters, and out.
+        for m in &self.scene.meshes {
+            m.push_out(&mut out, Some(&self.cloth.x), None);
         }
         if let Some((up, h)) = self.floor {
-            for o in &mut out.pos {
+            for o in &mut out {
                 let below = h - (0..3).map(|c| o[c] * up[c]).sum::<f32>();
                 if below > 0.0 {
                     (0..3).for_each(|c| o[c] += below * up[c]);
@@ -541,9 +712,9 @@ impl Follower {
         }
         // Pinned vertices are the shot's (the rest sag and the detail are the free cloth's).
         for pin in &self.cloth.pins {
-            out.pos[pin.vertex] = target.pos[pin.vertex];
+            out[pin.vertex] = target[pin.vertex];
         }
-        if out.pos.iter().flatten().any(|c| !c.is_finite()) {
+        if out.iter().flatten().any(|c| !c.is_finite()) {
             return Err(Error::numeric(format!(
                 "the physics pass blew up at frame {k} (non-finite position): is the shot in metres \
                  and --fps its frame rate?"
@@ -554,13 +725,22 @@ impl Follower {
 }
 
 impl Follower {
+    /// Take the cloth's free vertices out of the mesh colliders at the current frame (a closed
+    /// one's inside at any depth), once a frame: the substeps' contacts look only a few
+    /// thicknesses from each vertex.
+    fn push_cloth_out(&mut self) {
+        let c = &mut self.cloth;
+        for m in &self.scene.meshes {
+            m.push_out(&mut c.x, None, Some(&c.inv_mass));
+        }
+    }
+
     /// `cloth` output: move `out` (the cloth) by the moving average of how far its coarse shape
     /// lies from the shot's, `drift ← keep·drift + (1 − keep)·(S(target) − S(out))`, the
     /// first frame's offset taken as it is.
-    fn correct_drift(&mut self, out: &mut GridMesh, target: &GridMesh) {
-        let (st, so) =
-            (lr_round_trip(target, self.lr.0, self.lr.1), lr_round_trip(out, self.lr.0, self.lr.1));
-        let now = st.pos.iter().zip(&so.pos).map(|(t, o)| std::array::from_fn(|c| t[c] - o[c]));
+    fn correct_drift(&mut self, out: &mut [[f32; 3]], target: &[[f32; 3]]) {
+        let (st, so) = (self.shape.smooth(target), self.shape.smooth(out));
+        let now = st.iter().zip(&so).map(|(t, o)| std::array::from_fn(|c| t[c] - o[c]));
         if self.drift.is_empty() {
             self.drift = now.collect();
         } else {
@@ -569,7 +749,7 @@ impl Follower {
                 *d = std::array::from_fn(|c| k * d[c] + (1.0 - k) * n[c]);
             }
         }
-        for (o, d) in out.pos.iter_mut().zip(&self.drift) {
+        for (o, d) in out.iter_mut().zip(&self.drift) {
             (0..3).for_each(|c| o[c] += d[c]);
         }
     }
@@ -588,11 +768,40 @@ fn border_taper(i: usize, j: usize, w: usize, h: usize) -> f32 {
     }
 }
 
-fn check_frame(m: &GridMesh, k: usize) -> Result<()> {
-    if m.pos.iter().flatten().any(|c| !c.is_finite()) {
+fn check_frame(x: &[[f32; 3]], k: usize) -> Result<()> {
+    if x.iter().flatten().any(|c| !c.is_finite()) {
         return Err(Error::numeric(format!(
             "frame {k} has a non-finite position; the physics pass needs finite frames"
         )));
     }
     Ok(())
+}
+
+/// Per vertex of the mesh `faces` (`n` vertices): 0 on its border (a vertex of an edge in one
+/// face), ½ one edge in, 1 further in: [`border_taper`] on any mesh.
+fn mesh_border_taper(faces: &[Vec<u32>], n: usize) -> Vec<f32> {
+    let mut count: std::collections::HashMap<(u32, u32), u32> = std::collections::HashMap::new();
+    for f in faces {
+        for i in 0..f.len() {
+            *count.entry(edge_key(f[i], f[(i + 1) % f.len()])).or_default() += 1;
+        }
+    }
+    let mut ring = vec![2u8; n];
+    for (&(a, b), &c) in &count {
+        if c == 1 {
+            ring[a as usize] = 0;
+            ring[b as usize] = 0;
+        }
+    }
+    // One edge in from the border (the border is final before this pass: order-free).
+    for &(a, b) in count.keys() {
+        let (ra, rb) = (ring[a as usize], ring[b as usize]);
+        if ra == 0 && rb != 0 {
+            ring[b as usize] = 1;
+        }
+        if rb == 0 && ra != 0 {
+            ring[a as usize] = 1;
+        }
+    }
+    ring.into_iter().map(|r| [0.0, 0.5, 1.0][r as usize]).collect()
 }

@@ -10,6 +10,8 @@
 //! - [`kinematics`]: pinned and driven vertices (flapping edge, twisting ends, lowered corners).
 //! - [`collision`]: sphere, box (table) and ground with a margin and Coulomb-style position
 //!   friction.
+//! - [`mesh_collider`]: triangle-mesh colliders (static or animated OBJ), contacts through a
+//!   hash grid with pseudo-normal inside tests and a no-tunnelling crossing test.
 //! - [`wind`]: a time-varying wind field, deterministic from the seed.
 //! - [`solver`]: the XPBD substep loop ([`solver::Cloth::step`]).
 //! - [`tracking`]: soft attachment of a high-resolution run to a low-resolution one.
@@ -24,9 +26,9 @@
 pub mod collision;
 pub mod constraints;
 pub mod follow;
-pub mod follow_mesh;
 pub mod held_edges;
 pub mod kinematics;
+pub mod mesh_collider;
 pub mod params;
 pub mod run_io;
 pub mod scenarios;

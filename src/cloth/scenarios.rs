@@ -411,7 +411,7 @@ impl ScenarioSpec {
             }
         };
         let cloth = Cloth::new(&rest, &material, pins);
-        (cloth, Scene { kinematics, wind, colliders })
+        (cloth, Scene { kinematics, wind, colliders, meshes: Vec::new() })
     }
 }
 

@@ -4,7 +4,8 @@
 //! for each of `substeps` substeps of length h:
 //! predict `x ← x + h·v` (free) or move pins to their kinematic positions; project stretch,
 //! shear, bending and tracking constraints (Gauss–Seidel by colour, λ reset per substep);
-//! project contacts with friction; `v ← (x − x_prev)/h`.
+//! project contacts with friction (primitives, then mesh colliders posed at the substep's end);
+//! `v ← (x − x_prev)/h`.
 
 use super::collision::Colliders;
 use super::constraints::{
@@ -12,6 +13,7 @@ use super::constraints::{
     Distance,
 };
 use super::kinematics::{Kinematics, Pin};
+use super::mesh_collider::MeshCollider;
 use super::params::{Material, SimParams};
 use super::tracking::{CoarseTrack, TrackTargets};
 use super::wind::Wind;
@@ -24,6 +26,8 @@ pub struct Scene {
     pub kinematics: Kinematics,
     pub wind: Wind,
     pub colliders: Colliders,
+    /// Triangle-mesh colliders, projected after the primitives, in order.
+    pub meshes: Vec<MeshCollider>,
 }
 
 /// A grid cloth and its simulation state.
@@ -282,6 +286,10 @@ impl Cloth {
                 }
             }
             scene.colliders.project(&mut self.x, &self.prev, &self.inv_mass, p.collision_margin, p.friction);
+            let blends = (s as f32 / p.substeps as f32, blend);
+            for m in &scene.meshes {
+                m.substep(&mut self.x, &self.prev, &self.inv_mass, blends, p.friction);
+            }
             let inv_h = 1.0 / h;
             for v in 0..n {
                 self.v[v] = std::array::from_fn(|k| (self.x[v][k] - self.prev[v][k]) * inv_h);

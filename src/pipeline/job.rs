@@ -268,6 +268,9 @@ pub fn upscale_files(
     if shot.mesh().is_some() {
         refuse_for_mesh(job)?;
     }
+    if let Some(p) = &job.physics {
+        p.check_shot_frames(t)?;
+    }
     let mesh_given = mesh_out.is_some();
     let mesh_out = mesh_out.unwrap_or_else(|| MeshOut::plain(t));
     let plan = Plan::new(job, t, mesh_given, &mesh_out, cache_in.as_ref(), &files)?;
@@ -409,9 +412,12 @@ fn mesh_json(m: &crate::geom::layout::MeshLayout) -> Object {
         .num("texel_m", format!("{:.6}", a.texel))
 }
 
-/// The physics pass's settings as the summary records them.
+/// The physics pass's settings as the summary records them. The sphere, the box and the mesh
+/// colliders only when given (a run without them records what it did before they were);
+/// each mesh by its canonical path and a checksum of its content, so a rerun with another
+/// collider, or the same file changed, is another run's output.
 fn physics_json(p: &FollowParams) -> Object {
-    Object::new()
+    let o = Object::new()
         .val("gravity_m_per_s2", Value::reals(&p.gravity))
         .num("fps", p.fps)
         .str("material", p.material.name)
@@ -421,7 +427,33 @@ fn physics_json(p: &FollowParams) -> Object {
         .str("output", if p.output == FollowOutput::Detail { "detail" } else { "cloth" })
         .val("drift_seconds", Value::finite(p.drift_seconds))
         .val("ground_m", p.ground.map_or(Value::Null, Value::finite))
-        .str("pins", &p.pins.names())
+        .str("pins", &p.pins.names());
+    let o = match p.sphere {
+        Some(s) => o.val("sphere_m", Value::reals(&[s.center[0], s.center[1], s.center[2], s.radius])),
+        None => o,
+    };
+    let o = match p.cuboid {
+        Some(b) => o.val("box_m", Value::reals(&[b.center, b.half].concat())),
+        None => o,
+    };
+    if p.colliders.is_empty() {
+        return o;
+    }
+    let meshes: Vec<Value> = p
+        .colliders
+        .iter()
+        .map(|m| {
+            let path = folder::canonical(&[m.source().to_path_buf()]).remove(0);
+            Object::new()
+                .str("path", &path)
+                .num("frames", m.frames())
+                .num("triangles", m.triangles())
+                .val("closed", Value::Bool(m.is_closed()))
+                .str("checksum", &format!("{:016x}", m.checksum()))
+                .into()
+        })
+        .collect();
+    o.val("colliders", meshes).num("collider_thickness_m", p.collider_thickness)
 }
 
 /// Who this run is for its output folder ([`folder::claim`]): its inputs, every setting that

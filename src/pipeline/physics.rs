@@ -3,7 +3,6 @@
 //! out, in shot order.
 
 use crate::cloth::follow::{FollowParams, Follower};
-use crate::cloth::follow_mesh::MeshFollower;
 use crate::error::{Error, Result};
 use crate::geom::geometry_image::image_to_mesh;
 use crate::geom::mesh::{bounds, dist};
@@ -71,13 +70,13 @@ impl PhysicsPass {
     }
 }
 
-/// One shot's physics pass on a mesh that is not a grid ([`MeshFollower`]): the HR frames'
+/// One shot's physics pass on a mesh that is not a grid ([`Follower::new_mesh`]): the HR frames'
 /// vertices go in in shot order, the cloth's come out.
 pub struct MeshPhysicsPass {
     pub params: FollowParams,
     sub: Subdivision,
     lr: usize,
-    follower: Option<MeshFollower>,
+    follower: Option<Follower>,
 }
 
 impl MeshPhysicsPass {
@@ -91,11 +90,11 @@ impl MeshPhysicsPass {
     pub fn apply(&mut self, hr: Vec<[f32; 3]>, k: usize) -> Result<Vec<[f32; 3]>> {
         match &mut self.follower {
             None => {
-                self.follower = Some(MeshFollower::new(&hr, self.sub.clone(), self.lr, &self.params)?);
+                self.follower = Some(Follower::new_mesh(&hr, self.sub.clone(), self.lr, &self.params)?);
                 Ok(hr)
             }
             Some(fo) => {
-                let cloth = fo.step(&hr, k)?;
+                let cloth = fo.step_mesh(&hr, k)?;
                 check_follows(&cloth, &hr, k)?;
                 Ok(cloth)
             }
