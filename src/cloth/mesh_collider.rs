@@ -126,7 +126,7 @@ impl PartialEq for ColliderMesh {
 }
 
 impl ColliderMesh {
-    /// A collider from `faces` (3 or 4 corners each, 0-based into each frame's vertices) and
+    /// A collider from `faces` (3 or more corners each; an n-gon is fanned; 0-based into each frame's vertices) and
     /// one vertex list per frame (one: static). Vertices at exactly the same place in every
     /// frame are welded (an export that splits vertices along seams is still closed); each
     /// quad is split along its shorter diagonal in the first frame. `source` names it in
@@ -172,10 +172,12 @@ impl ColliderMesh {
                         tris.extend([[a, b, d], [b, c, d]]);
                     }
                 }
+                // An n-gon (a cylinder's cap, as modelling tools export it): a fan from its
+                // first corner, right for the convex faces colliders have.
+                _ if f.len() > 4 => tris.extend((1..f.len() - 1).map(|k| [f[0], f[k], f[k + 1]])),
                 _ => {
                     return Err(bad(format!(
-                        "face {} has {} corners: a collider takes triangles and quads; \
-                         triangulate the mesh before export",
+                        "face {} has {} corners: a face needs at least 3",
                         i + 1,
                         f.len()
                     )))
@@ -1163,8 +1165,16 @@ mod tests {
             (0..b.tris.len() as u32).map(|t| vec![3 * t, 3 * t + 1, 3 * t + 2]).collect();
         let m = ColliderMesh::new("split", &faces, vec![tri_pos]).unwrap();
         assert!(m.is_closed());
-        let e = ColliderMesh::new("pent.obj", &[vec![0, 1, 2, 3, 4]], vec![vec![[0.0; 3]; 5]]).unwrap_err();
-        assert!(e.to_string().contains("pent.obj") && e.to_string().contains("5 corners"), "{e}");
+        // A pentagon (an n-gon cap) is fanned into three triangles; one collapsed to a point
+        // has no surface.
+        let pent: Vec<[f32; 3]> =
+            (0..5).map(|k| [(k as f32 * 1.2566).cos(), (k as f32 * 1.2566).sin(), 0.0]).collect();
+        assert_eq!(ColliderMesh::new("pent.obj", &[vec![0, 1, 2, 3, 4]], vec![pent]).unwrap().triangles(), 3);
+        let e = ColliderMesh::new("dot.obj", &[vec![0, 1, 2, 3, 4]], vec![vec![[0.0; 3]; 5]]).unwrap_err();
+        assert!(
+            e.to_string().contains("dot.obj") && e.to_string().contains("no face of non-zero size"),
+            "{e}"
+        );
         let e = ColliderMesh::new("none.obj", &[], vec![vec![[0.0; 3]; 3]]).unwrap_err();
         assert!(e.to_string().contains("none.obj") && e.to_string().contains("no faces"), "{e}");
     }

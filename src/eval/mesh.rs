@@ -43,6 +43,8 @@ pub struct MeshRun {
     /// The HR run in anisocb's HR numbering ([`Subdivision`] of `lr`'s faces).
     pub hr: Vec<Vec<[f32; 3]>>,
     pub collider: Option<MeshFrames>,
+    /// Its folder, for the physics pass's mesh collider.
+    pub collider_dir: Option<PathBuf>,
     /// The LR mesh's UVs and such, for the layout.
     pub first: ObjMesh,
     /// Frames per second (`DIR/scene.json`'s `fps`, else 24), for the physics pass.
@@ -78,6 +80,7 @@ impl MeshRun {
         let (hr_raw, _) = read_mesh_frames(&dir.join("hr"))?;
         let cdir = dir.join("collider");
         let collider = if cdir.is_dir() { Some(read_mesh_frames(&cdir)?.0) } else { None };
+        let collider_dir = collider.is_some().then_some(cdir);
         let t = lr.frames.len().min(hr_raw.frames.len());
         let sub = Subdivision::of(lr.frames[0].len(), &lr.faces);
         let order = match_vertices(&sub.apply(&lr.frames[0]), &hr_raw.frames[0], &dir.join("hr"))?;
@@ -90,7 +93,7 @@ impl MeshRun {
         } else {
             24.0
         };
-        Ok(MeshRun { name, lr, hr, collider, first, fps })
+        Ok(MeshRun { name, lr, hr, collider, collider_dir, first, fps })
     }
 }
 
@@ -329,7 +332,8 @@ pub struct MeshRunEval {
 }
 
 /// Every method on `run`: the linear and smooth subdivisions and anisocb (`model`, `params`),
-/// with `physics` also anisocb's frames through the physics pass (at the run's frame rate),
+/// with `physics` also anisocb's frames through the physics pass (at the run's frame rate, its
+/// collider a mesh collider),
 /// and the truth scored against itself (its detail and flicker are the yardsticks).
 pub fn evaluate_mesh_run(
     ops: &dyn Ops,
@@ -355,7 +359,12 @@ pub fn evaluate_mesh_run(
     }
     let ours = upscale_mesh_frames(ops, model, &layout, &run.lr.frames, params)?;
     if let Some(p) = physics {
-        let p = FollowParams { fps: run.fps, ..p.clone() };
+        // The run's collider (every body of the scene, frame by frame) as a mesh collider.
+        let colliders = match &run.collider_dir {
+            Some(d) => vec![std::sync::Arc::new(crate::cloth::mesh_collider::ColliderMesh::read(d)?)],
+            None => Vec::new(),
+        };
+        let p = FollowParams { fps: run.fps, colliders, ..p.clone() };
         let mut pass = MeshPhysicsPass::new(p, sub.clone(), run.lr.frames[0].len());
         let cloth =
             ours.iter().enumerate().map(|(k, f)| pass.apply(f.clone(), k)).collect::<Result<Vec<_>>>()?;
