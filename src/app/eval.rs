@@ -242,6 +242,7 @@ fn mesh_json(rows: &[(String, Vec<MeshScores>)]) -> crate::io::json::Value {
                     .num("max_error_m", s.max_error)
                     .num("velocity_error_m", s.velocity_error)
                     .num("normal_deg", s.normal_deg)
+                    .num("border_ratio", s.border_ratio)
                     .num("detail_m", s.detail)
                     .num("flicker_m", s.flicker)
                     .num("inside_share", s.inside)

@@ -168,6 +168,9 @@ pub struct MeshScores {
     /// Share of vertex-frames inside the collider, and the deepest (metres); 0 without one.
     pub inside: f32,
     pub depth: f32,
+    /// The border's length (the HR mesh's edges in one face) over the truth's, mean over
+    /// frames: a border that shrinks or frills shows here.
+    pub border_ratio: f32,
 }
 
 /// The wrinkle detail of every vertex of an HR frame `x` (its LR vertices are `x[..lr]`):
@@ -185,6 +188,12 @@ fn sub3(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
 /// Score `pred` (frames in anisocb's HR numbering) against the run's truth.
 pub fn score(method: &str, pred: &[Vec<[f32; 3]>], run: &MeshRun, sub: &Subdivision) -> MeshScores {
     let lr = run.lr.frames[0].len();
+    let border = border_edges(&sub.faces);
+    let length = |x: &[[f32; 3]]| -> f64 {
+        border.iter().map(|&(a, b)| crate::geom::mesh::dist(x[a as usize], x[b as usize]) as f64).sum()
+    };
+    let ratios: Vec<f64> =
+        pred.iter().zip(&run.hr).map(|(p, y)| length(p) / length(y).max(f64::MIN_POSITIVE)).collect();
     let (mut se, mut n, mut max_error) = (0.0f64, 0usize, 0.0f32);
     let (mut ve, mut vn) = (0.0f64, 0usize);
     let (mut ang, mut an) = (0.0f64, 0usize);
@@ -235,7 +244,19 @@ pub fn score(method: &str, pred: &[Vec<[f32; 3]>], run: &MeshRun, sub: &Subdivis
         flicker: rms(fl, fn_),
         inside,
         depth,
+        border_ratio: (ratios.iter().sum::<f64>() / ratios.len().max(1) as f64) as f32,
     }
+}
+
+/// The edges of `faces` that are in one face only (the mesh's border), each once.
+fn border_edges(faces: &[Vec<u32>]) -> Vec<(u32, u32)> {
+    let mut count: std::collections::BTreeMap<(u32, u32), u32> = std::collections::BTreeMap::new();
+    for f in faces {
+        for i in 0..f.len() {
+            *count.entry(crate::geom::surface::edge_key(f[i], f[(i + 1) % f.len()])).or_default() += 1;
+        }
+    }
+    count.into_iter().filter(|e| e.1 == 1).map(|e| e.0).collect()
 }
 
 /// Share of the vertex-frames of `frames` inside the collider (a closed mesh, frame by frame;
@@ -387,8 +408,8 @@ pub fn triangles(faces: &[Vec<u32>]) -> Vec<[usize; 3]> {
 /// The markdown table of the runs' scores.
 pub fn mesh_markdown(runs: &[(String, Vec<MeshScores>)]) -> String {
     let mut s = String::from(
-        "| run | method | RMSE mm | max mm | velocity err mm/frame | normal ° | detail mm (÷ truth) | flicker mm (÷ truth) | inside % | deepest mm |\n\
-         |---|---|---|---|---|---|---|---|---|---|\n",
+        "| run | method | RMSE mm | max mm | velocity err mm/frame | normal ° | border ÷ truth | detail mm (÷ truth) | flicker mm (÷ truth) | inside % | deepest mm |\n\
+         |---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     for (name, rows) in runs {
         let truth = rows.iter().find(|r| r.method.starts_with("HR run"));
@@ -397,12 +418,13 @@ pub fn mesh_markdown(runs: &[(String, Vec<MeshScores>)]) -> String {
                 t.filter(|t| *t > 0.0).map_or(String::new(), |t| format!(" ({:.2})", x / t))
             };
             s += &format!(
-                "| {name} | {} | {:.2} | {:.2} | {:.3} | {:.2} | {:.3}{} | {:.3}{} | {:.2} | {:.2} |\n",
+                "| {name} | {} | {:.2} | {:.2} | {:.3} | {:.2} | {:.4} | {:.3}{} | {:.3}{} | {:.2} | {:.2} |\n",
                 r.method,
                 1e3 * r.rmse,
                 1e3 * r.max_error,
                 1e3 * r.velocity_error,
                 r.normal_deg,
+                r.border_ratio,
                 1e3 * r.detail,
                 ratio(r.detail, truth.map(|t| t.detail)),
                 1e3 * r.flicker,
