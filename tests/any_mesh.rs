@@ -401,3 +401,37 @@ fn upscale_physics_on_a_mesh_keeps_the_output_out_of_a_named_sphere() {
     }
     assert!(deepest <= 1e-3, "an output vertex is {deepest} m inside the sphere");
 }
+
+#[test]
+fn held_vertices_of_a_mesh_follow_the_shot_exactly_and_the_rest_of_it_hangs() {
+    // A T-shaped sheet hanging in y, held by its top row, carried 20 cm sideways over the shot.
+    let m = meshes::t_shape(9, 9, 3);
+    let n = m.pos.len();
+    let top: Vec<u32> = (0..n as u32).filter(|&v| m.pos[v as usize][1] == 0.0).collect();
+    assert!(top.len() == 9, "{}", top.len());
+    let sub = Subdivision::of(n, &m.faces);
+    let frames: Vec<Vec<[f32; 3]>> =
+        (0..24).map(|k| sub.apply(&m.moved(0.0, [0.2 * k as f32 / 23.0, 1.0, 0.0]).pos)).collect();
+    let p = FollowParams { pin_vertices: top.clone(), fps: 24.0, ..FollowParams::default() };
+    let mut f = Follower::new_mesh(&frames[0], sub.clone(), n, &p).unwrap();
+    // Held: the top row and the midpoints between its vertices (17 HR vertices).
+    let held: Vec<usize> =
+        (0..sub.hr_vertices()).filter(|&v| sub.weights()[v].iter().all(|(u, _)| top.contains(u))).collect();
+    assert_eq!(held.len(), 17);
+    let mut moved = 0.0f32;
+    for (k, t) in frames.iter().enumerate().skip(1) {
+        let out = f.step_mesh(t, k).unwrap();
+        for &v in &held {
+            assert_eq!(out[v], t[v], "frame {k}: held vertex {v} is not the shot's");
+        }
+        moved = moved.max(out.iter().zip(t).map(|(a, b)| (a[1] - b[1]).abs()).fold(0.0, f32::max));
+    }
+    assert!(moved > 0.0, "the free cloth never left the shot");
+    // A vertex number beyond the mesh, and pins on a grid, are refused by name.
+    let bad = FollowParams { pin_vertices: vec![n as u32], ..FollowParams::default() };
+    let e = Follower::new_mesh(&frames[0], sub, n, &bad).err().unwrap().to_string();
+    assert!(e.contains(&format!("vertex {}", n + 1)), "{e}");
+    let grid = anisocb::geom::GridMesh::flat(8, 8, 1.0, 1.0);
+    assert!(Follower::new(&grid, (4, 4), &FollowParams { pin_vertices: vec![0], ..FollowParams::default() })
+        .is_err());
+}

@@ -284,3 +284,40 @@ fn timing_of_the_pass_with_a_1k_triangle_collider_and_without() {
         frames.len()
     );
 }
+
+#[test]
+fn upscale_reads_held_vertex_lists_and_refuses_bad_ones_naming_the_file() {
+    let d = scratch("pin-vertices");
+    let shot = obj_shot(&d, "shot", 3);
+    let (inp, out) = (shot.to_str().unwrap(), d.join("out"));
+    let o = out.to_str().unwrap();
+    let bad = write(&d, "bad.txt", b"1 2 three\n");
+    let zero = write(&d, "zero.txt", b"# held\n0\n");
+    let empty = write(&d, "empty.txt", b"# nothing\n");
+    let list = write(&d, "list.txt", b"1, 2\n3\n");
+    let cases: &[(&[&str], &[&str])] = &[
+        (
+            &["--physics", "--physics-pin-vertices", bad.to_str().unwrap()],
+            &["bad.txt", "line 1", "\"three\""],
+        ),
+        (
+            &["--physics", "--physics-pin-vertices", zero.to_str().unwrap()],
+            &["zero.txt", "line 2", "start at 1"],
+        ),
+        (
+            &["--physics", "--physics-pin-vertices", empty.to_str().unwrap()],
+            &["empty.txt", "no vertex numbers"],
+        ),
+        // The shot is a grid: it is held by its edges.
+        (
+            &["--physics", "--physics-pin-vertices", list.to_str().unwrap()],
+            &["--physics-pin-vertices", "held by its edges"],
+        ),
+    ];
+    for (extra, want) in cases {
+        let mut args = vec![inp, "--out", o];
+        args.extend_from_slice(extra);
+        upscale_refused(&args, 1, want);
+        assert!(!out.exists(), "{extra:?}: --out was created by a refused run");
+    }
+}

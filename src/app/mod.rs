@@ -144,6 +144,7 @@ fn flag(field: &'static str) -> &'static str {
         "drift_seconds" => "--physics-drift",
         "substeps_per_second" => "--physics-substeps",
         "pins" => "--physics-pin",
+        "pin_vertices" => "--physics-pin-vertices",
         "colliders" => "--collider",
         "collider_thickness" => "--collider-thickness",
         "val_frac" => "--val-frac",

@@ -101,6 +101,11 @@ pub struct FollowParams {
     pub colliders: Vec<Arc<ColliderMesh>>,
     /// The gap (m) the cloth keeps from the mesh colliders (`--collider-thickness`).
     pub collider_thickness: f32,
+    /// The LR vertices the shot's cloth is held by, of a mesh that is not a grid (0-based, in
+    /// the mesh's order; `--physics-pin-vertices`): they and the HR vertices between them
+    /// (edge midpoints and quad centres of pinned vertices only) follow the shot exactly. A
+    /// grid names its held edges instead ([`FollowParams::pins`]).
+    pub pin_vertices: Vec<u32>,
 }
 
 /// What [`Follower::step`] returns.
@@ -136,6 +141,7 @@ impl Default for FollowParams {
             cuboid: None,
             colliders: Vec::new(),
             collider_thickness: COLLIDER_THICKNESS,
+            pin_vertices: Vec::new(),
         }
     }
 }
@@ -457,6 +463,13 @@ impl Follower {
                 first.w, first.h, lr.0, lr.1
             )));
         }
+        if !p.pin_vertices.is_empty() {
+            return Err(Error::invalid(
+                "pin_vertices",
+                "a grid is held by its edges (top, left, …), not by a vertex list; a vertex list is \
+                 for a mesh that is not a grid",
+            ));
+        }
         check_frame(&first.pos, 0)?;
         let material = p.material;
         let pins = p.pins.vertices(first.w, first.h);
@@ -471,8 +484,8 @@ impl Follower {
     /// A cloth of any mesh (issue 45): the HR mesh of `sub` (the linear subdivision of an LR
     /// mesh of `lr` vertices) whose rest shape is `first` (the shot's first HR frame), at rest
     /// there; coarse-tracked with one constraint per LR vertex ([`Restriction::of_subdivision`]),
-    /// `S` the linear subdivision of a frame's LR vertices. Held grid edges are refused (a mesh
-    /// has no sides to name).
+    /// `S` the linear subdivision of a frame's LR vertices. Its pins are
+    /// [`FollowParams::pin_vertices`]; held grid edges are refused (a mesh has no sides to name).
     pub fn new_mesh(first: &[[f32; 3]], sub: Subdivision, lr: usize, p: &FollowParams) -> Result<Follower> {
         p.validate()?;
         if !p.pins.is_empty() {
@@ -490,11 +503,29 @@ impl Follower {
             )));
         }
         check_frame(first, 0)?;
+        if let Some(&v) = p.pin_vertices.iter().find(|&&v| v as usize >= lr) {
+            return Err(Error::invalid(
+                "pin_vertices",
+                format!("vertex {} is held, but the mesh has {lr} vertices (numbered from 1)", v + 1),
+            ));
+        }
+        // The held LR vertices and every HR vertex made of held ones only.
+        let mut held = vec![false; lr];
+        p.pin_vertices.iter().for_each(|&v| held[v as usize] = true);
+        let pins: Vec<usize> = sub
+            .weights()
+            .iter()
+            .enumerate()
+            .filter(|(_, w)| !p.pin_vertices.is_empty() && w.iter().all(|(v, _)| held[*v as usize]))
+            .map(|(k, _)| k)
+            .collect();
+        let pin_from: Vec<[f32; 3]> = pins.iter().map(|&v| first[v]).collect();
+        let pins = pins.iter().map(|&v| Pin { vertex: v, anchor: first[v], side: 0.0 }).collect();
         let material = p.material;
-        let cloth = Cloth::from_mesh(first, &sub.faces, &|_| material, Vec::new());
+        let cloth = Cloth::from_mesh(first, &sub.faces, &|_| material, pins);
         let track = CoarseTrack::new(Restriction::of_subdivision(&sub, lr), &cloth.inv_mass);
         let taper = mesh_border_taper(&sub.faces, first.len());
-        Follower::start(cloth, track, Coarse::Mesh { sub, lr, taper }, Vec::new(), first, p)
+        Follower::start(cloth, track, Coarse::Mesh { sub, lr, taper }, pin_from, first, p)
     }
 
     /// The pass on `cloth` (tracked by `track` at `shape`), settled on the first frame `first`.

@@ -267,6 +267,12 @@ pub fn upscale_files(
     let (t, w, h) = shot.size();
     if shot.mesh().is_some() {
         refuse_for_mesh(job)?;
+    } else if job.physics.as_ref().is_some_and(|p| !p.pin_vertices.is_empty()) {
+        return Err(Error::invalid(
+            "pin_vertices",
+            "a grid is held by its edges (--physics-pin top, …), not by a vertex list; a vertex \
+             list is for a mesh that is not a grid",
+        ));
     }
     if let Some(p) = &job.physics {
         p.check_shot_frames(t)?;
@@ -428,6 +434,11 @@ fn physics_json(p: &FollowParams) -> Object {
         .val("drift_seconds", Value::finite(p.drift_seconds))
         .val("ground_m", p.ground.map_or(Value::Null, Value::finite))
         .str("pins", &p.pins.names());
+    let o = if p.pin_vertices.is_empty() {
+        o
+    } else {
+        o.val("pin_vertices", p.pin_vertices.iter().map(|&v| Value::num(v + 1)).collect::<Vec<_>>())
+    };
     let o = match p.sphere {
         Some(s) => o.val("sphere_m", Value::reals(&[s.center[0], s.center[1], s.center[2], s.radius])),
         None => o,
