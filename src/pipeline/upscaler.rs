@@ -113,7 +113,7 @@ impl Upscaler {
         if self.mesh.is_some() {
             return Err(Error::invalid(
                 "physics",
-                "the physics pass runs on a regular grid only so far, not with a mesh",
+                "the frame-by-frame Upscaler runs the physics pass on grids only so far; on a mesh, upscale_files (anisocb upscale --physics) runs it",
             ));
         }
         self.physics = Some(PhysicsPass::new(params));
@@ -127,7 +127,8 @@ impl Upscaler {
     /// they are a usable layout, else by ARAP. Frames then go in through
     /// [`Upscaler::push_mesh`] and come out as the vertices of the mesh's subdivision, whose
     /// faces [`Upscaler::hr_faces`] gives; the same vertices `anisocb upscale` writes for them.
-    /// Not with the physics pass (grids only so far).
+    /// Not with the physics pass here (its frame-by-frame form takes grids only so far;
+    /// [`crate::pipeline::upscale_files`] runs it on meshes).
     pub fn with_mesh(
         mut self,
         faces: Vec<Vec<u32>>,
@@ -137,7 +138,7 @@ impl Upscaler {
         if self.physics.is_some() {
             return Err(Error::invalid(
                 "physics",
-                "the physics pass runs on a regular grid only so far, not with a mesh",
+                "the frame-by-frame Upscaler runs the physics pass on grids only so far; on a mesh, upscale_files (anisocb upscale --physics) runs it",
             ));
         }
         let surface = Surface::new(rest.len(), faces, std::path::Path::new("the mesh"))?;
