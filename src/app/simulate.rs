@@ -3,6 +3,8 @@
 
 use crate::app::ui::{progress, save_png};
 use crate::cloth::run_io::{write_pair, write_single};
+use crate::cloth::garments::{garment_run, Garment, GarmentSpec, GARMENT_HELP};
+use crate::cloth::run_io::write_garment_run;
 use crate::cloth::scenarios::{paired_run_with_progress, run_at, SCENARIO_HELP};
 use crate::cloth::{Material, Scenario, ScenarioSpec};
 use crate::error::{Error, Result};
@@ -11,9 +13,9 @@ use crate::viz::sheet::frame_strip;
 use std::path::{Path, PathBuf};
 
 #[derive(clap::Args, Debug)]
-#[command(after_help = SCENARIO_HELP)]
+#[command(after_help = format!("{SCENARIO_HELP}\n\n{GARMENT_HELP}"))]
 pub struct Args {
-    /// Scenario name (listed below).
+    /// Scenario or garment name (listed below).
     #[arg(long, default_value = "twist")]
     pub scenario: String,
     /// Low-resolution grid as COLSxROWS vertices (default: the scenario's, 32x32 or 32x10).
@@ -33,7 +35,8 @@ pub struct Args {
     /// Material preset: silk, cotton, denim, rubber.
     #[arg(long, default_value = "cotton")]
     pub material: String,
-    /// Simulate an LR/HR pair into OUT/lr and OUT/hr.
+    /// Simulate an LR/HR pair into OUT/lr and OUT/hr (a garment: the HR run is the LR mesh
+    /// subdivided once, held to the LR run at its vertices).
     #[arg(long)]
     pub pair: bool,
     /// HR upscale factor for --pair (vertices per side).
@@ -121,7 +124,107 @@ fn write_preview(dir: &Path, images: &Tensor) -> Result<()> {
     save_png(&dir.join("preview.png"), &frame_strip(images, 6, 160)?)
 }
 
+/// The garment spec of the command line (`--scenario` names a garment); the sheet-only
+/// options are refused.
+pub fn garment_spec_from_args(a: &Args, garment: Garment) -> Result<GarmentSpec> {
+    let sheet_only = [
+        ("--res", a.res.is_some()),
+        ("--scale", a.scale != 2),
+        ("--track", a.track != "coarse"),
+        ("--hr-jitter", a.hr_jitter != 0.0),
+        ("--hr-restart", a.hr_restart != 0),
+        ("--hr-blind", a.hr_blind),
+        ("--obj", a.obj),
+    ];
+    if let Some((flag, _)) = sheet_only.iter().find(|f| f.1) {
+        return Err(Error::config(format!(
+            "{flag} is for the sheet scenarios; a garment has its own mesh (its LR resolution is the \
+             garment's, its HR run the LR mesh subdivided once, tracked coarsely) and always writes OBJ \
+             frames: leave {flag} out"
+        )));
+    }
+    let mut spec = GarmentSpec::new(garment);
+    spec.frames = a.frames;
+    spec.seed = a.seed;
+    spec.vary = a.vary;
+    spec.material = Material::from_name(&a.material)?;
+    spec.tracking = a.tracking;
+    if let Some(s) = a.substeps {
+        spec.params.substeps = s;
+    }
+    if let Some(dt) = a.dt {
+        spec.params.dt = dt;
+    }
+    if a.no_gravity {
+        spec.params.gravity = [0.0; 3];
+    }
+    spec.validate()?;
+    Ok(spec)
+}
+
+/// `simulate` for a garment: OUT/lr (and with --pair OUT/hr), OUT/collider, OUT/pins.txt,
+/// OUT/scene.json, and a picture of a few frames.
+fn run_garment(a: &Args, garment: Garment) -> Result<()> {
+    let spec = garment_spec_from_args(a, garment)?;
+    let t0 = std::time::Instant::now();
+    let runs = if a.pair { 2 } else { 1 };
+    let pb = progress((runs * spec.frames) as u64, "simulate");
+    pb.set_message(format!("{garment}"));
+    let run = garment_run(&spec, a.pair, &mut |k| pb.set_position(k as u64 + 1))?;
+    pb.finish_and_clear();
+    write_garment_run(&a.out, &spec, &run)?;
+    write_garment_preview(&a.out.join("preview.png"), &run)?;
+    eprintln!(
+        "simulated {garment}: {} LR vertices{}, {} frames in {:.1} s → {}/{{{}collider}} (preview.png)",
+        run.mesh.pos.len(),
+        if a.pair { format!(" / {} HR", run.sub.hr_vertices()) } else { String::new() },
+        spec.frames,
+        t0.elapsed().as_secs_f32(),
+        a.out.display(),
+        if a.pair { "lr,hr," } else { "lr," }
+    );
+    Ok(())
+}
+
+/// `preview.png` of a garment run: four frames of the LR run (and below, the HR run) on the
+/// body in grey, one camera for all.
+fn write_garment_preview(path: &Path, run: &crate::cloth::garments::GarmentRun) -> Result<()> {
+    use crate::eval::mesh::triangles;
+    use crate::geom::GridMesh;
+    use crate::viz::render::{render_layers, Camera, Layer, Shading, View, PROP_TINT};
+    let t = run.lr.len();
+    let picks = [0, t / 3, 2 * t / 3, t - 1];
+    let one_row = |p: &[[f32; 3]]| GridMesh::new(p.len(), 1, p.to_vec());
+    let (lr_tris, hr_tris, body_tris) =
+        (triangles(&run.mesh.faces), triangles(&run.sub.faces), triangles(&run.body_faces));
+    let all: Vec<[f32; 3]> = picks.iter().flat_map(|&k| run.lr[k].iter().copied()).collect();
+    let (lo, hi) = crate::geom::mesh::bounds(&all);
+    let cam = Camera::fit(&View::default(), lo, hi, 240, 240)?;
+    let mut rows = Vec::new();
+    for (frames, tris, name) in [(&run.lr, &lr_tris, "LR"), (&run.hr, &hr_tris, "HR")] {
+        if frames.is_empty() {
+            continue;
+        }
+        let mut tiles = Vec::new();
+        for &k in &picks {
+            let (cloth, body) = (one_row(&frames[k]), one_row(&run.body[k]));
+            let layers = [
+                Layer { tris: Some(tris), mesh: &cloth, colors: None, tint: None },
+                Layer { tris: Some(&body_tris), mesh: &body, colors: None, tint: Some(PROP_TINT) },
+            ];
+            let mut pic = render_layers(&layers, &cam, &Shading::default())?;
+            pic.label(&format!("{name}, frame {k}"), 1);
+            tiles.push(pic);
+        }
+        rows.push(crate::viz::image::hstack(&tiles, 6, [255; 3]));
+    }
+    save_png(path, &crate::viz::image::vstack(&rows, 6, [255; 3]))
+}
+
 pub fn run(a: Args) -> Result<()> {
+    if let Some(g) = Garment::from_name(&a.scenario) {
+        return run_garment(&a, g);
+    }
     let spec = spec_from_args(&a)?;
     let t0 = std::time::Instant::now();
     if a.pair {

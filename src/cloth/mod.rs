@@ -26,6 +26,7 @@
 pub mod collision;
 pub mod constraints;
 pub mod follow;
+pub mod garments;
 pub mod held_edges;
 pub mod kinematics;
 pub mod mesh_collider;

@@ -290,3 +290,92 @@ pub fn write_pair(
         meta,
     })
 }
+
+/// Write a garment run (`simulate` with a garment) to `dir` in the layout `eval --meshes` and
+/// `upscale` read (OBJ frames, Y up, metres):
+///
+/// ```text
+/// DIR/lr/cloth_0000.obj …        the LR run, with the pattern's UVs
+/// DIR/hr/cloth_0000.obj …        (a pair) the HR run: the LR mesh subdivided once, UVs subdivided
+/// DIR/collider/body_0000.obj …   the body, one closed mesh per frame (`upscale --collider`)
+/// DIR/pins.txt                   the LR vertices sewn to the body, from 1 (`--physics-pin-vertices`)
+/// DIR/scene.json                 garment, frames, fps, seed, material, tracking …
+/// ```
+pub fn write_garment_run(dir: &Path, spec: &super::garments::GarmentSpec, run: &super::garments::GarmentRun) -> Result<()> {
+    use crate::geom::obj::{mesh_obj_text, ObjAttrs};
+    use crate::geom::surface::Subdivision;
+    use crate::io::atomic::write_atomic_bytes;
+    let m = &run.mesh;
+    let attrs = ObjAttrs { object: Some(spec.garment.name().to_string()), ..Default::default() };
+    let write_frames = |sub: &str, stem: &str, faces: &[Vec<u32>], uv: Option<crate::geom::surface::FaceUvs>, frames: &[Vec<[f32; 3]>]| {
+        let d = dir.join(sub);
+        ensure_dir(&d)?;
+        for (k, f) in frames.iter().enumerate() {
+            let text = mesh_obj_text(f, faces, uv, &attrs, &[], 1);
+            write_atomic_bytes(&d.join(format!("{stem}_{k:04}.obj")), text.as_bytes())?;
+        }
+        Ok::<(), Error>(())
+    };
+    write_frames("lr", "cloth", &m.faces, Some((&m.uv, &m.face_uv)), &run.lr)?;
+    if !run.hr.is_empty() {
+        let s = Subdivision::of(m.uv.len(), &m.face_uv);
+        let uv = s.apply(&m.uv);
+        write_frames("hr", "cloth", &run.sub.faces, Some((&uv, &s.faces)), &run.hr)?;
+    }
+    let body_attrs = ObjAttrs { object: Some("body".to_string()), ..Default::default() };
+    let cd = dir.join("collider");
+    ensure_dir(&cd)?;
+    for (k, f) in run.body.iter().enumerate() {
+        let text = mesh_obj_text(f, &run.body_faces, None, &body_attrs, &[], 1);
+        write_atomic_bytes(&cd.join(format!("body_{k:04}.obj")), text.as_bytes())?;
+    }
+    let mut pins: Vec<u32> = m.pins.iter().map(|p| p.0 + 1).collect();
+    pins.sort_unstable();
+    let pins_text = if pins.is_empty() {
+        String::from("# no vertex of this garment is sewn to the body\n")
+    } else {
+        let list: Vec<String> = pins.iter().map(|v| v.to_string()).collect();
+        format!("# LR vertices sewn to the body, numbered from 1 (upscale --physics-pin-vertices)\n{}\n", list.join(" "))
+    };
+    write_atomic_bytes(&dir.join("pins.txt"), pins_text.as_bytes())?;
+    let p = &spec.params;
+    let mat = &run.material;
+    let meta: Value = Object::new()
+        .str("format", "anisocb-garment-run/1")
+        .str("scene", spec.garment.name())
+        .str("garment", spec.garment.name())
+        .num("frames", spec.frames)
+        .val("fps", Value::real(1.0 / p.dt))
+        .num("seed", spec.seed)
+        .num("vary", spec.vary)
+        .str("up_axis", "Y")
+        .str("units", "m")
+        .val("lr", Object::new().num("vertices", m.pos.len()).num("faces", m.faces.len()))
+        .val(
+            "hr",
+            Object::new()
+                .num("vertices", run.sub.hr_vertices())
+                .num("faces", run.sub.faces.len())
+                .str("mesh", "the LR mesh subdivided once (midpoints, quad centres), HR vertices 0..N_LR-1 are the LR vertices")
+                .val("tracking_per_s2", Value::real(if run.hr.is_empty() { 0.0 } else { spec.tracking }))
+                .str("tracking_mode", "coarse: one constraint per LR vertex"),
+        )
+        .num("pinned", m.pins.len())
+        .val("collider_thickness_m", Value::real(spec.thickness))
+        .val("dt_s", Value::real(p.dt))
+        .num("substeps_lr", p.substeps)
+        .num("substeps_hr", 2 * p.substeps)
+        .val("gravity_m_per_s2", Value::reals(&p.gravity))
+        .val(
+            "material",
+            Object::new()
+                .str("name", mat.name)
+                .val("density_kg_per_m2", Value::real(mat.density))
+                .val("stretch_compliance_m_per_n", Value::real(mat.stretch_compliance))
+                .val("bend_stiffness_n_m", Value::real(mat.bend_stiffness)),
+        )
+        .str("bending", "isometric (Bergou et al. 2006) on the triangles (a quad split along 0-2)")
+        .str("generator", &format!("anisocb {}", env!("CARGO_PKG_VERSION")))
+        .into();
+    write_json(&dir.join("scene.json"), &meta, Layout::Indented)
+}

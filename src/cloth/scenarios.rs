@@ -66,7 +66,11 @@ impl Scenario {
 
     pub fn from_name(name: &str) -> Result<Scenario> {
         Scenario::ALL.iter().copied().find(|s| s.name() == name).ok_or_else(|| {
-            let names: Vec<&str> = Scenario::ALL.iter().map(|s| s.name()).collect();
+            let names: Vec<&str> = Scenario::ALL
+                .iter()
+                .map(|s| s.name())
+                .chain(super::garments::Garment::ALL.iter().map(|g| g.name()))
+                .collect();
             Error::config(format!("unknown scenario '{name}'; choose one of: {}", names.join(", ")))
         })
     }

@@ -57,6 +57,8 @@ pub struct Cloth {
     /// Bending constraints with `w_j·k_j` and `Σ w_j k_j²` (masses are fixed, so precomputed).
     bend_w: Coloured<BendW>,
     accel: Vec<[f32; 3]>,
+    /// A mesh cloth's triangles ([`Cloth::from_mesh`]), for its normals; empty for a grid.
+    mesh_tris: Vec<[usize; 3]>,
 }
 
 impl Cloth {
@@ -85,7 +87,9 @@ impl Cloth {
             .collect();
         let dist = mesh_distance_constraints(rest, faces, material);
         let bend = bend_constraints_of(rest, &tris, material);
-        Cloth::assemble((rest.len(), 1), rest, &tris, dist, bend, material, pins)
+        let mut c = Cloth::assemble((rest.len(), 1), rest, &tris, dist, bend, material, pins);
+        c.mesh_tris = tris;
+        c
     }
 
     /// A cloth at rest at `pos` (its triangles `tris`, constraints `dist` and `bend`).
@@ -166,6 +170,7 @@ impl Cloth {
             pins,
             time: 0.0,
             accel: vec![[0.0; 3]; n],
+            mesh_tris: Vec::new(),
         }
     }
 
@@ -173,10 +178,19 @@ impl Cloth {
         GridMesh::new(self.w, self.h, self.x.clone())
     }
 
-    /// Area-weighted vertex normals (unit; zero for degenerate neighbourhoods).
+    /// Area-weighted vertex normals (unit; zero for degenerate neighbourhoods): of the grid's
+    /// quads, or of a mesh cloth's triangles.
     pub fn normals(&self) -> Vec<[f32; 3]> {
         let (w, h) = (self.w, self.h);
         let mut nrm = vec![[0.0f32; 3]; w * h];
+        for t in &self.mesh_tris {
+            let n = cross(sub(self.x[t[1]], self.x[t[0]]), sub(self.x[t[2]], self.x[t[0]]));
+            for &v in t {
+                for k in 0..3 {
+                    nrm[v][k] += n[k];
+                }
+            }
+        }
         for j in 0..h.saturating_sub(1) {
             for i in 0..w.saturating_sub(1) {
                 let a = j * w + i;
