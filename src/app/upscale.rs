@@ -349,7 +349,7 @@ fn job(a: &Args) -> Result<CheckedJob> {
                     .map(|p| ColliderMesh::read(p).map(Arc::new))
                     .collect::<Result<_>>()?,
                 collider_thickness: a.collider_thickness.unwrap_or(COLLIDER_THICKNESS),
-                pin_vertices: a.physics_pin_vertices.as_deref().map_or(Ok(Vec::new()), read_vertex_list)?,
+                pin_vertices: a.physics_pin_vertices.as_deref().map_or(Ok(Vec::new()), crate::geom::obj::read_vertex_list)?,
             })
         }
     };
@@ -404,38 +404,6 @@ pub fn run(a: Args) -> Result<()> {
         done.format
     );
     Ok(())
-}
-
-/// A text file of vertex numbers (from 1; spaces, commas or new lines; `#` comments) as 0-based
-/// indices, each once, in the file's order.
-fn read_vertex_list(path: &std::path::Path) -> Result<Vec<u32>> {
-    let text = crate::geom::obj::read_obj_text(path)?;
-    let (mut out, mut seen) = (Vec::new(), std::collections::HashSet::new());
-    for (ln, line) in text.lines().enumerate() {
-        let line = line.split('#').next().unwrap_or("");
-        for tok in line.split(|c: char| c.is_whitespace() || c == ',').filter(|t| !t.is_empty()) {
-            match tok.parse::<u32>() {
-                Ok(v) if v >= 1 => {
-                    if seen.insert(v) {
-                        out.push(v - 1);
-                    }
-                }
-                _ => {
-                    return Err(Error::format(
-                        path,
-                        format!(
-                            "line {}: {tok:?} is not a vertex number (they start at 1, as in the OBJ file)",
-                            ln + 1
-                        ),
-                    ))
-                }
-            }
-        }
-    }
-    if out.is_empty() {
-        return Err(Error::format(path, "holds no vertex numbers: list the held vertices, numbered from 1"));
-    }
-    Ok(out)
 }
 
 /// `--gravity X,Y,Z` (m/s²).

@@ -548,7 +548,9 @@ fn cape(v: &GarmentVariation) -> GarmentScene {
         let lift = 0.12 * sy * w * w * f.powi(4);
         [w * half, top - f * sy + lift, -0.12 * s - 0.06 * s * f + 0.09 * s * collar * w * w]
     };
-    let (mut m, ij) = pattern((nx, ny), (sx, sy), |_, _| true, place, true);
+    // The hem's two corners cut off: no garment is a W×H grid.
+    let keep = |i: usize, j: usize| !(j + 1 == ny && (i == 0 || i + 1 == nx));
+    let (mut m, ij) = pattern((nx, ny), (sx, sy), keep, place, true);
     m.pins = ij.iter().enumerate().filter(|(_, (_, j))| *j == 0).map(|(k, _)| (k as u32, 0)).collect();
     let body = Body {
         parts: vec![torso(s)],

@@ -298,7 +298,7 @@ pub fn write_pair(
 /// DIR/lr/cloth_0000.obj …        the LR run, with the pattern's UVs
 /// DIR/hr/cloth_0000.obj …        (a pair) the HR run: the LR mesh subdivided once, UVs subdivided
 /// DIR/collider/body_0000.obj …   the body, one closed mesh per frame (`upscale --collider`)
-/// DIR/pins.txt                   the LR vertices sewn to the body, from 1 (`--physics-pin-vertices`)
+/// DIR/pins.txt                   the LR vertices sewn to the body, from 1, if any (`--physics-pin-vertices`)
 /// DIR/scene.json                 garment, frames, fps, seed, material, tracking …
 /// ```
 pub fn write_garment_run(dir: &Path, spec: &super::garments::GarmentSpec, run: &super::garments::GarmentRun) -> Result<()> {
@@ -331,13 +331,14 @@ pub fn write_garment_run(dir: &Path, spec: &super::garments::GarmentSpec, run: &
     }
     let mut pins: Vec<u32> = m.pins.iter().map(|p| p.0 + 1).collect();
     pins.sort_unstable();
-    let pins_text = if pins.is_empty() {
-        String::from("# no vertex of this garment is sewn to the body\n")
-    } else {
+    if !pins.is_empty() {
         let list: Vec<String> = pins.iter().map(|v| v.to_string()).collect();
-        format!("# LR vertices sewn to the body, numbered from 1 (upscale --physics-pin-vertices)\n{}\n", list.join(" "))
-    };
-    write_atomic_bytes(&dir.join("pins.txt"), pins_text.as_bytes())?;
+        let text = format!(
+            "# LR vertices sewn to the body, numbered from 1 (upscale --physics-pin-vertices)\n{}\n",
+            list.join(" ")
+        );
+        write_atomic_bytes(&dir.join("pins.txt"), text.as_bytes())?;
+    }
     let p = &spec.params;
     let mat = &run.material;
     let meta: Value = Object::new()

@@ -36,7 +36,8 @@ pub struct MeshFrames {
 }
 
 /// A held-out mesh run: `DIR/lr/*.obj`, `DIR/hr/*.obj` (the LR mesh subdivided once,
-/// simulated), optional `DIR/collider/*.obj`, frame by frame.
+/// simulated), optional `DIR/collider/*.obj`, frame by frame, optional `DIR/pins.txt` (the LR
+/// vertices held by the body, numbered from 1) and `DIR/scene.json` (its `fps`).
 pub struct MeshRun {
     pub name: String,
     pub lr: MeshFrames,
@@ -49,6 +50,9 @@ pub struct MeshRun {
     pub first: ObjMesh,
     /// Frames per second (`DIR/scene.json`'s `fps`, else 24), for the physics pass.
     pub fps: f32,
+    /// The LR vertices held by the body (`DIR/pins.txt`, numbered from 1 there; 0-based
+    /// here), for the physics pass.
+    pub pins: Vec<u32>,
 }
 
 /// The OBJ frames of folder `dir` (fixed topology).
@@ -93,7 +97,9 @@ impl MeshRun {
         } else {
             24.0
         };
-        Ok(MeshRun { name, lr, hr, collider, collider_dir, first, fps })
+        let pins_file = dir.join("pins.txt");
+        let pins = if pins_file.exists() { crate::geom::obj::read_vertex_list(&pins_file)? } else { Vec::new() };
+        Ok(MeshRun { name, lr, hr, collider, collider_dir, first, fps, pins })
     }
 }
 
@@ -385,7 +391,7 @@ pub fn evaluate_mesh_run(
             Some(d) => vec![std::sync::Arc::new(crate::cloth::mesh_collider::ColliderMesh::read(d)?)],
             None => Vec::new(),
         };
-        let p = FollowParams { fps: run.fps, colliders, ..p.clone() };
+        let p = FollowParams { fps: run.fps, colliders, pin_vertices: run.pins.clone(), ..p.clone() };
         let mut pass = MeshPhysicsPass::new(p, sub.clone(), run.lr.frames[0].len());
         let cloth =
             ours.iter().enumerate().map(|(k, f)| pass.apply(f.clone(), k)).collect::<Result<Vec<_>>>()?;

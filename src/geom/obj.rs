@@ -639,3 +639,35 @@ pub fn mesh_normals(pos: &[[f32; 3]], faces: &[Vec<u32>]) -> Vec<[f32; 3]> {
 pub fn write_obj_grid(path: &Path, mesh: &GridMesh, quads: bool) -> Result<()> {
     crate::io::write_atomic_bytes(path, obj_text(mesh, quads).as_bytes())
 }
+
+/// A text file of vertex numbers (from 1; spaces, commas or new lines; `#` comments) as 0-based
+/// indices, each once, in the file's order.
+pub fn read_vertex_list(path: &Path) -> Result<Vec<u32>> {
+    let text = read_obj_text(path)?;
+    let (mut out, mut seen) = (Vec::new(), std::collections::HashSet::new());
+    for (ln, line) in text.lines().enumerate() {
+        let line = line.split('#').next().unwrap_or("");
+        for tok in line.split(|c: char| c.is_whitespace() || c == ',').filter(|t| !t.is_empty()) {
+            match tok.parse::<u32>() {
+                Ok(v) if v >= 1 => {
+                    if seen.insert(v) {
+                        out.push(v - 1);
+                    }
+                }
+                _ => {
+                    return Err(Error::format(
+                        path,
+                        format!(
+                            "line {}: {tok:?} is not a vertex number (they start at 1, as in the OBJ file)",
+                            ln + 1
+                        ),
+                    ))
+                }
+            }
+        }
+    }
+    if out.is_empty() {
+        return Err(Error::format(path, "holds no vertex numbers: list the held vertices, numbered from 1"));
+    }
+    Ok(out)
+}

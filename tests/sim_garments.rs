@@ -1,0 +1,160 @@
+//! Checks of the garment scenes (issue 45, step 3): every garment is a surface anisocb takes,
+//! its body's parts never overlap, its runs stay finite and outside the body, pins ride on the
+//! body, the HR run keeps to the LR run at the LR vertices and has folds of its own, the same
+//! seed gives the same bits, and the folder it writes is what `eval --meshes` reads.
+
+#[path = "common/tempdir.rs"]
+mod tempdir;
+use anisocb::cloth::garments::{garment_run, Garment, GarmentSpec};
+use anisocb::cloth::run_io::write_garment_run;
+use anisocb::cloth::tracking::Restriction;
+use anisocb::eval::mesh::{mesh_detail, penetration, MeshFrames, MeshRun};
+use anisocb::geom::surface::Surface;
+use std::path::Path;
+use tempdir::TempDir;
+
+fn spec(g: Garment, frames: usize) -> GarmentSpec {
+    GarmentSpec { frames, ..GarmentSpec::new(g) }
+}
+
+fn rms(a: &[[f32; 3]], b: &[[f32; 3]]) -> f32 {
+    let s: f32 = a.iter().zip(b).map(|(p, q)| (0..3).map(|k| (p[k] - q[k]).powi(2)).sum::<f32>()).sum();
+    (s / a.len() as f32).sqrt()
+}
+
+#[test]
+fn garment_names_round_trip_and_every_garment_is_a_surface_that_is_not_a_grid() {
+    for g in Garment::ALL {
+        assert_eq!(Garment::from_name(g.name()), Some(g));
+        let scene = spec(g, 2).scene();
+        let m = &scene.mesh;
+        Surface::new(m.pos.len(), m.faces.clone(), Path::new(g.name()))
+            .unwrap_or_else(|e| panic!("{g} is not a surface: {e}"));
+        assert_eq!(m.faces.len(), m.face_uv.len(), "{g}: a UV face per face");
+        assert!(m.uv.iter().all(|t| t.iter().all(|c| (0.0..=1.0).contains(c))), "{g}: UVs in the unit square");
+        // Not a W×H grid: the grid reader refuses it, so `upscale` takes the any-mesh path.
+        let obj = anisocb::geom::obj::ObjMesh { pos: m.pos.clone(), faces: m.faces.clone(), ..Default::default() };
+        assert!(anisocb::geom::obj::obj_to_grid(&obj, Path::new(g.name())).is_err(), "{g} reads as a grid");
+    }
+    assert_eq!(Garment::from_name("twist"), None);
+}
+
+#[test]
+fn body_parts_never_overlap_while_they_move() {
+    for g in Garment::ALL {
+        let sp = spec(g, 90);
+        let body = sp.scene().body;
+        if body.parts.len() < 2 {
+            continue;
+        }
+        let frames = |i: usize| -> MeshFrames {
+            let p = &body.parts[i];
+            let posed = (0..sp.frames)
+                .step_by(3)
+                .map(|k| {
+                    let m = body.poses(k as f32 * sp.params.dt)[i];
+                    p.pos.iter().map(|x| m.apply(*x)).collect()
+                })
+                .collect();
+            MeshFrames { faces: p.faces.clone(), frames: posed }
+        };
+        for a in 0..body.parts.len() {
+            for b in 0..body.parts.len() {
+                if a != b {
+                    let (share, deepest) = penetration(&frames(a).frames, &frames(b));
+                    assert_eq!(share, 0.0, "{g}: part {a} enters part {b} ({deepest} m deep)");
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn garment_pairs_stay_finite_and_outside_the_body_and_pins_ride_on_it() {
+    for g in Garment::ALL {
+        let sp = spec(g, 24);
+        let run = garment_run(&sp, true, &mut |_| {}).unwrap_or_else(|e| panic!("{g}: {e}"));
+        assert_eq!((run.lr.len(), run.hr.len()), (24, 24));
+        assert_eq!(run.hr[0].len(), run.sub.hr_vertices());
+        let body = MeshFrames { faces: run.body_faces.clone(), frames: run.body.clone() };
+        for (name, frames) in [("LR", &run.lr), ("HR", &run.hr)] {
+            assert!(frames.iter().flatten().all(|p| p.iter().all(|c| c.is_finite())), "{g} {name}: not finite");
+            let (share, deepest) = penetration(frames, &body);
+            assert!(deepest <= 1e-3, "{g} {name}: {:.3} % of vertex-frames inside the body, {deepest} m deep", 100.0 * share);
+        }
+        // A pinned vertex is where its part carries its rest position.
+        let scene = sp.scene();
+        for k in [0, 11, 23] {
+            let poses = scene.body.poses(k as f32 * sp.params.dt);
+            for &(v, part) in &scene.mesh.pins {
+                let want = poses[part].apply(scene.mesh.pos[v as usize]);
+                let got = run.lr[k][v as usize];
+                assert!((0..3).all(|c| (got[c] - want[c]).abs() < 1e-5), "{g} frame {k} pin {v}: {got:?} vs {want:?}");
+            }
+        }
+        // The cloth moved: gravity and the body act on it.
+        assert!(rms(&run.lr[23], &run.lr[0]) > 5e-3, "{g}: the cloth did not move");
+    }
+}
+
+#[test]
+fn the_hr_run_keeps_to_the_lr_run_at_its_vertices_and_has_folds_of_its_own() {
+    let sp = spec(Garment::Skirt, 45);
+    let run = garment_run(&sp, true, &mut |_| {}).unwrap();
+    let n = run.mesh.pos.len();
+    let r = Restriction::of_subdivision(&run.sub, n);
+    let k = 44;
+    // The HR run's coarse shape (its tent averages at the LR vertices) against the LR run's.
+    let coarse = rms(&r.apply(&run.hr[k]), &r.apply(&run.sub.apply(&run.lr[k])));
+    let motion = rms(&run.lr[k], &run.lr[0]);
+    assert!(coarse < 0.15 * motion, "HR drifts from LR: {coarse} m (the cloth moved {motion} m)");
+    // Folds finer than the LR mesh: the HR run's detail is millimetres, the LR's subdivision none.
+    let d = mesh_detail(&run.sub, n, &run.hr[k]);
+    let detail = (d[n..].iter().map(|x| x * x).sum::<f32>() / (d.len() - n) as f32).sqrt();
+    assert!(detail > 1e-3, "HR detail {detail} m");
+    let flat = mesh_detail(&run.sub, n, &run.sub.apply(&run.lr[k]));
+    assert!(flat.iter().all(|x| x.abs() < 1e-5));
+}
+
+#[test]
+fn the_same_seed_gives_the_same_bits_and_another_seed_another_breeze() {
+    let bits = |seed: u64| {
+        let sp = GarmentSpec { seed, ..spec(Garment::HoledSheet, 8) };
+        let run = garment_run(&sp, true, &mut |_| {}).unwrap();
+        run.lr.iter().chain(&run.hr).flatten().flat_map(|p| p.map(f32::to_bits)).collect::<Vec<u32>>()
+    };
+    assert_eq!(bits(3), bits(3));
+    assert_ne!(bits(3), bits(4));
+}
+
+#[test]
+fn varied_garments_differ_and_seed_zero_is_the_garment_as_given() {
+    let scene = |vary: u64| GarmentSpec { vary, ..spec(Garment::Cape, 2) }.scene().mesh.pos;
+    assert_eq!(scene(0), spec(Garment::Cape, 2).scene().mesh.pos);
+    assert_ne!(scene(0), scene(5));
+    assert_ne!(scene(5), scene(6));
+}
+
+#[test]
+fn a_garment_folder_is_what_eval_meshes_reads() {
+    let dir = TempDir::new("garment-run");
+    let sp = spec(Garment::Tshirt, 6);
+    let run = garment_run(&sp, true, &mut |_| {}).unwrap();
+    write_garment_run(dir.path(), &sp, &run).unwrap();
+    let read = MeshRun::read(dir.path()).unwrap();
+    assert_eq!(read.lr.faces, run.mesh.faces);
+    assert_eq!(read.lr.frames.len(), 6);
+    // Positions go through the OBJ text: as printed, f32 round trip.
+    for (a, b) in read.hr.iter().zip(&run.hr) {
+        assert!(rms(a, b) < 1e-6, "HR frames read back in another order");
+    }
+    assert!((read.fps - 30.0).abs() < 1e-3);
+    let body = read.collider.expect("the body is written as the collider");
+    assert_eq!(body.frames.len(), 6);
+    assert!(!read.first.uv.is_empty(), "the pattern's UVs are written");
+    // The collar's pins, read back as the physics pass takes them (0-based).
+    let mut want: Vec<u32> = run.mesh.pins.iter().map(|p| p.0).collect();
+    want.sort_unstable();
+    assert!(!want.is_empty());
+    assert_eq!(read.pins, want);
+}
