@@ -53,6 +53,10 @@ pub struct MeshRun {
     /// The LR vertices held by the body (`DIR/pins.txt`, numbered from 1 there; 0-based
     /// here), for the physics pass.
     pub pins: Vec<u32>,
+    /// The cloth's material when `DIR/scene.json` names one of anisocb's (`material.name`, as
+    /// `simulate` writes for a garment), for the physics pass: what an artist gives as
+    /// `--material`. None: the pass's own (Blender's scenes name none).
+    pub material: Option<crate::cloth::Material>,
 }
 
 /// The OBJ frames of folder `dir` (fixed topology).
@@ -92,14 +96,15 @@ impl MeshRun {
         let name = dir.file_name().unwrap_or_default().to_string_lossy().into_owned();
         let lr = MeshFrames { faces: lr.faces, frames: lr.frames[..t].to_vec() };
         let scene = dir.join("scene.json");
-        let fps = if scene.exists() {
-            crate::io::json::read_json(&scene)?.get("fps").and_then(|v| v.as_f64()).map_or(24.0, |f| f as f32)
-        } else {
-            24.0
-        };
+        let meta = if scene.exists() { Some(crate::io::json::read_json(&scene)?) } else { None };
+        let fps = meta.as_ref().and_then(|m| m.get("fps")?.as_f64()).map_or(24.0, |f| f as f32);
+        let material = meta
+            .as_ref()
+            .and_then(|m| m.get("material")?.get("name")?.as_str().map(str::to_string))
+            .and_then(|n| crate::cloth::Material::from_name(&n).ok());
         let pins_file = dir.join("pins.txt");
         let pins = if pins_file.exists() { crate::geom::obj::read_vertex_list(&pins_file)? } else { Vec::new() };
-        Ok(MeshRun { name, lr, hr, collider, collider_dir, first, fps, pins })
+        Ok(MeshRun { name, lr, hr, collider, collider_dir, first, fps, pins, material })
     }
 }
 
@@ -391,7 +396,8 @@ pub fn evaluate_mesh_run(
             Some(d) => vec![std::sync::Arc::new(crate::cloth::mesh_collider::ColliderMesh::read(d)?)],
             None => Vec::new(),
         };
-        let p = FollowParams { fps: run.fps, colliders, pin_vertices: run.pins.clone(), ..p.clone() };
+        let material = run.material.unwrap_or(p.material);
+        let p = FollowParams { fps: run.fps, colliders, pin_vertices: run.pins.clone(), material, ..p.clone() };
         let mut pass = MeshPhysicsPass::new(p, sub.clone(), run.lr.frames[0].len());
         let cloth =
             ours.iter().enumerate().map(|(k, f)| pass.apply(f.clone(), k)).collect::<Result<Vec<_>>>()?;
