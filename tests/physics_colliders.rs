@@ -308,6 +308,8 @@ fn upscale_reads_held_vertex_lists_and_refuses_bad_ones_naming_the_file() {
             &["--physics", "--physics-pin-vertices", empty.to_str().unwrap()],
             &["empty.txt", "no vertex numbers"],
         ),
+        // A group the first frame does not have: its groups named.
+        (&["--physics", "--physics-pin-group", "waist"], &["frame_0.obj", "\"waist\"", "its groups: none"]),
         // The shot is a grid: it is held by its edges.
         (
             &["--physics", "--physics-pin-vertices", list.to_str().unwrap()],

@@ -248,6 +248,11 @@ pub struct Args {
     /// vertices between held ones, follow the shot exactly.
     #[arg(help_heading = "Physics pass (--physics)", long, value_name = "FILE")]
     pub physics_pin_vertices: Option<PathBuf>,
+    /// With --physics, on a mesh that is not a grid: hold the vertices of the faces in this OBJ
+    /// group (`g NAME` in the first frame, or in --rest for a point cache): a pin group exported
+    /// from Blender, Maya or Houdini. Adds to --physics-pin-vertices.
+    #[arg(help_heading = "Physics pass (--physics)", long, value_name = "NAME")]
+    pub physics_pin_group: Option<String>,
     /// With --physics: XPBD substeps per second of shot time (at least one per frame). More
     /// makes the cloth stiffer against stretching and costs time in proportion.
     #[arg(help_heading = "Physics pass (--physics)", long, default_value_t = crate::cloth::follow::FollowParams::default().substeps_per_second)]
@@ -349,7 +354,7 @@ fn job(a: &Args) -> Result<CheckedJob> {
                     .map(|p| ColliderMesh::read(p).map(Arc::new))
                     .collect::<Result<_>>()?,
                 collider_thickness: a.collider_thickness.unwrap_or(COLLIDER_THICKNESS),
-                pin_vertices: a.physics_pin_vertices.as_deref().map_or(Ok(Vec::new()), crate::geom::obj::read_vertex_list)?,
+                pin_vertices: pin_vertices(&a)?,
             })
         }
     };
@@ -404,6 +409,27 @@ pub fn run(a: Args) -> Result<()> {
         done.format
     );
     Ok(())
+}
+
+/// The held vertices of `--physics-pin-vertices` and `--physics-pin-group` (0-based, each once).
+fn pin_vertices(a: &Args) -> Result<Vec<u32>> {
+    let mut out = a.physics_pin_vertices.as_deref().map_or(Ok(Vec::new()), crate::geom::obj::read_vertex_list)?;
+    if let Some(name) = &a.physics_pin_group {
+        // The mesh that names the groups: the point cache's rest OBJ, or the shot's first frame.
+        let first = match (&a.rest, a.input.first()) {
+            (Some(rest), _) => rest.clone(),
+            (None, Some(p)) if p.is_dir() => crate::geom::obj::list_obj_files(p)?.remove(0),
+            (None, Some(p)) => p.clone(),
+            (None, None) => return Err(Error::config("--physics-pin-group needs an input")),
+        };
+        let m = crate::geom::obj::parse_obj(&crate::geom::obj::read_obj_text(&first)?, &first)?;
+        for v in crate::geom::obj::group_vertices(&m, name, &first)? {
+            if !out.contains(&v) {
+                out.push(v);
+            }
+        }
+    }
+    Ok(out)
 }
 
 /// `--gravity X,Y,Z` (m/s²).

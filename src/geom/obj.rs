@@ -671,3 +671,62 @@ pub fn read_vertex_list(path: &Path) -> Result<Vec<u32>> {
     }
     Ok(out)
 }
+/// The vertices (0-based, ascending) of the faces of `m` (read from `path`) in the OBJ group
+/// `name`: the faces after a `g` line naming it (among its names), up to the next `g` line —
+/// how Blender, Maya and Houdini export a vertex or face group to OBJ. An error names the
+/// groups the file has when none is called `name`.
+pub fn group_vertices(m: &ObjMesh, name: &str, path: &Path) -> Result<Vec<u32>> {
+    let mut groups: Vec<&str> = Vec::new();
+    let mut in_group = vec![false; m.faces.len()];
+    let mut tags = m.tags.iter().peekable();
+    let mut current = false;
+    for (k, inside) in in_group.iter_mut().enumerate() {
+        while let Some((_, line)) = tags.next_if(|t| t.0 <= k) {
+            let mut words = line.split_whitespace();
+            if words.next() == Some("g") {
+                let names: Vec<&str> = words.collect();
+                for n in &names {
+                    if !groups.contains(n) {
+                        groups.push(n);
+                    }
+                }
+                current = names.contains(&name);
+            }
+        }
+        *inside = current;
+    }
+    let mut held = vec![false; m.pos.len()];
+    for (f, _) in m.faces.iter().zip(&in_group).filter(|(_, g)| **g) {
+        f.iter().for_each(|&v| held[v as usize] = true);
+    }
+    let out: Vec<u32> = (0..m.pos.len() as u32).filter(|&v| held[v as usize]).collect();
+    if out.is_empty() {
+        let have = if groups.is_empty() { "none".to_string() } else { groups.join(", ") };
+        return Err(Error::format(
+            path,
+            format!("has no faces in a group called {name:?} (its groups: {have}); export the pin group as an OBJ group, or list the vertices in a file"),
+        ));
+    }
+    Ok(out)
+}
+
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn group_vertices_are_those_of_the_faces_after_the_groups_g_line() {
+        // A strip of three quads: the first in `waist hem`, the second in `body`, the third
+        // back in `waist`.
+        let text = "v 0 0 0\nv 1 0 0\nv 2 0 0\nv 3 0 0\nv 0 1 0\nv 1 1 0\nv 2 1 0\nv 3 1 0\n\
+                    g waist hem\nf 1 2 6 5\ng body\nusemtl cloth\nf 2 3 7 6\ng waist\nf 3 4 8 7\n";
+        let p = Path::new("strip.obj");
+        let m = parse_obj(text, p).unwrap();
+        assert_eq!(group_vertices(&m, "waist", p).unwrap(), vec![0, 1, 2, 3, 4, 5, 6, 7]);
+        assert_eq!(group_vertices(&m, "hem", p).unwrap(), vec![0, 1, 4, 5]);
+        assert_eq!(group_vertices(&m, "body", p).unwrap(), vec![1, 2, 5, 6]);
+        let e = group_vertices(&m, "collar", p).unwrap_err().to_string();
+        assert!(e.contains("strip.obj") && e.contains("\"collar\"") && e.contains("waist, hem, body"), "{e}");
+    }
+}
