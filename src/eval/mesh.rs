@@ -280,10 +280,15 @@ pub fn penetration(frames: &[Vec<[f32; 3]>], collider: &MeshFrames) -> (f32, f32
         let c = &collider.frames[t.min(collider.frames.len() - 1)];
         for p in x {
             total += 1;
-            // An odd number of crossings along a slightly tilted ray: inside.
-            let dir = [1.0f32, 0.000_37, 0.000_91];
-            let hits = tris.iter().filter(|tr| ray_hits(*p, dir, tr.map(|v| c[v as usize]))).count();
-            if hits % 2 == 1 {
+            // An odd number of crossings along a slightly tilted ray: inside. A ray through an
+            // edge or a corner counts the crossing twice (or not at all), so a point the first
+            // ray calls inside is inside only if one of two more rays agrees (two of three).
+            let odd = |dir: [f32; 3]| {
+                tris.iter().filter(|tr| ray_hits(*p, dir, tr.map(|v| c[v as usize]))).count() % 2 == 1
+            };
+            let inside_here = odd([1.0, 0.000_37, 0.000_91])
+                && [[0.000_53, 1.0, -0.000_29], [-0.000_71, 0.000_43, 1.0]].iter().filter(|d| odd(**d)).count() >= 1;
+            if inside_here {
                 inside += 1;
                 let d = tris
                     .iter()
