@@ -126,6 +126,7 @@ pub fn run(a: Args) -> Result<()> {
             let physics = a.physics.then(crate::cloth::follow::FollowParams::blender_shot);
             let e = evaluate_mesh_run(ops.as_ref(), &model, &params, &run, physics.as_ref())?;
             write_mesh_pictures(&a.out, &run, &e)?;
+            write_mesh_closeups(&a.out, &run, &e, a.flipbook)?;
             rows.push((run.name.clone(), e.scores));
             pb.inc(1);
         }
@@ -136,8 +137,10 @@ pub fn run(a: Args) -> Result<()> {
         println!("{md}");
         println!(
             "wrote {}/: meshes.md, meshes.json, <run>-meshes.png (LR | the subdivisions | anisocb | HR run, \
-             middle and last frame, the collider in grey; the second picture shaded by normals)",
-            a.out.display()
+             middle and last frame, the collider in grey; the second picture shaded by normals), \
+             <run>-closeup.png (the window of most wrinkle detail, three frames){}",
+            a.out.display(),
+            if a.flipbook { ", <run>-flipbook.png (that window animated)" } else { "" }
         );
         if a.runs.is_empty() {
             return Ok(());
@@ -226,6 +229,64 @@ fn write_mesh_pictures(out: &Path, run: &MeshRun, e: &MeshRunEval) -> Result<()>
         }
     }
     save_png(&out.join(format!("{}-meshes.png", run.name)), &vstack(&rows, 6, [255; 3]))
+}
+
+/// `<run>-closeup.png`: the window around the HR vertex where the truth's middle frame has the
+/// most wrinkle detail (a fifth of the cloth's size across), at three frames of the second half,
+/// LR | every method | HR run, under a raking light; the camera follows the truth's window
+/// frame by frame, so cloth that moves as a whole stands still and detail that swims shows.
+/// With `flipbook`, `<run>-flipbook.png`: that row for every frame (every 2nd above 60),
+/// animated.
+fn write_mesh_closeups(out: &Path, run: &MeshRun, e: &MeshRunEval, flipbook: bool) -> Result<()> {
+    use crate::eval::mesh::mesh_detail;
+    use crate::viz::render::{render_layers, Camera, Layer, PROP_TINT};
+    let truth = &run.hr;
+    let t = truth.len();
+    let lr_n = run.lr.frames[0].len();
+    let sub = crate::geom::surface::Subdivision::of(lr_n, &run.lr.faces);
+    let mid = t / 2;
+    let d = mesh_detail(&sub, lr_n, &truth[mid]);
+    let centre = (lr_n..d.len()).max_by(|&a, &b| d[a].abs().total_cmp(&d[b].abs())).unwrap_or(0);
+    let (lo, hi) = crate::geom::mesh::bounds(&truth[mid]);
+    let radius = 0.1 * (0..3).map(|k| hi[k] - lo[k]).fold(0.0f32, f32::max);
+    let c = truth[mid][centre];
+    let window: Vec<usize> =
+        (0..truth[mid].len()).filter(|&v| crate::geom::mesh::dist(truth[mid][v], c) < radius).collect();
+    let (lr_tris, hr_tris) = (triangles(&run.lr.faces), triangles(&e.hr_faces));
+    let col_tris = run.collider.as_ref().map(|c| triangles(&c.faces));
+    let one_row = |p: &[[f32; 3]]| GridMesh::new(p.len(), 1, p.to_vec());
+    let row = |k: usize, size: usize| -> Result<Vec<crate::viz::image::Rgb8>> {
+        let pts: Vec<[f32; 3]> = window.iter().map(|&v| truth[k][v]).collect();
+        let (lo, hi) = crate::geom::mesh::bounds(&pts);
+        let cam = Camera::fit(&View::default(), lo, hi, size, size)?;
+        let prop = run.collider.as_ref().map(|c| one_row(&c.frames[k.min(c.frames.len() - 1)]));
+        let tile = |pos: &[[f32; 3]], tris: &[[usize; 3]], label: &str| -> Result<crate::viz::image::Rgb8> {
+            let m = one_row(pos);
+            let mut layers = vec![Layer { tris: Some(tris), mesh: &m, colors: None, tint: None }];
+            if let (Some(p), Some(ct)) = (&prop, &col_tris) {
+                layers.push(Layer { tris: Some(ct), mesh: p, colors: None, tint: Some(PROP_TINT) });
+            }
+            let mut pic = render_layers(&layers, &cam, &Shading::default())?;
+            pic.label(&format!("{label}, frame {k}"), 1);
+            Ok(pic)
+        };
+        let mut tiles = vec![tile(&run.lr.frames[k], &lr_tris, "LR")?];
+        for (name, m) in &e.frames {
+            tiles.push(tile(&m[k], &hr_tris, name)?);
+        }
+        Ok(tiles)
+    };
+    let rows = pick_frames(t, 3).into_iter().map(|k| row(k, 240)).collect::<Result<Vec<_>>>()?;
+    save_png(&out.join(format!("{}-closeup.png", run.name)), &crate::viz::sheet::sheet(&rows, 6, 0, [255; 3]))?;
+    if flipbook {
+        let step = if t > 60 { 2 } else { 1 };
+        let pics = (0..t)
+            .step_by(step)
+            .map(|k| Ok(crate::viz::image::hstack(&row(k, 200)?, 6, [255; 3])))
+            .collect::<Result<Vec<_>>>()?;
+        save_apng(&out.join(format!("{}-flipbook.png", run.name)), &pics, FLIPBOOK_FPS)?;
+    }
+    Ok(())
 }
 
 /// The mesh runs' scores as JSON rows (metres, degrees, shares).
