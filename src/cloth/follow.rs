@@ -438,6 +438,8 @@ pub struct Follower {
     pin_from: Vec<[f32; 3]>,
     /// What "the part the LR shape holds" is for this cloth.
     shape: Coarse,
+    /// The cloth's triangles, for the faces' contacts with mesh colliders.
+    tris: Vec<[usize; 3]>,
     /// The floor ([`FollowParams::ground`]) as (unit up, height).
     floor: Option<([f32; 3], f32)>,
     /// The shot frame the cloth is at (the mesh colliders' pose).
@@ -540,6 +542,7 @@ impl Follower {
         let colliders = Colliders { sphere: p.sphere, cuboid: p.cuboid, ground: None };
         let meshes = p.colliders.iter().map(|m| MeshCollider::new(m.clone(), p.collider_thickness)).collect();
         let scene = Scene { kinematics: Kinematics::Static, wind: Wind::none(), colliders, meshes };
+        let tris = cloth.triangles();
         let mut f = Follower {
             cloth,
             scene,
@@ -550,6 +553,7 @@ impl Follower {
             from: Vec::new(),
             rest_sag: Vec::new(),
             pin_from,
+            tris,
             shape,
             output: p.output,
             drift_keep: (-1.0 / (p.fps * p.drift_seconds)).exp(),
@@ -732,6 +736,7 @@ impl Follower {
         // Back across any mesh surface the way from the cloth (outside) enters, and out.
         for m in &self.scene.meshes {
             m.push_out(&mut out, Some(&self.cloth.x), None);
+            m.push_faces_out(&mut out, &self.tris, None);
         }
         if let Some((up, h)) = self.floor {
             for o in &mut out {
@@ -763,6 +768,7 @@ impl Follower {
         let c = &mut self.cloth;
         for m in &self.scene.meshes {
             m.push_out(&mut c.x, None, Some(&c.inv_mass));
+            m.push_faces_out(&mut c.x, &self.tris, Some(&c.inv_mass));
         }
     }
 

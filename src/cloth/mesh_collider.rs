@@ -977,6 +977,35 @@ impl MeshCollider {
             }
         });
     }
+
+    /// Take the faces `tris` of `x` out of the collider at the span's end pose: a triangle whose
+    /// centroid lies inside it, or nearer than half the thickness, moves its corners (those with
+    /// `free[v] > 0`, or all) along the surface's normal there until its centroid is that far
+    /// outside. Over a curved body thinner than a few faces (an arm in a sleeve) a face sags
+    /// into it between corners that each keep the thickness: the body showed through the cloth.
+    /// Two sweeps in triangle order (deterministic).
+    pub fn push_faces_out(&self, x: &mut [[f32; 3]], tris: &[[usize; 3]], free: Option<&[f32]>) {
+        let (pose, m) = (&*self.end, &*self.mesh);
+        let gap = 0.5 * self.thickness;
+        let reach = REACH * self.thickness;
+        let (lo, hi) = (sub(m.bounds.0, [reach; 3]), add(m.bounds.1, [reach; 3]));
+        for _ in 0..2 {
+            for tr in tris {
+                let c: [f32; 3] = std::array::from_fn(|k| (x[tr[0]][k] + x[tr[1]][k] + x[tr[2]][k]) / 3.0);
+                if (0..3).any(|k| !(c[k] >= lo[k] && c[k] <= hi[k])) {
+                    continue;
+                }
+                let h = if m.closed { Some(m.closest_anywhere(pose, c)) } else { m.closest_within(pose, c, reach) };
+                if let Some((n, pen)) = h.and_then(|h| m.push(pose, &h, c, gap)) {
+                    for &v in tr {
+                        if free.is_none_or(|f| f[v] > 0.0) {
+                            x[v] = add(x[v], scale(n, pen));
+                        }
+                    }
+                }
+            }
+        }
+    }
 }
 
 /// The mesh of an axis-aligned box: 8 corners and 6 quads wound outward (counter-clockwise
@@ -1036,6 +1065,29 @@ mod tests {
     fn rng_points(n: usize, lo: f32, hi: f32, seed: u64) -> Vec<[f32; 3]> {
         let mut r = crate::rng::Rng::new(seed);
         (0..n).map(|_| std::array::from_fn(|_| r.uniform_in(lo, hi))).collect()
+    }
+
+    #[test]
+    fn a_face_sagging_into_a_thin_body_between_corners_outside_is_pushed_out() {
+        // A ball of 4 cm and a triangle 6 cm across lying on its top: every corner is more
+        // than the thickness away, the centroid 1 cm inside.
+        let mesh = Arc::new(uv_sphere([0.0, 0.0, 0.0], 0.04, 32, 16));
+        let col = MeshCollider::new(mesh.clone(), 0.005);
+        let y = 0.03;
+        let mut x = vec![[-0.05, y, -0.03], [0.05, y, -0.03], [0.0, y, 0.06], [0.3, 0.3, 0.3]];
+        let tris = [[0usize, 1, 2]];
+        let before = mesh.signed_distances(0, &x[..3]);
+        assert!(before.iter().all(|d| *d > 0.005), "{before:?}");
+        let centroid = |x: &[[f32; 3]]| -> [f32; 3] { std::array::from_fn(|k| (x[0][k] + x[1][k] + x[2][k]) / 3.0) };
+        assert!(mesh.signed_distances(0, &[centroid(&x)])[0] < 0.0);
+        // A held corner stays; with none held the face comes out.
+        let mut held = x.clone();
+        col.push_faces_out(&mut held, &tris, Some(&[0.0, 0.0, 0.0, 1.0]));
+        assert_eq!(held, x);
+        col.push_faces_out(&mut x, &tris, None);
+        let after = mesh.signed_distances(0, &[centroid(&x)])[0];
+        assert!(after >= 0.5 * 0.005 - 1e-5, "centroid {after} m from the surface");
+        assert_eq!(x[3], [0.3, 0.3, 0.3], "a vertex of no face moved");
     }
 
     #[test]

@@ -174,6 +174,15 @@ impl Cloth {
         }
     }
 
+    /// The cloth's triangles: a mesh cloth's ([`Cloth::from_mesh`]), or the grid's.
+    pub fn triangles(&self) -> Vec<[usize; 3]> {
+        if self.mesh_tris.is_empty() {
+            self.mesh().triangles()
+        } else {
+            self.mesh_tris.clone()
+        }
+    }
+
     pub fn mesh(&self) -> GridMesh {
         GridMesh::new(self.w, self.h, self.x.clone())
     }
