@@ -22,6 +22,7 @@ synchronously (`bpy.ops.anisocb.upscale()` = execute: the script mode) on each c
      evaluated world-space vertices, frame by frame, equal `anisocb upscale` run by hand on
      the same exported files (the HR PC2 turned back to Blender's Z up) within 1e-4 m; and it
      plays in place over the LR cloth (HR bounding box within 3 cm of the LR one);
+  0. with --zip: the add-on zip installs as an extension (Install from Disk) and registers;
   3. errors: a wrong binary path, and an option the binary refuses (a wrapper adding
      `--margin 5`), are reported by the operator with the binary's own message.
 
@@ -29,7 +30,7 @@ Prints PASS/FAIL per check and a summary; exit status 1 if any failed. `make ble
 
 Usage:
     python3 -m pip install -r tests/blender/requirements.txt   # Python 3.11
-    python3 tests/blender/test_addon.py --anisocb target/release/anisocb [--keep DIR]
+    python3 tests/blender/test_addon.py --anisocb target/release/anisocb [--zip target/anisocb_addon.zip] [--keep DIR]
 """
 
 import argparse
@@ -44,6 +45,11 @@ import tempfile
 import time
 
 import numpy as np
+
+# Blender's user folders (preferences, extensions) in a temporary folder: the test installs and
+# enables add-ons, and leaves the user's own Blender configuration alone.
+USER_RESOURCES = tempfile.TemporaryDirectory(prefix="anisocb-blender-user-")
+os.environ["BLENDER_USER_RESOURCES"] = USER_RESOURCES.name
 
 try:
     import bpy
@@ -350,10 +356,27 @@ def check_errors(obj, out, exe):
     check("error: kept for the panel", "--margin" in STATE["error"], f"panel shows: {STATE['error'][:160]}")
 
 
+def check_zip(path):
+    """Install from Disk: the zip installs as an extension, registers its operator and panel."""
+    with quiet():
+        r = bpy.ops.extensions.package_install_files(filepath=path, repo="user_default", enable_on_install=True)
+    name = "bl_ext.user_default.anisocb"
+    ok = "FINISHED" in r and name in bpy.context.preferences.addons and hasattr(bpy.types, "ANISOCB_PT_panel")
+    with quiet():
+        addon_utils.disable(name, default_set=True)
+        repos = bpy.context.preferences.extensions.repos
+        index = next(i for i, r in enumerate(repos) if r.module == "user_default")
+        bpy.ops.extensions.package_uninstall(repo_index=index, pkg_id="anisocb")
+    check("the zip installs as an extension (Install from Disk)", ok and not hasattr(bpy.types, "ANISOCB_PT_panel"),
+          f"{os.path.basename(path)} -> add-on {name!r} registered, then disabled and removed")
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--anisocb", required=True, help="path to the anisocb binary")
     ap.add_argument("--keep", help="write everything into this folder and keep it")
+    ap.add_argument("--zip", help="also install this add-on zip (make blender-addon) as an extension, "
+                    "as Install from Disk does, check it registers, and remove it")
     a = ap.parse_args()
     exe = os.path.abspath(a.anisocb)
     if not os.access(exe, os.X_OK):
@@ -368,6 +391,8 @@ def main():
     print(f"Blender {bpy.app.version_string}; add-on from {os.path.join(REPO, 'blender', 'anisocb_addon')}")
 
     sheet, skirt, _ = build_scene()
+    if a.zip:
+        check_zip(os.path.abspath(a.zip))
     sys.path.insert(0, os.path.join(REPO, "blender"))
     with quiet():
         mod = addon_utils.enable("anisocb_addon", default_set=True, handle_error=None)
