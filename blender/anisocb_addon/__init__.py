@@ -70,6 +70,12 @@ class AnisocbSettings(bpy.types.PropertyGroup):
 STATE = {"job": None, "cancel": False, "progress": 0.0, "status": "", "error": ""}
 
 
+def message(e):
+    if isinstance(e, core.AddonError):
+        return str(e)
+    return f"the add-on failed ({type(e).__name__}: {e}); please report it with the files in the output folder"
+
+
 def redraw(context):
     wm = context.window_manager if context else bpy.context.window_manager
     for win in wm.windows:
@@ -134,11 +140,11 @@ class ANISOCB_OT_upscale(bpy.types.Operator):
                 STATE["progress"], STATE["status"] = frac, status
                 if job.proc is not None and job.proc.poll() is None:
                     time.sleep(0.05)
-        except core.AddonError as e:
+        except Exception as e:  # noqa: BLE001 -- AddonError, or a bug: either way the panel must free up
             if STATE["job"] is not None:
                 STATE["job"].kill()
             STATE["job"] = None
-            return self.fail(str(e))
+            return self.fail(message(e))
         return self.finish(context)
 
     def invoke(self, context, event):
@@ -185,11 +191,11 @@ class ANISOCB_OT_upscale(bpy.types.Operator):
         except StopIteration:
             self.end_modal(context)
             return self.finish(context)
-        except core.AddonError as e:
+        except Exception as e:  # noqa: BLE001
             job.kill()
             STATE["job"] = None
             self.end_modal(context)
-            return self.fail(str(e))
+            return self.fail(message(e))
         context.window_manager.progress_update(int(100 * STATE["progress"]))
         context.workspace.status_text_set(f"anisocb: {STATE['status']} ({100 * STATE['progress']:.0f} %) — Esc cancels")
         redraw(context)

@@ -578,13 +578,14 @@ class Job:
         """How much of the HR cache is on disk (the binary writes it to a temporary file
         beside hr/cloth.pc2 chunk by chunk, then renames it)."""
         total = self.hr_points * len(self.frames) * 12
-        best = 0
+        best = getattr(self, "written", 0)  # never back: the file goes when it is renamed
         try:
             for n in os.listdir(self.hr_dir):
                 if n.startswith(".cloth.pc2.tmp."):
                     best = max(best, os.path.getsize(os.path.join(self.hr_dir, n)) - 32)
         except OSError:
             pass
+        self.written = best
         return min(1.0, max(0.0, best / total)) if total else 0.0
 
     def kill(self):

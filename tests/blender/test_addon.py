@@ -356,6 +356,38 @@ def check_errors(obj, out, exe):
     check("error: kept for the panel", "--margin" in STATE["error"], f"panel shows: {STATE['error'][:160]}")
 
 
+def check_progress_and_cancel(obj, out, exe):
+    """What the modal run does each timer tick, without a window: Job.steps() for the progress
+    bar, and Cancel's kill on a binary that would run for a minute."""
+    from anisocb_addon import core
+
+    obj.anisocb.output_dir = os.path.join(out, "steps")
+    job = core.Job(bpy.context, obj, obj.anisocb, exe)
+    fracs = []
+    for f, _ in job.steps():
+        fracs.append(f)
+        time.sleep(0.01)
+    check("progress: Job.steps() rises to 1", fracs[-1] == 1.0 and all(b >= a for a, b in zip(fracs, fracs[1:]))
+          and job.result is not None, f"{len(fracs)} steps, first {fracs[0]:.3f}, last {fracs[-1]:.3f}, "
+          f"{sum(1 for f in fracs if 0.3 <= f < 0.95)} while the binary ran")
+    sleeper = os.path.join(out, "anisocb-slow")
+    with open(sleeper, "w") as fh:
+        fh.write("#!/bin/sh\nexec sleep 60\n")
+    os.chmod(sleeper, os.stat(sleeper).st_mode | stat.S_IXUSR)
+    frame = bpy.context.scene.frame_current
+    job = core.Job(bpy.context, obj, obj.anisocb, sleeper)
+    steps = job.steps()
+    while job.proc is None:
+        next(steps)
+    t0 = time.time()
+    job.kill()  # what Esc and the panel's Cancel do
+    steps.close()
+    secs = time.time() - t0
+    check("cancel: the running binary is stopped", job.proc.poll() is not None and secs < 5
+          and bpy.context.scene.frame_current == frame,
+          f"process ended with {job.proc.returncode} after {secs:.2f} s; scene frame {bpy.context.scene.frame_current}")
+
+
 def check_zip(path):
     """Install from Disk: the zip installs as an extension, registers its operator and panel."""
     with quiet():
@@ -403,6 +435,7 @@ def main():
     check_cloth(sheet, out, exe, lambda args: "--physics-pin" in args and args[args.index("--physics-pin") + 1] == "top"
                 or "--physics-pin" in args)
     check_cloth(skirt, out, exe, lambda args: "--physics-pin-vertices" in args)
+    check_progress_and_cancel(skirt, out, exe)
     check_errors(sheet, out, exe)
 
     if work is not None:
