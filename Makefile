@@ -1,7 +1,7 @@
 # anisocb — `make demo` runs the main job, `make test` runs every check.
 CARGO ?= cargo
 
-.PHONY: all build test lint c-example c-example-if-cc rust-example fmt-check clippy check-features cuda-parity dist-test bench bench-peers demo weights dist fixtures onnx clean
+.PHONY: all build test lint c-example c-example-if-cc rust-example fmt-check clippy check-features cuda-parity dist-test bench bench-peers demo weights dist fixtures onnx blender-addon blender-test clean
 
 all: build
 
@@ -121,6 +121,21 @@ onnx: build
 	.venv-onnx/bin/pip install -q -r tests/onnx/requirements.txt
 	.venv-onnx/bin/python tests/onnx/export_onnx.py weights/anisocb-x2.npz target/anisocb-x2.onnx
 	.venv-onnx/bin/python tests/onnx/check_onnx.py --onnx target/anisocb-x2.onnx
+
+## The Blender add-on (blender/anisocb_addon/) as a zip for Edit > Preferences > Add-ons >
+## Install from Disk (docs/blender.md).
+blender-addon:
+	mkdir -p target && rm -f target/anisocb_addon.zip
+	cd blender && zip -qr ../target/anisocb_addon.zip anisocb_addon -x '*__pycache__*' '*.pyc'
+	@echo "Blender add-on: target/anisocb_addon.zip"
+
+## The add-on in real Blender, headless (tests/blender/test_addon.py; not part of `make test`).
+## Needs Python 3.11 with Blender's bpy module: BLENDER_PY is that Python, set up with
+##   python3.11 -m venv .venv-bpy && .venv-bpy/bin/pip install -r tests/blender/requirements.txt
+## (bpy==4.5.4, a large download), then `make blender-test BLENDER_PY=.venv-bpy/bin/python`.
+BLENDER_PY ?= python3
+blender-test: build blender-addon
+	$(BLENDER_PY) tests/blender/test_addon.py --anisocb target/release/anisocb --zip target/anisocb_addon.zip
 
 ## Regenerate reference .npy files (needs Python; `make test` does not).
 fixtures:
