@@ -2,10 +2,12 @@
 //! write run directories (see [`crate::cloth::run_io`]) plus a preview picture of each.
 
 use crate::app::ui::{progress, save_png};
-use crate::cloth::run_io::{write_pair, write_single};
+use crate::cloth::run_io::{obj_frame_name, write_pair, write_single, RUN_FILES};
 use crate::cloth::scenarios::{paired_run_with_progress, run_at, SCENARIO_HELP};
 use crate::cloth::{Material, Scenario, ScenarioSpec};
 use crate::error::{Error, Result};
+use crate::io::json::{Object, Value};
+use crate::pipeline::folder::{self, Ownership};
 use crate::tensor::Tensor;
 use crate::viz::sheet::frame_strip;
 use std::path::{Path, PathBuf};
@@ -74,9 +76,16 @@ pub struct Args {
     /// Also write every frame as OBJ (quads) under OUT/obj/.
     #[arg(long)]
     pub obj: bool,
-    /// Output directory.
+    /// Output directory: created if missing, or empty, or one that an earlier simulation of
+    /// the same scene (scenario, seed, --vary, --pair) owns, as its simulate.json says (the
+    /// files it wrote and this run does not are removed); anything else there is refused (see
+    /// --overwrite). One run at a time writes it (a lock).
     #[arg(long)]
     pub out: PathBuf,
+    /// Write into --out even though it holds files no simulation of this scene wrote (those
+    /// this run writes are replaced, the rest left).
+    #[arg(long)]
+    pub overwrite: bool,
 }
 
 /// Parse "32x10" into (32, 10).
@@ -121,8 +130,57 @@ fn write_preview(dir: &Path, images: &Tensor) -> Result<()> {
     save_png(&dir.join("preview.png"), &frame_strip(images, 6, 160)?)
 }
 
+/// Who this run is for its output folder ([`crate::pipeline::folder`]): the scene (scenario,
+/// seed, variation, single or pair), the settings, and every file it writes.
+fn ownership(a: &Args, spec: &ScenarioSpec) -> Ownership {
+    let inputs = vec![
+        format!("scenario {}", spec.scenario.name()),
+        format!("seed {}", spec.seed),
+        format!("vary {}", spec.vary),
+        (if a.pair { "pair" } else { "single" }).to_string(),
+    ];
+    let p = &spec.params;
+    let settings = Object::new()
+        .val("res", vec![Value::num(spec.w), Value::num(spec.h)])
+        .num("frames", spec.frames)
+        .str("material", &a.material)
+        .num("scale", spec.scale)
+        .val("tracking", Value::real(spec.tracking))
+        .str("track", &a.track)
+        .val("hr_jitter", Value::real(spec.hr_jitter))
+        .num("hr_restart", spec.hr_restart)
+        .val("hr_blind", Value::Bool(spec.hr_blind))
+        .num("substeps", p.substeps)
+        .val("dt", Value::real(p.dt))
+        .val("gravity", Value::reals(&p.gravity))
+        .val("obj", Value::Bool(a.obj));
+    let run = |prefix: &str| {
+        let mut f: Vec<String> =
+            RUN_FILES.iter().chain(["preview.png"].iter()).map(|n| format!("{prefix}{n}")).collect();
+        if a.obj {
+            f.extend((0..spec.frames).map(|k| format!("{prefix}obj/{}", obj_frame_name(k))));
+        }
+        f
+    };
+    let files = if a.pair { [run("lr/"), run("hr/")].concat() } else { run("") };
+    Ownership {
+        job: "simulate",
+        noun: "scene",
+        inputs,
+        settings: settings.into(),
+        summary: "simulate.json".into(),
+        files,
+    }
+}
+
 pub fn run(a: Args) -> Result<()> {
     let spec = spec_from_args(&a)?;
+    let own = ownership(&a, &spec);
+    let claim = folder::claim(&a.out, &own, a.overwrite)?;
+    for n in &claim.removed {
+        eprintln!("note: removed {n}, an earlier run's output that this run does not write");
+    }
+    own.write_summary(&a.out, Object::new(), false)?;
     let t0 = std::time::Instant::now();
     if a.pair {
         let pb = progress(2 * spec.frames as u64, "simulate");
@@ -167,5 +225,8 @@ pub fn run(a: Args) -> Result<()> {
             a.out.display()
         );
     }
+    // No timings: two runs of one scene leave the same bytes.
+    own.write_summary(&a.out, Object::new(), true)?;
+    drop(claim);
     Ok(())
 }

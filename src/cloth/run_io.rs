@@ -28,6 +28,14 @@ use std::path::{Path, PathBuf};
 /// Margin (fraction of the largest extent) added around the runs' bounds to form the domain.
 pub const DOMAIN_MARGIN: f32 = 0.05;
 
+/// The files [`write_run`] writes in a run directory (besides `obj/` frames).
+pub const RUN_FILES: [&str; 3] = ["geometry.npy", "domain.npy", "meta.json"];
+
+/// The name of frame `k`'s OBJ file in a run directory's `obj/`.
+pub fn obj_frame_name(k: usize) -> String {
+    format!("frame_{k:04}.obj")
+}
+
 /// Write one run: geometry images, domain, metadata and (with `obj`) the frames as quad OBJ.
 /// Returns the (T, 3, H, W) images it wrote.
 pub fn write_run(
@@ -50,7 +58,7 @@ pub fn write_run(
         let od = dir.join("obj");
         ensure_dir(&od)?;
         for (k, f) in frames.iter().enumerate() {
-            crate::geom::obj::write_obj_grid(&od.join(format!("frame_{k:04}.obj")), f, true)?;
+            crate::geom::obj::write_obj_grid(&od.join(obj_frame_name(k)), f, true)?;
         }
     }
     Ok(images)
