@@ -130,10 +130,14 @@ impl RunPair {
     /// The pair directory's own name (its last path component, `run` if it has none): what
     /// datasets and reports record, so no machine path ends up in them.
     pub fn label(&self) -> String {
-        let dir = Path::new(&self.name);
-        let name = dir.file_name().or_else(|| dir.parent().and_then(Path::file_name));
-        name.map_or_else(|| "run".to_string(), |n| n.to_string_lossy().into_owned())
+        pair_label(Path::new(&self.name))
     }
+}
+
+/// The label of the pair directory `dir` ([`RunPair::label`]), before reading it.
+pub fn pair_label(dir: &Path) -> String {
+    let name = dir.file_name().or_else(|| dir.parent().and_then(Path::file_name));
+    name.map_or_else(|| "run".to_string(), |n| n.to_string_lossy().into_owned())
 }
 
 /// True if `d` holds a run: `geometry.npy`, or at least one `.obj` file (an exported sequence).
