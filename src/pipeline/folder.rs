@@ -176,7 +176,8 @@ fn check(dir: &Path, own: &Ownership, overwrite: bool) -> Result<Vec<String>> {
             listed.entry(f).or_default().push(&s.name);
         }
     }
-    let mut removed = Vec::new();
+    // What the run removes, once nothing refuses it: a refused run leaves the folder as it was.
+    let mut stale: Vec<&str> = Vec::new();
     // Another run's summary (another job, or one this version cannot read): its folder.
     if let Some(s) = earlier.iter().find(|s| !s.same_job) {
         if !overwrite {
@@ -197,15 +198,15 @@ fn check(dir: &Path, own: &Ownership, overwrite: bool) -> Result<Vec<String>> {
                 ),
             ));
         }
-        for f in s.files.iter().filter(|f| !writes.contains(f.as_str())).chain([&s.name]) {
-            remove(dir, f, &mut removed)?;
-        }
+        stale.extend(
+            s.files.iter().filter(|f| !writes.contains(f.as_str())).chain([&s.name]).map(String::as_str),
+        );
     }
     for name in &others {
         match listed.get(name.as_str()) {
             // This run's own earlier output that it will not write again: stale.
             Some(by) if by.iter().all(|s| *s == own.summary) && !writes.contains(name.as_str()) => {
-                remove(dir, name, &mut removed)?
+                stale.push(name)
             }
             Some(_) => {}
             None if overwrite => {}
@@ -214,6 +215,10 @@ fn check(dir: &Path, own: &Ownership, overwrite: bool) -> Result<Vec<String>> {
                 return Err(foreign(dir, name, &what, own));
             }
         }
+    }
+    let mut removed = Vec::new();
+    for f in stale {
+        remove(dir, f, &mut removed)?;
     }
     Ok(removed)
 }
