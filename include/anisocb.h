@@ -34,6 +34,7 @@ typedef enum anisocb_status {
     ANISOCB_ERR_CONFIG = -5,   /* an option out of range (eta, temporal, threads, ...) */
     ANISOCB_ERR_NUMERIC = -6,  /* NaN/inf in a frame, or weights that give nonsense */
     ANISOCB_ERR_DEVICE = -7,   /* the compute device failed */
+    ANISOCB_ERR_MEMORY = -8,   /* a shot's first frame needs more memory than can be had */
     ANISOCB_ERR_PANIC = -99    /* an internal error (a bug): the handle should be freed */
 } anisocb_status;
 
@@ -62,6 +63,9 @@ typedef struct anisocb_options {
     float physics_ground;     /* a floor's height (m) along -gravity; NAN (default): none */
     float physics_sphere[4];  /* a static sphere: centre x, y, z and radius (m); r = 0: none */
     float physics_box[6];     /* a static axis-aligned box: centre, half extents (m); 0: none */
+    uint64_t memory_limit_mib; /* the most MiB a shot's frames may take; 0 (default): what the
+                                * allocator gives. A shot's first frame that needs more returns
+                                * ANISOCB_ERR_MEMORY (never an abort of the host) */
 } anisocb_options;
 
 typedef struct Upscaler anisocb_upscaler; /* opaque */
@@ -81,7 +85,10 @@ uint32_t anisocb_latency(const anisocb_upscaler *up);
 
 /* Give the next LR frame (3*w*h floats). Writes the next HR frame into hr (hr_cap floats, at
  * least 3*r*w*r*h) and returns ANISOCB_OK, or returns ANISOCB_PENDING. It allocates no heap
- * memory after a shot's first few frames. */
+ * memory after a shot's first few frames. A shot's first frame first asks the allocator, in a
+ * way that can fail, for about the memory its frames take (or holds to memory_limit_mib), and
+ * returns ANISOCB_ERR_MEMORY where it cannot be had; the frames after it then fit. Memory that
+ * another part of the host takes after that check can still run out inside a later call. */
 int anisocb_push(anisocb_upscaler *up, uint32_t w, uint32_t h, const float *lr, float *hr,
                  size_t hr_cap);
 /* At the end of a shot: writes the next held-back HR frame and returns ANISOCB_OK, or returns

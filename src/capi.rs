@@ -32,6 +32,7 @@ pub const ANISOCB_ERR_SHAPE: c_int = -4;
 pub const ANISOCB_ERR_CONFIG: c_int = -5;
 pub const ANISOCB_ERR_NUMERIC: c_int = -6;
 pub const ANISOCB_ERR_DEVICE: c_int = -7;
+pub const ANISOCB_ERR_MEMORY: c_int = -8;
 pub const ANISOCB_ERR_PANIC: c_int = -99;
 
 /// `anisocb_options` (include/anisocb.h): `repr(C)`, field for field.
@@ -68,6 +69,9 @@ pub struct AnisocbOptions {
     pub physics_sphere: [f32; 4],
     /// `--physics-box` centre X, Y, Z and half extents (m); all half extents 0: none.
     pub physics_box: [f32; 6],
+    /// The most MiB a shot's frames may take (`Upscaler::with_memory_limit`); 0: as much as the
+    /// allocator gives. Either way a frame that needs more is `ANISOCB_ERR_MEMORY`, not an abort.
+    pub memory_limit_mib: u64,
 }
 
 thread_local! {
@@ -87,6 +91,7 @@ fn status_of(e: &Error) -> c_int {
         Error::Config(_) | Error::Invalid { .. } => ANISOCB_ERR_CONFIG,
         Error::Numeric(_) => ANISOCB_ERR_NUMERIC,
         Error::Device(_) => ANISOCB_ERR_DEVICE,
+        Error::OutOfMemory(_) => ANISOCB_ERR_MEMORY,
     }
 }
 
@@ -179,6 +184,7 @@ pub unsafe extern "C" fn anisocb_options_default(opts: *mut AnisocbOptions) -> c
             physics_ground: f32::NAN,
             physics_sphere: [0.0; 4],
             physics_box: [0.0; 6],
+            memory_limit_mib: 0,
         };
         Ok(ANISOCB_OK)
     })
@@ -195,7 +201,7 @@ pub unsafe extern "C" fn anisocb_new(opts: *const AnisocbOptions, out: *mut *mut
         let out = out.as_mut().ok_or_else(|| argument("anisocb_new: out is null"))?;
         *out = std::ptr::null_mut();
         let mut params = UpscaleParams::default();
-        let (mut threads, mut model, mut physics) = (0, None, None);
+        let (mut threads, mut model, mut physics, mut memory_limit) = (0, None, None, 0);
         if let Some(o) = opts.as_ref() {
             params.eta = o.eta;
             params.temporal = o.temporal as usize;
@@ -205,6 +211,7 @@ pub unsafe extern "C" fn anisocb_new(opts: *const AnisocbOptions, out: *mut *mut
             params.pin_border = o.pin_border != 0;
             params.gate_coarse_only = o.gate_coarse_only != 0;
             threads = o.threads as usize;
+            memory_limit = o.memory_limit_mib;
             if !o.weights_path.is_null() {
                 let p = CStr::from_ptr(o.weights_path)
                     .to_str()
@@ -255,6 +262,11 @@ pub unsafe extern "C" fn anisocb_new(opts: *const AnisocbOptions, out: *mut *mut
         let mut up = Upscaler::new(model, params)?.with_threads(threads)?;
         if let Some(f) = physics {
             up = up.with_physics(f)?;
+        }
+        if memory_limit > 0 {
+            up = up.with_memory_limit(
+                usize::try_from(memory_limit).unwrap_or(usize::MAX).saturating_mul(1 << 20),
+            );
         }
         *out = Box::into_raw(Box::new(up));
         Ok(ANISOCB_OK)

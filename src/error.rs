@@ -25,6 +25,9 @@ pub enum Error {
     /// Bytes or text that are not what they claim, found by a parser that does not know the
     /// file they came from ([`Error::in_file`] names it).
     Malformed(String),
+    /// Memory for a frame could not be had (asked of the allocator fallibly, or over a limit
+    /// the caller set): the message says how much, and what to do.
+    OutOfMemory(String),
 }
 
 pub type Result<T> = std::result::Result<T, Error>;
@@ -81,6 +84,7 @@ impl fmt::Display for Error {
             Error::Invalid { field, msg } => write!(f, "invalid option {field}: {msg}"),
             Error::Numeric(m) => write!(f, "numeric failure: {m}"),
             Error::Device(m) => write!(f, "device: {m}"),
+            Error::OutOfMemory(m) => write!(f, "out of memory: {m}"),
             Error::Malformed(m) => write!(f, "malformed data: {m}"),
         }
     }

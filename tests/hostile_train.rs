@@ -73,7 +73,10 @@ fn cli_train_refuses_bad_inputs_and_writes_nothing() {
     let err = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(1), "{err}");
     assert!(err.contains(&ckpt.display().to_string()), "{err}");
-    assert_eq!(file_names(&out), ["checkpoint.npz"]);
+    // Nothing written but the folder's lock (empty once the run is gone): no train.json says
+    // the run started.
+    assert_eq!(file_names(&out), [".train.json.lock", "checkpoint.npz"]);
+    assert_eq!(std::fs::read(out.join(".train.json.lock")).unwrap(), b"");
     // --steps 0 would write untrained weights.
     let out = d.join("zero_steps");
     let (ds, os) = (data.to_str().unwrap(), out.to_str().unwrap());

@@ -158,3 +158,33 @@ fn a_garment_folder_is_what_eval_meshes_reads() {
     assert!(!want.is_empty());
     assert_eq!(read.pins, want);
 }
+
+#[test]
+fn simulate_a_garment_twice_into_its_folder_and_refuse_another_scenes() {
+    let dir = TempDir::new("garment-cli");
+    let out = dir.path().join("tshirt");
+    let sim = |args: &[&str]| {
+        std::process::Command::new(env!("CARGO_BIN_EXE_anisocb"))
+            .arg("simulate")
+            .args(args)
+            .arg("--out")
+            .arg(&out)
+            .output()
+            .unwrap()
+    };
+    let o = sim(&["--scenario", "tshirt", "--pair", "--frames", "5"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    for f in ["lr/cloth_0004.obj", "hr/cloth_0004.obj", "collider/body_0004.obj", "pins.txt", "scene.json", "preview.png"] {
+        assert!(out.join(f).is_file(), "{f} missing");
+    }
+    // The same garment again, shorter: its own folder, the frames it no longer writes removed.
+    let o = sim(&["--scenario", "tshirt", "--pair", "--frames", "3"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(!out.join("lr/cloth_0004.obj").exists() && out.join("lr/cloth_0002.obj").is_file());
+    // Another garment, a sheet option on a garment: refused, the folder as it was.
+    let o = sim(&["--scenario", "skirt", "--frames", "3"]);
+    assert!(!o.status.success() && String::from_utf8_lossy(&o.stderr).contains("simulate.json"));
+    let o = sim(&["--scenario", "tshirt", "--pair", "--frames", "3", "--res", "8x8"]);
+    assert!(!o.status.success() && String::from_utf8_lossy(&o.stderr).contains("--res is for the sheet scenarios"));
+    assert!(out.join("lr/cloth_0002.obj").is_file());
+}

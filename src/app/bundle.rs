@@ -6,6 +6,7 @@ use crate::error::{Error, Result};
 use crate::nn::bundle::AnisoCb;
 use crate::nn::weights::{load_any, Weights};
 use crate::nn::{NetKind, Trunk};
+use crate::pipeline::folder;
 use crate::pipeline::input::same_file;
 use std::path::{Path, PathBuf};
 
@@ -25,9 +26,14 @@ pub struct Args {
     /// EnhanceNet: a single-net weights file or a bundle.
     #[arg(long, value_name = "WEIGHTS")]
     pub enhance: PathBuf,
-    /// The bundle to write (atomically).
+    /// The bundle to write (atomically): new, or a weights file replaced; never one of the
+    /// inputs (in any spelling), and any other file there is refused (see --overwrite). One
+    /// run at a time writes it (a lock).
     #[arg(long, value_name = "FILE")]
     pub out: PathBuf,
+    /// Replace --out even where it is not a weights file.
+    #[arg(long)]
+    pub overwrite: bool,
 }
 
 /// The net of `kind` in `path` (a single net of that kind, or a bundle).
@@ -56,6 +62,8 @@ pub fn run(a: Args) -> Result<()> {
             p.display()
         )));
     }
+    let is_weights = |p: &Path| load_any(p).is_ok();
+    let claim = folder::claim_file(&a.out, "a weights file (.npz of nets)", is_weights, a.overwrite)?;
     let more = a.geometry[1..].iter().map(|p| net_of(p, NetKind::Geometry)).collect::<Result<Vec<_>>>()?;
     let b = AnisoCb::from_trunks(
         net_of(&a.geometry[0], NetKind::Geometry)?,
@@ -64,6 +72,7 @@ pub fn run(a: Args) -> Result<()> {
     )?
     .with_more_geometry(more)?;
     b.save(&a.out)?;
+    drop(claim);
     let nets =
         if a.geometry.len() > 1 { format!(", {} GeometryNets", a.geometry.len()) } else { String::new() };
     eprintln!("bundle ({}{nets}) → {}", b.geometry.trunk.config, a.out.display());

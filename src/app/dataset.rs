@@ -7,6 +7,9 @@ use crate::error::{Error, Result};
 use crate::geom::anisotropy::BoundaryParams;
 use crate::geom::cloth_frame::InputFrame;
 use crate::imgproc::CannyParams;
+use crate::io::read_npz;
+use crate::pipeline::folder;
+use crate::pipeline::input::same_file;
 use crate::tensor::Tensor;
 use crate::train::dataset::{benefit_boundary, build, is_held_out, MapParams};
 use std::path::{Path, PathBuf};
@@ -16,9 +19,14 @@ pub struct Args {
     /// Run pairs from `anisocb simulate --pair --out DIR` (DIR, or its lr/ or hr/ subdirectory).
     #[arg(long, num_args = 1.., required = true, value_name = "DIR")]
     pub runs: Vec<PathBuf>,
-    /// Output .npz (arrays lr, hr, boundary, edges, domain; frames.json, params.json).
+    /// Output .npz (arrays lr, hr, boundary, edges, domain; frames.json, params.json), written
+    /// atomically: new, or an earlier data set replaced; any other file there is refused (see
+    /// --overwrite), as is a file of a run read. One run at a time writes it (a lock).
     #[arg(long, value_name = "FILE")]
     pub out: PathBuf,
+    /// Replace --out (and --png) even where it is not a data set (a PNG image).
+    #[arg(long)]
+    pub overwrite: bool,
     /// Boundary threshold γ on σ3/σ1 [default: 0.05].
     #[arg(long)]
     pub gamma: Option<f64>,
@@ -112,16 +120,32 @@ pub fn run(a: Args) -> Result<()> {
             return Err(Error::config(format!("{what} {}: expected a .{ext} file name", path.display())));
         }
     }
-    let mut runs = Vec::new();
     let mut seen = Vec::new();
     for dir in &a.runs {
         let pd = pair_dir(dir)?;
         if seen.contains(&pd) {
             continue; // `DIR/lr` and `DIR/hr` both given: one run
         }
-        seen.push(pd.clone());
         refuse_writing_into_run(&pd, &[&a.out, &png])?;
-        let r = read_pair(&pd)?;
+        seen.push(pd);
+    }
+    if let Some(w) = a.boundary_benefit.as_ref().filter(|w| same_file(w, &a.out)) {
+        return Err(Error::config(format!(
+            "--out {} is the --boundary-benefit weights {}: writing the data set would replace \
+             them; choose another file",
+            a.out.display(),
+            w.display()
+        )));
+    }
+    let is_data_set = |p: &Path| {
+        read_npz(p).is_ok_and(|e| e.file("frames.json").is_some() && e.file("params.json").is_some())
+    };
+    let _out = folder::claim_file(&a.out, "a data set (.npz with frames.json)", is_data_set, a.overwrite)?;
+    let is_png = |p: &Path| std::fs::read(p).is_ok_and(|b| b.starts_with(b"\x89PNG\r\n\x1a\n"));
+    let _png = folder::claim_file(&png, "a PNG image", is_png, a.overwrite)?;
+    let mut runs = Vec::new();
+    for pd in &seen {
+        let r = read_pair(pd)?;
         if is_held_out(&r, &a.holdout) {
             eprintln!("held out: {} ({})", r.name, r.scenario);
             continue;

@@ -5,7 +5,7 @@
 use super::setup::{load_model, set_threads};
 use super::ui::{progress, save_png};
 use crate::cloth::follow::{FollowParams, Follower};
-use crate::cloth::run_io::write_pair;
+use crate::cloth::run_io::{obj_frame_name, write_pair, RUN_FILES};
 use crate::cloth::scenarios::{paired_run_with_progress, Scenario, ScenarioSpec, SCENARIO_HELP};
 use crate::error::Result;
 use crate::eval::methods::PHYSICS;
@@ -19,6 +19,7 @@ use crate::io::json::{write_json, Layout, Object};
 use crate::io::write_atomic_bytes;
 use crate::nn::geometry_net::interpolate;
 use crate::ops::Interp;
+use crate::pipeline::folder::{self, Ownership};
 use crate::sr::compose::DEFAULT_ETA;
 use crate::sr::params::UpscaleParams;
 use crate::sr::upscale::upscale_images;
@@ -39,9 +40,15 @@ pub const HELD_OUT_SEED: u64 = 1000;
 #[derive(clap::Args, Debug)]
 #[command(after_help = SCENARIO_HELP)]
 pub struct Args {
-    /// Output directory.
+    /// Output directory: created if missing, or empty, or one that an earlier demo of the same
+    /// scene (scenario, seed) owns, as its demo.json says; anything else there is refused (see
+    /// --overwrite). One run at a time writes it (a lock).
     #[arg(long, default_value = "demo-out")]
     pub out: PathBuf,
+    /// Write into --out even though it holds files no demo of this scene wrote (those this run
+    /// writes are replaced, the rest left).
+    #[arg(long)]
+    pub overwrite: bool,
     /// Scenario to simulate (the default is held out of the shipped model's training data).
     #[arg(long, default_value = HELD_OUT_SCENARIO)]
     pub scenario: String,
@@ -100,7 +107,12 @@ pub fn run(a: Args) -> Result<()> {
         spec.tracking = t;
     }
     spec.validate()?;
-    ensure_dir(&a.out)?;
+    let own = ownership(&a, &spec, &model, ops.name());
+    let claim = folder::claim(&a.out, &own, a.overwrite)?;
+    for n in &claim.removed {
+        eprintln!("note: removed {n}, an earlier run's output that this run does not write");
+    }
+    own.write_summary(&a.out, Object::new(), false)?;
 
     // 1. Simulate the pair (HR is the ground truth).
     let pb = progress(2 * spec.frames as u64, "simulate");
@@ -177,13 +189,12 @@ pub fn run(a: Args) -> Result<()> {
 
     // 4. OBJ sequences.
     let pb = progress(5 * spec.frames as u64, "write obj");
-    let seqs =
-        [("lr", &lr), ("hr", &hr), ("bicubic", &bicubic), ("anisocb", &ours), ("anisocb-physics", &physics)];
-    for (name, seq) in seqs {
+    let seqs = [&lr, &hr, &bicubic, &ours, &physics];
+    for (name, seq) in OBJ_FOLDERS.into_iter().zip(seqs) {
         let dir = a.out.join(name);
         ensure_dir(&dir)?;
         for (k, m) in seq.iter().enumerate() {
-            write_obj_grid(&dir.join(format!("frame_{k:04}.obj")), m, true)?;
+            write_obj_grid(&dir.join(obj_frame_name(k)), m, true)?;
             pb.inc(1);
         }
     }
@@ -191,10 +202,9 @@ pub fn run(a: Args) -> Result<()> {
 
     // 5. Pictures.
     let frames = pick_frames(spec.frames, 3);
+    let [.., wrinkles, wrinkles_physics] = PICTURES;
     write_pictures(&a.out, &frames, &lr, &bicubic, &ours, &hr, up.boundary(), up.enhance(), &ours_img)?;
-    for (seq, label, file) in
-        [(&ours, "anisocb", "wrinkles.png"), (&physics, PHYSICS, "wrinkles-physics.png")]
-    {
+    for (seq, label, file) in [(&ours, "anisocb", wrinkles), (&physics, PHYSICS, wrinkles_physics)] {
         let shown: Vec<(usize, closeup::Frame)> = frames
             .iter()
             .map(|&k| {
@@ -222,7 +232,42 @@ pub fn run(a: Args) -> Result<()> {
     println!("  metrics.md, .json   the table above (per frame in the JSON)");
     println!("  lr/ hr/ bicubic/ anisocb/ anisocb-physics/   OBJ sequences (frame_0000.obj ...); sim/ the simulated runs");
     println!("total {:.1} s", t0.elapsed().as_secs_f64());
+    own.write_summary(&a.out, Object::new(), true)?;
+    drop(claim);
     Ok(())
+}
+
+/// The demo's OBJ sequences, one folder each: LR, HR, bicubic, anisocb, the physics pass.
+const OBJ_FOLDERS: [&str; 5] = ["lr", "hr", "bicubic", "anisocb", "anisocb-physics"];
+/// The demo's pictures.
+const PICTURES: [&str; 5] = ["compare.png", "error.png", "maps.png", "wrinkles.png", "wrinkles-physics.png"];
+
+/// Who this run is for its output folder ([`folder::claim`]): the scene (scenario, seed), the
+/// settings that decide the output, and every file it writes.
+fn ownership(a: &Args, spec: &ScenarioSpec, model: &crate::nn::bundle::AnisoCb, device: &str) -> Ownership {
+    let settings = Object::new()
+        .num("frames", spec.frames)
+        .num("eta", a.eta)
+        .num("tracking", spec.tracking)
+        .str("weights", &format!("{:016x}", model.checksum()))
+        .str("device", device);
+    let mut files: Vec<String> = ["lr", "hr"]
+        .iter()
+        .flat_map(|half| RUN_FILES.iter().map(move |f| format!("sim/{half}/{f}")))
+        .chain(["metrics.md", "metrics.json"].map(String::from))
+        .chain(PICTURES.map(String::from))
+        .collect();
+    for dir in OBJ_FOLDERS {
+        files.extend((0..spec.frames).map(|k| format!("{dir}/{}", obj_frame_name(k))));
+    }
+    Ownership {
+        job: "demo",
+        noun: "scene",
+        inputs: vec![format!("scenario {}", spec.scenario.name()), format!("seed {}", spec.seed)],
+        settings: settings.into(),
+        summary: "demo.json".into(),
+        files,
+    }
 }
 
 #[allow(clippy::too_many_arguments)]
@@ -282,7 +327,8 @@ fn write_pictures(
         // Grey gaps: where Γb is white along the border it would vanish against white.
         map_rows.push(hstack(&tiles, 6, [128; 3]));
     }
-    for (name, rows) in [("compare.png", rows), ("error.png", err_rows), ("maps.png", map_rows)] {
+    let [compare, error, maps, ..] = PICTURES;
+    for (name, rows) in [(compare, rows), (error, err_rows), (maps, map_rows)] {
         let img = vstack(&rows, 6, [255; 3]);
         save_png(&out.join(name), &img)?;
     }

@@ -9,7 +9,7 @@
 
 use super::setup::{load_geometry_net, load_model, set_threads};
 use super::ui::{progress, save_apng, save_png};
-use crate::cloth::run_io::read_pair;
+use crate::cloth::run_io::{pair_dir, pair_label, read_pair};
 use crate::error::Result;
 use crate::eval::invariance::invariance_markdown;
 use crate::eval::linear::LinearUpsampler;
@@ -19,10 +19,10 @@ use crate::eval::metrics::vertex_errors;
 use crate::eval::report::{cells_json, results_document, Cell};
 use crate::eval::speed::speed_study;
 use crate::geom::GridMesh;
-use crate::io::atomic::ensure_dir;
-use crate::io::json::{write_json, Layout};
+use crate::io::json::{write_json, Layout, Object, Value};
 use crate::io::write_atomic_bytes;
 use crate::nn::bundle::AnisoCb;
+use crate::pipeline::folder::{self, Ownership};
 use crate::viz::closeup;
 use crate::viz::heat::{render_heat_row, scale_max, ScalarColors};
 use crate::viz::image::vstack;
@@ -59,9 +59,16 @@ pub struct Args {
     /// (research/blender/make_garments.py makes such runs with Blender's cloth).
     #[arg(long, num_args = 1..)]
     pub meshes: Vec<PathBuf>,
-    /// Output directory.
+    /// Output directory: created if missing, or empty, or one that an earlier evaluation of
+    /// the same runs owns, as its eval.json says (the files it wrote and this run does not are
+    /// removed); anything else there is refused (see --overwrite). One run at a time writes it
+    /// (a lock).
     #[arg(long, default_value = "eval-out")]
     pub out: PathBuf,
+    /// Write into --out even though it holds files no evaluation of these runs wrote (those
+    /// this run writes are replaced, the rest left).
+    #[arg(long)]
+    pub overwrite: bool,
     /// anisocb weights (default: the embedded model).
     #[arg(long)]
     pub weights: Option<PathBuf>,
@@ -116,8 +123,13 @@ pub fn run(a: Args) -> Result<()> {
     set_threads(a.threads)?;
     let ops = crate::cuda::ops_for_device(&a.device)?;
     let model = load_model(a.weights.as_deref())?;
+    let own = ownership(&a, &model, ops.name())?;
+    let claim = folder::claim(&a.out, &own, a.overwrite)?;
+    for n in &claim.removed {
+        eprintln!("note: removed {n}, an earlier run's output that this run does not write");
+    }
+    own.write_summary(&a.out, Object::new(), false)?;
     if !a.meshes.is_empty() {
-        ensure_dir(&a.out)?;
         let params = crate::sr::params::UpscaleParams::default();
         let mut rows = Vec::new();
         let pb = progress(a.meshes.len() as u64, "eval meshes");
@@ -143,6 +155,8 @@ pub fn run(a: Args) -> Result<()> {
             if a.flipbook { ", <run>-flipbook.png (that window animated)" } else { "" }
         );
         if a.runs.is_empty() {
+            own.write_summary(&a.out, Object::new(), true)?;
+            drop(claim);
             return Ok(());
         }
     }
@@ -154,7 +168,6 @@ pub fn run(a: Args) -> Result<()> {
     };
     let opts = EvalOptions { etas: a.eta.clone(), physics: a.physics, moved: a.moved };
     let mut invariance = Vec::new();
-    ensure_dir(&a.out)?;
     let mut cells = Vec::new();
     let pb = progress(a.runs.len() as u64, "eval");
     for dir in &a.runs {
@@ -186,7 +199,69 @@ pub fn run(a: Args) -> Result<()> {
         a.out.display(),
         if a.flipbook { ", <scenario>-flipbook.png (animated close-up)" } else { "" }
     );
+    own.write_summary(&a.out, Object::new(), true)?;
+    drop(claim);
     Ok(())
+}
+
+/// Who this run is for its output folder ([`folder::claim`]): the runs, the settings that
+/// decide the tables and pictures (the weights by a checksum), and every file it writes (the
+/// pictures are named by each run's label, known before the run is read).
+fn ownership(a: &Args, model: &AnisoCb, device: &str) -> Result<Ownership> {
+    let paths =
+        |v: &[PathBuf]| Value::from(folder::canonical(v).into_iter().map(Value::from).collect::<Vec<_>>());
+    let one = |p: &Option<PathBuf>| p.as_ref().map_or(Value::Null, |p| paths(std::slice::from_ref(p)));
+    let settings = Object::new()
+        .str("weights", &format!("{:016x}", model.checksum()))
+        .val("prior", one(&a.prior))
+        .val("paper", one(&a.paper))
+        .val("linear", one(&a.linear))
+        .val("also", paths(&a.also))
+        .val("moved", Value::Bool(a.moved))
+        .val("eta", Value::reals(&a.eta))
+        .num("worst", a.worst)
+        .val("flipbook", Value::Bool(a.flipbook))
+        .val("physics", Value::Bool(a.physics))
+        .val("speed", Value::Bool(a.speed))
+        .str("device", device);
+    let mut files = Vec::new();
+    if !a.meshes.is_empty() {
+        files.extend(["meshes.md", "meshes.json"].map(String::from));
+        files.extend(a.meshes.iter().map(|d| format!("{}-meshes.png", MeshRun::name_of(d))));
+    }
+    if !a.runs.is_empty() {
+        files.extend(["results.md", "results.json"].map(String::from));
+        for (on, name) in [(a.moved, "invariance.md"), (a.speed, "speed.md")] {
+            if on {
+                files.push(name.into());
+            }
+        }
+        for dir in &a.runs {
+            let label = pair_label(&pair_dir(dir)?);
+            files.push(format!("{label}-rmse.png"));
+            if a.worst > 0 {
+                files.push(format!("{label}-worst.png"));
+            }
+            for (on, suffix) in [(true, ""), (a.physics, "-physics")] {
+                if on {
+                    files.push(format!("{label}-wrinkles{suffix}.png"));
+                    if a.flipbook {
+                        files.push(format!("{label}-flipbook{suffix}.png"));
+                    }
+                }
+            }
+        }
+    }
+    files.sort();
+    files.dedup();
+    Ok(Ownership {
+        job: "eval",
+        noun: "set of runs",
+        inputs: folder::canonical(&[a.runs.clone(), a.meshes.clone()].concat()),
+        settings: settings.into(),
+        summary: "eval.json".into(),
+        files,
+    })
 }
 
 /// `<run>-meshes.png`: for the middle and the last frame, the LR frame and every method's HR

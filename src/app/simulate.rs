@@ -2,12 +2,13 @@
 //! write run directories (see [`crate::cloth::run_io`]) plus a preview picture of each.
 
 use crate::app::ui::{progress, save_png};
-use crate::cloth::run_io::{write_pair, write_single};
 use crate::cloth::garments::{garment_run, Garment, GarmentSpec, GARMENT_HELP};
-use crate::cloth::run_io::write_garment_run;
+use crate::cloth::run_io::{obj_frame_name, write_garment_run, write_pair, write_single, RUN_FILES};
 use crate::cloth::scenarios::{paired_run_with_progress, run_at, SCENARIO_HELP};
 use crate::cloth::{Material, Scenario, ScenarioSpec};
 use crate::error::{Error, Result};
+use crate::io::json::{Object, Value};
+use crate::pipeline::folder::{self, Ownership};
 use crate::tensor::Tensor;
 use crate::viz::sheet::frame_strip;
 use std::path::{Path, PathBuf};
@@ -77,9 +78,16 @@ pub struct Args {
     /// Also write every frame as OBJ (quads) under OUT/obj/.
     #[arg(long)]
     pub obj: bool,
-    /// Output directory.
+    /// Output directory: created if missing, or empty, or one that an earlier simulation of
+    /// the same scene (scenario, seed, --vary, --pair) owns, as its simulate.json says (the
+    /// files it wrote and this run does not are removed); anything else there is refused (see
+    /// --overwrite). One run at a time writes it (a lock).
     #[arg(long)]
     pub out: PathBuf,
+    /// Write into --out even though it holds files no simulation of this scene wrote (those
+    /// this run writes are replaced, the rest left).
+    #[arg(long)]
+    pub overwrite: bool,
 }
 
 /// Parse "32x10" into (32, 10).
@@ -166,6 +174,12 @@ pub fn garment_spec_from_args(a: &Args, garment: Garment) -> Result<GarmentSpec>
 /// OUT/scene.json, and a picture of a few frames.
 fn run_garment(a: &Args, garment: Garment) -> Result<()> {
     let spec = garment_spec_from_args(a, garment)?;
+    let own = garment_ownership(a, &spec);
+    let claim = folder::claim(&a.out, &own, a.overwrite)?;
+    for n in &claim.removed {
+        eprintln!("note: removed {n}, an earlier run's output that this run does not write");
+    }
+    own.write_summary(&a.out, Object::new(), false)?;
     let t0 = std::time::Instant::now();
     let runs = if a.pair { 2 } else { 1 };
     let pb = progress((runs * spec.frames) as u64, "simulate");
@@ -183,7 +197,39 @@ fn run_garment(a: &Args, garment: Garment) -> Result<()> {
         a.out.display(),
         if a.pair { "lr,hr," } else { "lr," }
     );
+    own.write_summary(&a.out, Object::new(), true)?;
+    drop(claim);
     Ok(())
+}
+
+/// [`ownership`] of a garment run: the garment, seed, variation, single or pair, and every file
+/// [`write_garment_run`] and the preview write.
+fn garment_ownership(a: &Args, spec: &GarmentSpec) -> Ownership {
+    let inputs = vec![
+        format!("garment {}", spec.garment.name()),
+        format!("seed {}", spec.seed),
+        format!("vary {}", spec.vary),
+        (if a.pair { "pair" } else { "single" }).to_string(),
+    ];
+    let p = &spec.params;
+    let settings = Object::new()
+        .num("frames", spec.frames)
+        .str("material", &a.material)
+        .val("tracking", Value::real(spec.tracking))
+        .num("substeps", p.substeps)
+        .val("dt", Value::real(p.dt))
+        .val("gravity", Value::reals(&p.gravity));
+    let n = spec.frames;
+    let frames = |dir: &'static str, stem: &'static str| (0..n).map(move |k| format!("{dir}/{stem}_{k:04}.obj"));
+    let mut files: Vec<String> = frames("lr", "cloth").chain(frames("collider", "body")).collect();
+    if a.pair {
+        files.extend(frames("hr", "cloth"));
+    }
+    if !spec.scene().mesh.pins.is_empty() {
+        files.push("pins.txt".into());
+    }
+    files.extend(["scene.json".to_string(), "preview.png".to_string()]);
+    Ownership { job: "simulate", noun: "scene", inputs, settings: settings.into(), summary: "simulate.json".into(), files }
 }
 
 /// `preview.png` of a garment run: four frames of the LR run (and below, the HR run) on the
@@ -221,11 +267,60 @@ fn write_garment_preview(path: &Path, run: &crate::cloth::garments::GarmentRun) 
     save_png(path, &crate::viz::image::vstack(&rows, 6, [255; 3]))
 }
 
+/// Who this run is for its output folder ([`crate::pipeline::folder`]): the scene (scenario,
+/// seed, variation, single or pair), the settings, and every file it writes.
+fn ownership(a: &Args, spec: &ScenarioSpec) -> Ownership {
+    let inputs = vec![
+        format!("scenario {}", spec.scenario.name()),
+        format!("seed {}", spec.seed),
+        format!("vary {}", spec.vary),
+        (if a.pair { "pair" } else { "single" }).to_string(),
+    ];
+    let p = &spec.params;
+    let settings = Object::new()
+        .val("res", vec![Value::num(spec.w), Value::num(spec.h)])
+        .num("frames", spec.frames)
+        .str("material", &a.material)
+        .num("scale", spec.scale)
+        .val("tracking", Value::real(spec.tracking))
+        .str("track", &a.track)
+        .val("hr_jitter", Value::real(spec.hr_jitter))
+        .num("hr_restart", spec.hr_restart)
+        .val("hr_blind", Value::Bool(spec.hr_blind))
+        .num("substeps", p.substeps)
+        .val("dt", Value::real(p.dt))
+        .val("gravity", Value::reals(&p.gravity))
+        .val("obj", Value::Bool(a.obj));
+    let run = |prefix: &str| {
+        let mut f: Vec<String> =
+            RUN_FILES.iter().chain(["preview.png"].iter()).map(|n| format!("{prefix}{n}")).collect();
+        if a.obj {
+            f.extend((0..spec.frames).map(|k| format!("{prefix}obj/{}", obj_frame_name(k))));
+        }
+        f
+    };
+    let files = if a.pair { [run("lr/"), run("hr/")].concat() } else { run("") };
+    Ownership {
+        job: "simulate",
+        noun: "scene",
+        inputs,
+        settings: settings.into(),
+        summary: "simulate.json".into(),
+        files,
+    }
+}
+
 pub fn run(a: Args) -> Result<()> {
     if let Some(g) = Garment::from_name(&a.scenario) {
         return run_garment(&a, g);
     }
     let spec = spec_from_args(&a)?;
+    let own = ownership(&a, &spec);
+    let claim = folder::claim(&a.out, &own, a.overwrite)?;
+    for n in &claim.removed {
+        eprintln!("note: removed {n}, an earlier run's output that this run does not write");
+    }
+    own.write_summary(&a.out, Object::new(), false)?;
     let t0 = std::time::Instant::now();
     if a.pair {
         let pb = progress(2 * spec.frames as u64, "simulate");
@@ -270,5 +365,8 @@ pub fn run(a: Args) -> Result<()> {
             a.out.display()
         );
     }
+    // No timings: two runs of one scene leave the same bytes.
+    own.write_summary(&a.out, Object::new(), true)?;
+    drop(claim);
     Ok(())
 }

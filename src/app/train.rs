@@ -3,11 +3,13 @@
 use super::ui::{progress, save_png};
 use crate::error::{Error, Result};
 use crate::eval::linear::LinearUpsampler;
+use crate::io::json::{Object, Value};
 use crate::nn::config::{parse_padding, parse_upsample};
 use crate::nn::{NetConfig, NetKind};
 use crate::ops::{AdamParams, Interp};
+use crate::pipeline::folder::{self, Ownership};
 use crate::train::patches::{gather, interpolate_all, split, TrainingData};
-use crate::train::trainer::{train, train_all, Event, TrainOptions};
+use crate::train::trainer::{train, train_all, Event, TrainOptions, TRAIN_FILES};
 use crate::viz::plot::loss_plot;
 use std::path::PathBuf;
 
@@ -34,9 +36,17 @@ pub struct Args {
     /// to the grid). Saved in the weights; `upscale` and `eval` follow it.
     #[arg(long, default_value = "catmull-rom")]
     pub upsample: String,
-    /// Output folder: checkpoint.npz, loss.csv, loss.png, weights.npz.
+    /// Output folder: checkpoint.npz, loss.csv, loss.png, weights.npz (with --net all, one
+    /// folder of them per net and the bundle), train.json. Created if missing, or empty, or one
+    /// that an earlier training on the same data owns (its train.json); anything else there is
+    /// refused (see --overwrite). One run at a time trains into it (a lock).
     #[arg(long)]
     pub out: PathBuf,
+    /// Train into --out even though it holds files no training on this data wrote (those this
+    /// run writes are replaced, the rest left); without --resume, an existing checkpoint is
+    /// removed and training starts again.
+    #[arg(long)]
+    pub overwrite: bool,
     /// Optimisation steps per net.
     #[arg(long, default_value_t = 2000)]
     pub steps: u64,
@@ -101,6 +111,9 @@ pub struct Args {
     #[arg(long, default_value_t = 1e-3)]
     pub ridge: f64,
     /// Continue from OUT/checkpoint.npz, bit-identically to an uninterrupted run (same device).
+    /// The checkpoint vouches for the folder (same options, same data): its files are this
+    /// run's even without train.json (a folder of an earlier version, or `--net geometry`'s
+    /// OUT/geometry for `--net all`).
     #[arg(long)]
     pub resume: bool,
     /// Where the ops run: cpu, or cuda (feature `cuda`, needs an NVIDIA GPU).
@@ -145,12 +158,27 @@ pub fn run(a: Args) -> Result<()> {
         resume: a.resume,
         out: a.out.clone(),
     };
+    opts.check(&data)?;
+    let own = ownership(&a);
+    let claim = claim(&a, &own)?;
+    if a.overwrite && !a.resume {
+        // Start again: the checkpoints this run would otherwise refuse to train over.
+        for f in own.files.iter().filter(|f| f.ends_with("checkpoint.npz")) {
+            let p = a.out.join(f);
+            if p.exists() {
+                std::fs::remove_file(&p).map_err(|e| Error::io(&p, e))?;
+            }
+        }
+    }
+    // The summary says the run started once the checkpoint (with --resume) has been read.
+    let mut started: Option<Result<()>> = None;
     let mut pb = progress(a.steps, "train");
     let mut ema: Option<f32> = None;
     let mut val: Option<f32> = None;
     let mut png_err = None;
     let mut on_event = |e: Event| match e {
         Event::Start { net, start, steps, train_frames, val_frames, baseline_val } => {
+            started.get_or_insert_with(|| own.write_summary(&a.out, Object::new(), false));
             pb.finish_and_clear();
             pb = progress(steps, net.name());
             pb.set_position(start);
@@ -219,8 +247,66 @@ pub fn run(a: Args) -> Result<()> {
     if let Some(e) = png_err {
         return Err(e);
     }
+    started.unwrap_or(Ok(()))?;
+    own.write_summary(&a.out, Object::new(), true)?;
+    drop(claim);
     println!("{summary}");
     Ok(())
+}
+
+/// Who this run is for its output folder ([`folder::claim`]): the data set, the settings that
+/// decide the weights, and every file it writes (one folder per net with `--net all`).
+fn ownership(a: &Args) -> Ownership {
+    let settings = Object::new()
+        .str("net", &a.net)
+        .str("config", &a.config)
+        .str("padding", &a.padding)
+        .str("upsample", &a.upsample)
+        .num("steps", a.steps)
+        .num("batch", a.batch)
+        .num("patch", a.patch)
+        .num("lr", a.lr)
+        .num("seed", a.seed)
+        .num("val_frac", a.val_frac)
+        .num("val_every", a.val_every)
+        .num("checkpoint_every", a.checkpoint_every)
+        .num("pos_weight", a.pos_weight)
+        .num("edge_weight", a.edge_weight)
+        .num("laplacian_weight", a.laplacian_weight)
+        .num("length_weight", a.length_weight)
+        .num("detail_weight", a.detail_weight)
+        .num("detail_radius", a.detail_radius)
+        .val("detail_all_components", Value::Bool(a.detail_all_components))
+        .val("mirror_augment", Value::Bool(a.mirror_augment))
+        .num("ridge", a.ridge)
+        .str("device", &a.device);
+    let files: Vec<String> = match a.net.as_str() {
+        "linear" => vec!["weights.npz".into()],
+        "all" => NetKind::ALL
+            .iter()
+            .flat_map(|k| TRAIN_FILES.iter().map(move |f| format!("{}/{f}", k.name())))
+            .chain(["weights.npz".to_string()])
+            .collect(),
+        _ => TRAIN_FILES.iter().map(|f| f.to_string()).collect(),
+    };
+    Ownership {
+        job: "train",
+        noun: "data set",
+        inputs: folder::canonical(std::slice::from_ref(&a.data)),
+        settings: settings.into(),
+        summary: "train.json".into(),
+        files,
+    }
+}
+
+/// Claim `--out` for this run; with `--resume` the checkpoint vouches for the folder's files
+/// (they are taken as this run's, see `--resume`).
+fn claim(a: &Args, own: &Ownership) -> Result<folder::Claim> {
+    let claim = folder::claim(&a.out, own, a.overwrite || a.resume)?;
+    for n in &claim.removed {
+        eprintln!("note: removed {n}, an earlier run's output that this run does not write");
+    }
+    Ok(claim)
 }
 
 /// `--net linear`: fit [`LinearUpsampler`] on the training frames, report its validation MSE
@@ -253,9 +339,12 @@ fn fit_linear(ops: &dyn crate::ops::Ops, data: &TrainingData, a: &Args, upsample
             val_idx.len()
         );
     }
-    crate::io::atomic::ensure_dir(&a.out)?;
+    let own = ownership(a);
+    let claim = claim(a, &own)?;
     let path = a.out.join("weights.npz");
     crate::io::write_npz(&path, &fit.to_npz())?;
+    own.write_summary(&a.out, Object::new(), true)?;
+    drop(claim);
     eprintln!("linear upsampler (λ = {}, {} input) → {}", a.ridge, data.input_frame.name(), path.display());
     Ok(())
 }

@@ -28,6 +28,14 @@ use std::path::{Path, PathBuf};
 /// Margin (fraction of the largest extent) added around the runs' bounds to form the domain.
 pub const DOMAIN_MARGIN: f32 = 0.05;
 
+/// The files [`write_run`] writes in a run directory (besides `obj/` frames).
+pub const RUN_FILES: [&str; 3] = ["geometry.npy", "domain.npy", "meta.json"];
+
+/// The name of frame `k`'s OBJ file in a run directory's `obj/`.
+pub fn obj_frame_name(k: usize) -> String {
+    format!("frame_{k:04}.obj")
+}
+
 /// Write one run: geometry images, domain, metadata and (with `obj`) the frames as quad OBJ.
 /// Returns the (T, 3, H, W) images it wrote.
 pub fn write_run(
@@ -50,7 +58,7 @@ pub fn write_run(
         let od = dir.join("obj");
         ensure_dir(&od)?;
         for (k, f) in frames.iter().enumerate() {
-            crate::geom::obj::write_obj_grid(&od.join(format!("frame_{k:04}.obj")), f, true)?;
+            crate::geom::obj::write_obj_grid(&od.join(obj_frame_name(k)), f, true)?;
         }
     }
     Ok(images)
@@ -122,10 +130,14 @@ impl RunPair {
     /// The pair directory's own name (its last path component, `run` if it has none): what
     /// datasets and reports record, so no machine path ends up in them.
     pub fn label(&self) -> String {
-        let dir = Path::new(&self.name);
-        let name = dir.file_name().or_else(|| dir.parent().and_then(Path::file_name));
-        name.map_or_else(|| "run".to_string(), |n| n.to_string_lossy().into_owned())
+        pair_label(Path::new(&self.name))
     }
+}
+
+/// The label of the pair directory `dir` ([`RunPair::label`]), before reading it.
+pub fn pair_label(dir: &Path) -> String {
+    let name = dir.file_name().or_else(|| dir.parent().and_then(Path::file_name));
+    name.map_or_else(|| "run".to_string(), |n| n.to_string_lossy().into_owned())
 }
 
 /// True if `d` holds a run: `geometry.npy`, or at least one `.obj` file (an exported sequence).

@@ -82,6 +82,11 @@ pub fn read_mesh_frames(dir: &Path) -> Result<(MeshFrames, ObjMesh)> {
 }
 
 impl MeshRun {
+    /// The name of the run in `dir` (its folder's name), before reading it.
+    pub fn name_of(dir: &Path) -> String {
+        dir.file_name().unwrap_or_default().to_string_lossy().into_owned()
+    }
+
     /// Read `dir` (see [`MeshRun`]).
     pub fn read(dir: &Path) -> Result<MeshRun> {
         let (lr, first) = read_mesh_frames(&dir.join("lr"))?;
@@ -93,7 +98,7 @@ impl MeshRun {
         let sub = Subdivision::of(lr.frames[0].len(), &lr.faces);
         let order = match_vertices(&sub.apply(&lr.frames[0]), &hr_raw.frames[0], &dir.join("hr"))?;
         let hr = hr_raw.frames[..t].iter().map(|f| order.iter().map(|&v| f[v]).collect()).collect();
-        let name = dir.file_name().unwrap_or_default().to_string_lossy().into_owned();
+        let name = MeshRun::name_of(dir);
         let lr = MeshFrames { faces: lr.faces, frames: lr.frames[..t].to_vec() };
         let scene = dir.join("scene.json");
         let meta = if scene.exists() { Some(crate::io::json::read_json(&scene)?) } else { None };

@@ -1,9 +1,12 @@
-//! The rule for output folders: a run writes into a new or empty folder, or into one that
-//! earlier runs of the same job own, and holds a lock on its part of it for its whole life.
+//! The rule for output folders, one for every command that writes a folder (`upscale`,
+//! `simulate`, `train`, `eval`, `demo`): a run writes into a new or empty folder, or into one
+//! that earlier runs of the same job own, and holds a lock on its part of it for its whole life.
+//! Commands that write one file (`bundle`, `dataset`) take [`claim_file`].
 //!
 //! A job is known by its inputs; its runs' summaries (`upscale.json`, `upscale.A-B.json` for a
-//! slice) name the inputs, the settings that decide the output's bytes and every file the run
-//! writes. [`claim`] reads the folder before anything is written:
+//! slice, `train.json`, `simulate.json`, …) name the inputs, the settings that decide the
+//! output's bytes and every file the run writes (paths inside the folder, `/`-separated: a
+//! run may write subfolders). [`claim`] reads the folder before anything is written:
 //! - a file that no summary of this job lists is foreign (another shot's frames, someone's
 //!   notes): refused, naming it, unless the caller overwrites;
 //! - files that this run's own earlier summary lists and this run will not write (the input
@@ -11,11 +14,12 @@
 //! - another slice's files made with other settings would leave a folder of two settings:
 //!   refused unless the caller overwrites, which removes them and their summary.
 //!
-//! Names starting with `.` (temporary files, locks, a desktop's own files) are not looked at.
+//! Names starting with `.` (temporary files, locks, a desktop's own files) are not looked at;
+//! a subfolder is looked into where the job writes into it, and is otherwise foreign itself.
 
 use crate::error::{Error, Result};
 use crate::io::atomic::ensure_dir;
-use crate::io::json::{read_json, Object, Value};
+use crate::io::json::{read_json, write_json, Layout, Object, Value};
 use std::collections::{HashMap, HashSet};
 use std::fs::{self, File, TryLockError};
 use std::io::{Read, Seek, Write};
@@ -25,6 +29,9 @@ use std::path::{Path, PathBuf};
 pub struct Ownership {
     /// The summaries' name stem (`upscale`): `upscale*.json` are this kind of job's summaries.
     pub job: &'static str,
+    /// What the inputs are, in messages: `shot` (upscale), `data set` (train), `scene`
+    /// (simulate, demo), `set of runs` (eval).
+    pub noun: &'static str,
     /// The job's identity: its inputs, canonical paths.
     pub inputs: Vec<String>,
     /// Everything that decides the output's bytes: runs with the same settings write the same
@@ -32,7 +39,8 @@ pub struct Ownership {
     pub settings: Value,
     /// This run's summary file name (`upscale.json`, `upscale.0-100.json`).
     pub summary: String,
-    /// The names of the files this run writes besides its summary.
+    /// The files this run writes besides its summary, as paths inside the folder
+    /// (`frame_0000.obj`, `lr/geometry.npy`).
     pub files: Vec<String>,
 }
 
@@ -45,6 +53,15 @@ impl Ownership {
         o.val("inputs", strings(&self.inputs))
             .val("settings", self.settings.clone())
             .val("files", strings(&self.files))
+    }
+
+    /// Write the run's summary `dir/SUMMARY`: `body` with `complete` and the run's identity
+    /// ([`Ownership::record`]). A run writes it `complete: false` right after [`claim`] (so a
+    /// killed run's files are still its job's) and `complete: true` when it is done.
+    pub fn write_summary(&self, dir: &Path, body: Object, complete: bool) -> Result<()> {
+        let mut o = Object::new().val("complete", Value::Bool(complete));
+        o.0.extend(body.0);
+        write_json(&dir.join(&self.summary), &self.record(o).into(), Layout::Indented)
     }
 }
 
@@ -90,22 +107,67 @@ pub fn claim(dir: &Path, own: &Ownership, overwrite: bool) -> Result<Claim> {
     }
 }
 
+/// Claim the one file `path` a run writes whole (`bundle`, `dataset`): refused while another
+/// run writes it (a lock, `.NAME.lock` beside it), and where it exists but is not what this
+/// command writes (`ours` says whether it is; `what` names that kind in the message), unless
+/// `overwrite`. The caller refuses a path that is one of its inputs.
+pub fn claim_file(
+    path: &Path,
+    what: &str,
+    ours: impl FnOnce(&Path) -> bool,
+    overwrite: bool,
+) -> Result<Claim> {
+    let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    if name.is_empty() || path.is_dir() {
+        return Err(Error::format(path, "is a folder, not a file name: give the file to write"));
+    }
+    let dir = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    ensure_dir(dir)?;
+    let lock_path = dir.join(format!(".{name}.lock"));
+    let created = !lock_path.exists();
+    let lock = lock(&lock_path, dir, &name)?;
+    let exists = fs::symlink_metadata(path).is_ok();
+    if exists && !overwrite && !ours(path) {
+        if created {
+            let _ = fs::remove_file(&lock_path);
+        }
+        return Err(Error::invalid(
+            "out",
+            format!(
+                "{} exists and is not {what}: writing it would replace someone's file; choose \
+                 another file, or overwrite to replace it",
+                path.display()
+            ),
+        ));
+    }
+    Ok(Claim { lock, removed: Vec::new() })
+}
+
 /// [`claim`]'s reading of the folder, under the lock: the stale files it removed.
 fn check(dir: &Path, own: &Ownership, overwrite: bool) -> Result<Vec<String>> {
     let mut earlier = Vec::new();
-    let mut others = Vec::new();
     for e in fs::read_dir(dir).map_err(|e| Error::io(dir, e))? {
         let e = e.map_err(|e| Error::io(dir, e))?;
         let name = e.file_name().to_string_lossy().into_owned();
-        if name.starts_with('.') {
-            continue;
-        }
-        if name.starts_with(own.job) && name.ends_with(".json") {
+        let file = e.file_type().is_ok_and(|t| t.is_file());
+        if file && name.starts_with(own.job) && name.ends_with(".json") {
             earlier.push(read_earlier(&dir.join(&name), name, own));
-        } else {
-            others.push(name);
         }
     }
+    // The subfolders this job writes into (its own, and its earlier runs'): looked into.
+    let mut subfolders = HashSet::new();
+    let ours = earlier.iter().filter(|s| s.same_job).flat_map(|s| &s.files);
+    for f in own.files.iter().chain(ours) {
+        let mut p = f.as_str();
+        while let Some((d, _)) = p.rsplit_once('/') {
+            subfolders.insert(d.to_string());
+            p = d;
+        }
+    }
+    let summaries: HashSet<&str> = earlier.iter().map(|s| s.name.as_str()).collect();
+    let mut others = Vec::new();
+    list(dir, "", &subfolders, &mut others)?;
+    others.retain(|n| !summaries.contains(n.as_str()));
     let writes: HashSet<&str> = own.files.iter().map(String::as_str).collect();
     // Every file a summary of this job lists, and which summaries list it.
     let mut listed: HashMap<&str, Vec<&str>> = HashMap::new();
@@ -114,11 +176,12 @@ fn check(dir: &Path, own: &Ownership, overwrite: bool) -> Result<Vec<String>> {
             listed.entry(f).or_default().push(&s.name);
         }
     }
-    let mut removed = Vec::new();
+    // What the run removes, once nothing refuses it: a refused run leaves the folder as it was.
+    let mut stale: Vec<&str> = Vec::new();
     // Another run's summary (another job, or one this version cannot read): its folder.
     if let Some(s) = earlier.iter().find(|s| !s.same_job) {
         if !overwrite {
-            return Err(foreign(dir, &s.name, "the summary of another shot's run"));
+            return Err(foreign(dir, &s.name, &format!("the summary of another {}'s run", own.noun), own));
         }
     }
     for s in earlier.iter().filter(|s| s.same_job && !s.same_settings && s.name != own.summary) {
@@ -126,41 +189,75 @@ fn check(dir: &Path, own: &Ownership, overwrite: bool) -> Result<Vec<String>> {
             return Err(Error::invalid(
                 "out",
                 format!(
-                    "{} holds {} (another slice of this shot, upscaled with other settings): the \
-                     folder would mix two settings; upscale that slice again with these settings, \
-                     choose another folder, or overwrite to remove it",
+                    "{} holds {} (another slice of this {}, made with other settings): the folder \
+                     would mix two settings; run that slice again with these settings, choose \
+                     another folder, or overwrite to remove it",
                     dir.display(),
-                    s.name
+                    s.name,
+                    own.noun
                 ),
             ));
         }
-        for f in s.files.iter().filter(|f| !writes.contains(f.as_str())).chain([&s.name]) {
-            remove(dir, f, &mut removed)?;
-        }
+        stale.extend(
+            s.files.iter().filter(|f| !writes.contains(f.as_str())).chain([&s.name]).map(String::as_str),
+        );
     }
     for name in &others {
         match listed.get(name.as_str()) {
             // This run's own earlier output that it will not write again: stale.
             Some(by) if by.iter().all(|s| *s == own.summary) && !writes.contains(name.as_str()) => {
-                remove(dir, name, &mut removed)?
+                stale.push(name)
             }
             Some(_) => {}
             None if overwrite => {}
-            None => return Err(foreign(dir, name, "a file no upscale of these inputs wrote")),
+            None => {
+                let what = format!("a file no {} of these inputs wrote", own.job);
+                return Err(foreign(dir, name, &what, own));
+            }
         }
+    }
+    let mut removed = Vec::new();
+    for f in stale {
+        remove(dir, f, &mut removed)?;
     }
     Ok(removed)
 }
 
+/// Every entry of `root/rel` (paths inside `root`), looking into the subfolders the job writes
+/// into; another folder (a link to one included) is one entry, `NAME/`. Names starting with
+/// `.` are left out.
+fn list(root: &Path, rel: &str, subfolders: &HashSet<String>, out: &mut Vec<String>) -> Result<()> {
+    let here = if rel.is_empty() { root.to_path_buf() } else { root.join(rel) };
+    for e in fs::read_dir(&here).map_err(|e| Error::io(&here, e))? {
+        let e = e.map_err(|e| Error::io(&here, e))?;
+        let name = e.file_name().to_string_lossy().into_owned();
+        if name.starts_with('.') {
+            continue;
+        }
+        let path = if rel.is_empty() { name } else { format!("{rel}/{name}") };
+        // `file_type` does not follow a link: a link to a folder is never walked.
+        let folder = e.file_type().is_ok_and(|t| t.is_dir());
+        if folder && subfolders.contains(&path) {
+            list(root, &path, subfolders, out)?;
+        } else if folder {
+            out.push(format!("{path}/"));
+        } else {
+            out.push(path);
+        }
+    }
+    Ok(())
+}
+
 /// The error for a file of `dir` that is not this job's.
-fn foreign(dir: &Path, name: &str, what: &str) -> Error {
+fn foreign(dir: &Path, name: &str, what: &str, own: &Ownership) -> Error {
     Error::invalid(
         "out",
         format!(
             "{} holds {name} ({what}): a run writes into a new or empty folder, or one that \
-             earlier runs of the same shot own; choose another folder, or overwrite to write \
+             earlier runs of the same {} own; choose another folder, or overwrite to write \
              into this one anyway",
-            dir.display()
+            dir.display(),
+            own.noun
         ),
     )
 }

@@ -491,6 +491,7 @@ fn ownership(ops: &dyn Ops, model: &AnisoCb, job: &UpscaleJob, plan: &Plan) -> R
     let name = |p: &PathBuf| p.file_name().unwrap_or_default().to_string_lossy().into_owned();
     Ok(Ownership {
         job: "upscale",
+        noun: "shot",
         inputs: folder::canonical(&inputs),
         settings: settings.into(),
         summary: name(&plan.summary_path),

@@ -381,6 +381,35 @@ pub fn write_loss_csv(path: &Path, history: &[LogRow]) -> Result<()> {
     write_atomic_bytes(path, s.as_bytes())
 }
 
+impl TrainOptions {
+    /// Everything [`train`] checks before it writes anything: the config, the sizes, and that
+    /// the net fits `data` (its scale, its input frame); the learning rate.
+    pub fn check(&self, data: &TrainingData) -> Result<()> {
+        self.config.validate()?;
+        self.check_sizes(data)?;
+        if self.config.scale != data.scale {
+            return Err(Error::config(format!(
+                "net upscale ×{} but the data is ×{} (hr vs lr shapes)",
+                self.config.scale, data.scale
+            )));
+        }
+        if self.config.input_frame != data.input_frame {
+            return Err(Error::config(format!(
+                "the net is configured for {} input but the data is in the {} frame",
+                self.config.input_frame.name(),
+                data.input_frame.name()
+            )));
+        }
+        if !(self.adam.lr > 0.0 && self.adam.lr.is_finite()) {
+            return Err(Error::config(format!("learning rate must be > 0, got {}", self.adam.lr)));
+        }
+        Ok(())
+    }
+}
+
+/// The files [`train`] writes in its folder (`loss.png` by the caller, on each checkpoint).
+pub const TRAIN_FILES: [&str; 4] = ["checkpoint.npz", "loss.csv", "loss.png", "weights.npz"];
+
 /// Train one net on `data` into `opts.out`: `checkpoint.npz`, `loss.csv`, `weights.npz`.
 pub fn train(
     ops: &dyn Ops,
@@ -389,28 +418,11 @@ pub fn train(
     opts: &TrainOptions,
     on_event: &mut dyn FnMut(Event),
 ) -> Result<TrainReport> {
-    opts.config.validate()?;
-    opts.check_sizes(data)?;
-    if opts.config.scale != data.scale {
-        return Err(Error::config(format!(
-            "net upscale ×{} but the data is ×{} (hr vs lr shapes)",
-            opts.config.scale, data.scale
-        )));
-    }
-    if opts.config.input_frame != data.input_frame {
-        return Err(Error::config(format!(
-            "the net is configured for {} input but the data is in the {} frame",
-            opts.config.input_frame.name(),
-            data.input_frame.name()
-        )));
-    }
-    if !(opts.adam.lr > 0.0 && opts.adam.lr.is_finite()) {
-        return Err(Error::config(format!("learning rate must be > 0, got {}", opts.adam.lr)));
-    }
+    opts.check(data)?;
     crate::io::atomic::ensure_dir(&opts.out)?;
     let ckpt = opts.out.join("checkpoint.npz");
     // Temporaries of atomic writes that a killed run left behind (never a partial file).
-    for f in ["checkpoint.npz", "loss.csv", "loss.png", "weights.npz"] {
+    for f in TRAIN_FILES {
         crate::io::atomic::remove_stale_temps(&opts.out.join(f))?;
     }
     let fp = data.fingerprint(net);
@@ -429,7 +441,8 @@ pub fn train(
         if ckpt.exists() {
             return Err(Error::format(
                 &ckpt,
-                "a checkpoint already exists here: resume it, or train into another folder",
+                "a checkpoint already exists here: resume it, start again over it (overwrite), or train \
+                 into another folder",
             ));
         }
         let trunk = Trunk::init(net, opts.config, opts.seed);
