@@ -31,9 +31,13 @@ fn garment_names_round_trip_and_every_garment_is_a_surface_that_is_not_a_grid() 
         Surface::new(m.pos.len(), m.faces.clone(), Path::new(g.name()))
             .unwrap_or_else(|e| panic!("{g} is not a surface: {e}"));
         assert_eq!(m.faces.len(), m.face_uv.len(), "{g}: a UV face per face");
-        assert!(m.uv.iter().all(|t| t.iter().all(|c| (0.0..=1.0).contains(c))), "{g}: UVs in the unit square");
+        assert!(
+            m.uv.iter().all(|t| t.iter().all(|c| (0.0..=1.0).contains(c))),
+            "{g}: UVs in the unit square"
+        );
         // Not a W×H grid: the grid reader refuses it, so `upscale` takes the any-mesh path.
-        let obj = anisocb::geom::obj::ObjMesh { pos: m.pos.clone(), faces: m.faces.clone(), ..Default::default() };
+        let obj =
+            anisocb::geom::obj::ObjMesh { pos: m.pos.clone(), faces: m.faces.clone(), ..Default::default() };
         assert!(anisocb::geom::obj::obj_to_grid(&obj, Path::new(g.name())).is_err(), "{g} reads as a grid");
     }
     assert_eq!(Garment::from_name("twist"), None);
@@ -78,9 +82,16 @@ fn garment_pairs_stay_finite_and_outside_the_body_and_pins_ride_on_it() {
         assert_eq!(run.hr[0].len(), run.sub.hr_vertices());
         let body = MeshFrames { faces: run.body_faces.clone(), frames: run.body.clone() };
         for (name, frames) in [("LR", &run.lr), ("HR", &run.hr)] {
-            assert!(frames.iter().flatten().all(|p| p.iter().all(|c| c.is_finite())), "{g} {name}: not finite");
+            assert!(
+                frames.iter().flatten().all(|p| p.iter().all(|c| c.is_finite())),
+                "{g} {name}: not finite"
+            );
             let (share, deepest) = penetration(frames, &body);
-            assert!(deepest <= 1e-3, "{g} {name}: {:.3} % of vertex-frames inside the body, {deepest} m deep", 100.0 * share);
+            assert!(
+                deepest <= 1e-3,
+                "{g} {name}: {:.3} % of vertex-frames inside the body, {deepest} m deep",
+                100.0 * share
+            );
         }
         // A pinned vertex is where its part carries its rest position.
         let scene = sp.scene();
@@ -89,7 +100,10 @@ fn garment_pairs_stay_finite_and_outside_the_body_and_pins_ride_on_it() {
             for &(v, part) in &scene.mesh.pins {
                 let want = poses[part].apply(scene.mesh.pos[v as usize]);
                 let got = run.lr[k][v as usize];
-                assert!((0..3).all(|c| (got[c] - want[c]).abs() < 1e-5), "{g} frame {k} pin {v}: {got:?} vs {want:?}");
+                assert!(
+                    (0..3).all(|c| (got[c] - want[c]).abs() < 1e-5),
+                    "{g} frame {k} pin {v}: {got:?} vs {want:?}"
+                );
             }
         }
         // The cloth moved: gravity and the body act on it.
@@ -174,7 +188,14 @@ fn simulate_a_garment_twice_into_its_folder_and_refuse_another_scenes() {
     };
     let o = sim(&["--scenario", "tshirt", "--pair", "--frames", "5"]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    for f in ["lr/cloth_0004.obj", "hr/cloth_0004.obj", "collider/body_0004.obj", "pins.txt", "scene.json", "preview.png"] {
+    for f in [
+        "lr/cloth_0004.obj",
+        "hr/cloth_0004.obj",
+        "collider/body_0004.obj",
+        "pins.txt",
+        "scene.json",
+        "preview.png",
+    ] {
         assert!(out.join(f).is_file(), "{f} missing");
     }
     // The same garment again, shorter: its own folder, the frames it no longer writes removed.
@@ -185,6 +206,9 @@ fn simulate_a_garment_twice_into_its_folder_and_refuse_another_scenes() {
     let o = sim(&["--scenario", "skirt", "--frames", "3"]);
     assert!(!o.status.success() && String::from_utf8_lossy(&o.stderr).contains("simulate.json"));
     let o = sim(&["--scenario", "tshirt", "--pair", "--frames", "3", "--res", "8x8"]);
-    assert!(!o.status.success() && String::from_utf8_lossy(&o.stderr).contains("--res is for the sheet scenarios"));
+    assert!(
+        !o.status.success()
+            && String::from_utf8_lossy(&o.stderr).contains("--res is for the sheet scenarios")
+    );
     assert!(out.join("lr/cloth_0002.obj").is_file());
 }

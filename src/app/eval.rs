@@ -352,7 +352,10 @@ fn write_mesh_closeups(out: &Path, run: &MeshRun, e: &MeshRunEval, flipbook: boo
         Ok(tiles)
     };
     let rows = pick_frames(t, 3).into_iter().map(|k| row(k, 240)).collect::<Result<Vec<_>>>()?;
-    save_png(&out.join(format!("{}-closeup.png", run.name)), &crate::viz::sheet::sheet(&rows, 6, 0, [255; 3]))?;
+    save_png(
+        &out.join(format!("{}-closeup.png", run.name)),
+        &crate::viz::sheet::sheet(&rows, 6, 0, [255; 3]),
+    )?;
     if flipbook {
         let step = if t > 60 { 2 } else { 1 };
         let pics = (0..t)

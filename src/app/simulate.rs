@@ -220,7 +220,8 @@ fn garment_ownership(a: &Args, spec: &GarmentSpec) -> Ownership {
         .val("dt", Value::real(p.dt))
         .val("gravity", Value::reals(&p.gravity));
     let n = spec.frames;
-    let frames = |dir: &'static str, stem: &'static str| (0..n).map(move |k| format!("{dir}/{stem}_{k:04}.obj"));
+    let frames =
+        |dir: &'static str, stem: &'static str| (0..n).map(move |k| format!("{dir}/{stem}_{k:04}.obj"));
     let mut files: Vec<String> = frames("lr", "cloth").chain(frames("collider", "body")).collect();
     if a.pair {
         files.extend(frames("hr", "cloth"));
@@ -229,7 +230,14 @@ fn garment_ownership(a: &Args, spec: &GarmentSpec) -> Ownership {
         files.push("pins.txt".into());
     }
     files.extend(["scene.json".to_string(), "preview.png".to_string()]);
-    Ownership { job: "simulate", noun: "scene", inputs, settings: settings.into(), summary: "simulate.json".into(), files }
+    Ownership {
+        job: "simulate",
+        noun: "scene",
+        inputs,
+        settings: settings.into(),
+        summary: "simulate.json".into(),
+        files,
+    }
 }
 
 /// `preview.png` of a garment run: four frames of the LR run (and below, the HR run) on the

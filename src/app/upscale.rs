@@ -413,7 +413,8 @@ pub fn run(a: Args) -> Result<()> {
 
 /// The held vertices of `--physics-pin-vertices` and `--physics-pin-group` (0-based, each once).
 fn pin_vertices(a: &Args) -> Result<Vec<u32>> {
-    let mut out = a.physics_pin_vertices.as_deref().map_or(Ok(Vec::new()), crate::geom::obj::read_vertex_list)?;
+    let mut out =
+        a.physics_pin_vertices.as_deref().map_or(Ok(Vec::new()), crate::geom::obj::read_vertex_list)?;
     if let Some(name) = &a.physics_pin_group {
         // The mesh that names the groups: the point cache's rest OBJ, or the shot's first frame.
         let first = match (&a.rest, a.input.first()) {

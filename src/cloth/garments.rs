@@ -50,8 +50,14 @@ pub enum Garment {
 }
 
 impl Garment {
-    pub const ALL: [Garment; 6] =
-        [Garment::Skirt, Garment::Sleeve, Garment::Cape, Garment::Tablecloth, Garment::Tshirt, Garment::HoledSheet];
+    pub const ALL: [Garment; 6] = [
+        Garment::Skirt,
+        Garment::Sleeve,
+        Garment::Cape,
+        Garment::Tablecloth,
+        Garment::Tshirt,
+        Garment::HoledSheet,
+    ];
 
     pub fn name(self) -> &'static str {
         match self {
@@ -151,7 +157,10 @@ impl GarmentSpec {
             return Err(Error::config(format!("frames must be 1 to 100000, got {}", self.frames)));
         }
         if !(self.tracking.is_finite() && self.tracking >= 0.0) {
-            return Err(Error::config(format!("tracking must be finite and ≥ 0 (1/s²), got {}", self.tracking)));
+            return Err(Error::config(format!(
+                "tracking must be finite and ≥ 0 (1/s²), got {}",
+                self.tracking
+            )));
         }
         if !(self.thickness.is_finite() && (0.0005..=0.05).contains(&self.thickness)) {
             return Err(Error::config(format!("thickness must be 0.5 to 50 mm, got {} m", self.thickness)));
@@ -176,7 +185,8 @@ impl Rigid {
 
     /// `self ∘ o` (first `o`, then `self`).
     pub fn then(&self, o: &Rigid) -> Rigid {
-        let r = std::array::from_fn(|i| std::array::from_fn(|j| (0..3).map(|k| self.r[i][k] * o.r[k][j]).sum()));
+        let r =
+            std::array::from_fn(|i| std::array::from_fn(|j| (0..3).map(|k| self.r[i][k] * o.r[k][j]).sum()));
         Rigid { r, t: self.apply(o.t) }
     }
 
@@ -316,7 +326,9 @@ fn tube(
     let (p0, p1, p3) = (pos[f[0] as usize], pos[f[1] as usize], pos[f[3] as usize]);
     let n = crate::geom::vec3::cross(crate::geom::vec3::sub(p1, p0), crate::geom::vec3::sub(p3, p0));
     let out = crate::geom::vec3::sub(p0, a);
-    if crate::geom::vec3::dot(n, out) - crate::geom::vec3::dot(n, axis) * crate::geom::vec3::dot(out, axis) < 0.0 {
+    if crate::geom::vec3::dot(n, out) - crate::geom::vec3::dot(n, axis) * crate::geom::vec3::dot(out, axis)
+        < 0.0
+    {
         faces.iter_mut().for_each(|f| f.reverse());
     }
     (pos, faces)
@@ -325,7 +337,13 @@ fn tube(
 /// A limb: a round tube of `radius` from `a` along `axis` for `len` m, tapered to a third of
 /// its radius over its last 4 cm at each joint end (`taper_start`, `taper_end`), so that two
 /// limbs turning about the joint between them never overlap.
-fn limb(a: [f32; 3], axis: [f32; 3], len: f32, radius: f32, taper: (bool, bool)) -> (Vec<[f32; 3]>, Vec<Vec<u32>>) {
+fn limb(
+    a: [f32; 3],
+    axis: [f32; 3],
+    len: f32,
+    radius: f32,
+    taper: (bool, bool),
+) -> (Vec<[f32; 3]>, Vec<Vec<u32>>) {
     let across = if axis[1].abs() > 0.9 { [1.0, 0.0, 0.0] } else { [0.0, 1.0, 0.0] };
     let across = crate::geom::vec3::normalize_or(
         crate::geom::vec3::sub(across, axis.map(|c| c * crate::geom::vec3::dot(across, axis))),
@@ -386,7 +404,8 @@ fn pattern(
             if !keep(i, j) {
                 continue;
             }
-            let [a, b, c, d] = [(i, j), (i + 1, j), (i + 1, j + 1), (i, j + 1)].map(|(i, j)| vertex(&mut m, i, j));
+            let [a, b, c, d] =
+                [(i, j), (i + 1, j), (i + 1, j + 1), (i, j + 1)].map(|(i, j)| vertex(&mut m, i, j));
             let faces: Vec<Vec<u32>> = if !triangles {
                 vec![vec![a, b, c, d]]
             } else if (i + j) % 2 == 0 {
@@ -444,9 +463,10 @@ fn skirt(v: &GarmentVariation) -> GarmentScene {
     }
     m.pins = (0..seg as u32).map(|i| (i, 0)).collect();
     // Hips (an elliptic drum) and two legs hanging from hip joints below it, tapered at the top.
-    let (hips_p, hips_f) = tube([0.0, 0.86 * s, 0.0], [0.0, 1.0, 0.0], [1.0, 0.0, 0.0], 0.26 * s, 6, 24, |_| {
-        (0.16 * s, 0.12 * s)
-    });
+    let (hips_p, hips_f) =
+        tube([0.0, 0.86 * s, 0.0], [0.0, 1.0, 0.0], [1.0, 0.0, 0.0], 0.26 * s, 6, 24, |_| {
+            (0.16 * s, 0.12 * s)
+        });
     let leg = |x: f32, phase: f32| {
         let (p, f) = limb([x * s, 0.82 * s, 0.0], [0.0, -1.0, 0.0], 0.8 * s, 0.065 * s, (true, false));
         Part {
@@ -458,7 +478,14 @@ fn skirt(v: &GarmentVariation) -> GarmentScene {
             angle: Wave { offset: 0.0, amp: 0.42, freq: 0.9, phase }.scaled(v.motion, v.speed),
         }
     };
-    let hips = Part { pos: hips_p, faces: hips_f, parent: None, pivot: [0.0; 3], axis: [0.0, 1.0, 0.0], angle: Wave::ZERO };
+    let hips = Part {
+        pos: hips_p,
+        faces: hips_f,
+        parent: None,
+        pivot: [0.0; 3],
+        axis: [0.0, 1.0, 0.0],
+        angle: Wave::ZERO,
+    };
     let body = Body {
         parts: vec![hips, leg(0.08, 0.0), leg(-0.08, PI)],
         yaw: Wave { offset: 0.0, amp: 1.0, freq: 0.3, phase: 0.0 }.scaled(v.motion, v.speed),
@@ -596,7 +623,8 @@ fn tablecloth(v: &GarmentVariation) -> GarmentScene {
     m.uv = m.pos.iter().map(|p| [0.5 + 0.5 * p[0] / radius, 0.5 - 0.5 * p[2] / radius]).collect();
     m.face_uv = m.faces.clone();
     let (tp, tf) = tube([0.0, 0.0, 0.0], [0.0, 1.0, 0.0], [1.0, 0.0, 0.0], h, 2, 48, |_| (table_r, table_r));
-    let table = Part { pos: tp, faces: tf, parent: None, pivot: [0.0; 3], axis: [0.0, 1.0, 0.0], angle: Wave::ZERO };
+    let table =
+        Part { pos: tp, faces: tf, parent: None, pivot: [0.0; 3], axis: [0.0, 1.0, 0.0], angle: Wave::ZERO };
     let body = Body { parts: vec![table], yaw: Wave::ZERO, sway: Wave::ZERO, bob: Wave::ZERO };
     let wind = Wind::gusty([0.5 * v.wind, 0.0, 0.4 * v.wind], 0.8 * v.wind, 4, 0);
     GarmentScene { mesh: m, body, wind, ground: Some(0.0), tethers: false }
@@ -621,7 +649,8 @@ fn tshirt(v: &GarmentVariation) -> GarmentScene {
     let (panel, ij) = pattern((nx, ny), (sx, sy), keep, flat, false);
     // Which outline vertices are sewn: every border vertex but the neck, the hem and the cuffs.
     let on = |i: usize, j: usize| {
-        let cells = [(i.wrapping_sub(1), j.wrapping_sub(1)), (i, j.wrapping_sub(1)), (i.wrapping_sub(1), j), (i, j)];
+        let cells =
+            [(i.wrapping_sub(1), j.wrapping_sub(1)), (i, j.wrapping_sub(1)), (i.wrapping_sub(1), j), (i, j)];
         cells.iter().filter(|&&(a, b)| a < nx && b < ny && keep(a, b)).count()
     };
     let open = |i: usize, j: usize| {
@@ -709,7 +738,8 @@ fn holed_sheet(v: &GarmentVariation) -> GarmentScene {
     // The hole's rim (inner vertices of fewer than four kept cells) moved out onto the circle,
     // so the hole is round, not a staircase of cells.
     for (k, &(i, j)) in ij.iter().enumerate() {
-        let cells = [(i.wrapping_sub(1), j.wrapping_sub(1)), (i, j.wrapping_sub(1)), (i.wrapping_sub(1), j), (i, j)];
+        let cells =
+            [(i.wrapping_sub(1), j.wrapping_sub(1)), (i, j.wrapping_sub(1)), (i.wrapping_sub(1), j), (i, j)];
         let inner = i > 0 && j > 0 && i < n && j < n;
         if inner && cells.iter().filter(|&&(a, b)| keep(a, b)).count() < 4 {
             let (u, w) = (i as f32 / n as f32 - hx, j as f32 / n as f32 - hz);
@@ -724,7 +754,8 @@ fn holed_sheet(v: &GarmentVariation) -> GarmentScene {
         32,
         16,
     );
-    let ballp = Part { pos: bp, faces: bf, parent: None, pivot: [0.0; 3], axis: [0.0, 1.0, 0.0], angle: Wave::ZERO };
+    let ballp =
+        Part { pos: bp, faces: bf, parent: None, pivot: [0.0; 3], axis: [0.0, 1.0, 0.0], angle: Wave::ZERO };
     let body = Body { parts: vec![ballp], yaw: Wave::ZERO, sway: Wave::ZERO, bob: Wave::ZERO };
     let wind = Wind::gusty([0.6 * v.wind, 0.0, 0.5 * v.wind], 1.0 * v.wind, 4, 0);
     GarmentScene { mesh: m, body, wind, ground: Some(0.0), tethers: false }
@@ -743,7 +774,8 @@ impl GarmentSpec {
             Garment::HoledSheet => holed_sheet(&v),
         };
         if !g.wind.is_calm() {
-            g.wind = Wind::gusty(g.wind.mean, 0.8 * crate::geom::vec3::norm(g.wind.mean).max(0.1), 4, self.seed);
+            g.wind =
+                Wind::gusty(g.wind.mean, 0.8 * crate::geom::vec3::norm(g.wind.mean).max(0.1), 4, self.seed);
         }
         g
     }

@@ -995,7 +995,11 @@ impl MeshCollider {
                 if (0..3).any(|k| !(c[k] >= lo[k] && c[k] <= hi[k])) {
                     continue;
                 }
-                let h = if m.closed { Some(m.closest_anywhere(pose, c)) } else { m.closest_within(pose, c, reach) };
+                let h = if m.closed {
+                    Some(m.closest_anywhere(pose, c))
+                } else {
+                    m.closest_within(pose, c, reach)
+                };
                 if let Some((n, pen)) = h.and_then(|h| m.push(pose, &h, c, gap)) {
                     for &v in tr {
                         if free.is_none_or(|f| f[v] > 0.0) {
@@ -1078,7 +1082,8 @@ mod tests {
         let tris = [[0usize, 1, 2]];
         let before = mesh.signed_distances(0, &x[..3]);
         assert!(before.iter().all(|d| *d > 0.005), "{before:?}");
-        let centroid = |x: &[[f32; 3]]| -> [f32; 3] { std::array::from_fn(|k| (x[0][k] + x[1][k] + x[2][k]) / 3.0) };
+        let centroid =
+            |x: &[[f32; 3]]| -> [f32; 3] { std::array::from_fn(|k| (x[0][k] + x[1][k] + x[2][k]) / 3.0) };
         assert!(mesh.signed_distances(0, &[centroid(&x)])[0] < 0.0);
         // A held corner stays; with none held the face comes out.
         let mut held = x.clone();

@@ -313,13 +313,21 @@ pub fn write_pair(
 /// DIR/pins.txt                   the LR vertices sewn to the body, from 1, if any (`--physics-pin-vertices`)
 /// DIR/scene.json                 garment, frames, fps, seed, material, tracking …
 /// ```
-pub fn write_garment_run(dir: &Path, spec: &super::garments::GarmentSpec, run: &super::garments::GarmentRun) -> Result<()> {
+pub fn write_garment_run(
+    dir: &Path,
+    spec: &super::garments::GarmentSpec,
+    run: &super::garments::GarmentRun,
+) -> Result<()> {
     use crate::geom::obj::{mesh_obj_text, ObjAttrs};
     use crate::geom::surface::Subdivision;
     use crate::io::atomic::write_atomic_bytes;
     let m = &run.mesh;
     let attrs = ObjAttrs { object: Some(spec.garment.name().to_string()), ..Default::default() };
-    let write_frames = |sub: &str, stem: &str, faces: &[Vec<u32>], uv: Option<crate::geom::surface::FaceUvs>, frames: &[Vec<[f32; 3]>]| {
+    let write_frames = |sub: &str,
+                        stem: &str,
+                        faces: &[Vec<u32>],
+                        uv: Option<crate::geom::surface::FaceUvs>,
+                        frames: &[Vec<[f32; 3]>]| {
         let d = dir.join(sub);
         ensure_dir(&d)?;
         for (k, f) in frames.iter().enumerate() {

@@ -108,7 +108,8 @@ impl MeshRun {
             .and_then(|m| m.get("material")?.get("name")?.as_str().map(str::to_string))
             .and_then(|n| crate::cloth::Material::from_name(&n).ok());
         let pins_file = dir.join("pins.txt");
-        let pins = if pins_file.exists() { crate::geom::obj::read_vertex_list(&pins_file)? } else { Vec::new() };
+        let pins =
+            if pins_file.exists() { crate::geom::obj::read_vertex_list(&pins_file)? } else { Vec::new() };
         Ok(MeshRun { name, lr, hr, collider, collider_dir, first, fps, pins, material })
     }
 }
@@ -292,7 +293,11 @@ pub fn penetration(frames: &[Vec<[f32; 3]>], collider: &MeshFrames) -> (f32, f32
                 tris.iter().filter(|tr| ray_hits(*p, dir, tr.map(|v| c[v as usize]))).count() % 2 == 1
             };
             let inside_here = odd([1.0, 0.000_37, 0.000_91])
-                && [[0.000_53, 1.0, -0.000_29], [-0.000_71, 0.000_43, 1.0]].iter().filter(|d| odd(**d)).count() >= 1;
+                && [[0.000_53, 1.0, -0.000_29], [-0.000_71, 0.000_43, 1.0]]
+                    .iter()
+                    .filter(|d| odd(**d))
+                    .count()
+                    >= 1;
             if inside_here {
                 inside += 1;
                 let d = tris
@@ -407,7 +412,8 @@ pub fn evaluate_mesh_run(
             None => Vec::new(),
         };
         let material = run.material.unwrap_or(p.material);
-        let p = FollowParams { fps: run.fps, colliders, pin_vertices: run.pins.clone(), material, ..p.clone() };
+        let p =
+            FollowParams { fps: run.fps, colliders, pin_vertices: run.pins.clone(), material, ..p.clone() };
         let mut pass = MeshPhysicsPass::new(p, sub.clone(), run.lr.frames[0].len());
         let cloth =
             ours.iter().enumerate().map(|(k, f)| pass.apply(f.clone(), k)).collect::<Result<Vec<_>>>()?;

@@ -710,7 +710,6 @@ pub fn group_vertices(m: &ObjMesh, name: &str, path: &Path) -> Result<Vec<u32>> 
     Ok(out)
 }
 
-
 #[cfg(test)]
 mod tests {
     use super::*;
