@@ -13,7 +13,9 @@
 # evaluation and `eval`): the scenarios flag-sphere and twist-zero-g, seeds ≥ 7 of every
 # scenario, and every Blender test scene (research/blender/make_scenes.py, both test sets).
 # Seed 6 of every scenario and the Blender validation scenes (make_scenes.py's
-# VALIDATION_SCENES) are for choices made after training.
+# VALIDATION_SCENES) are for choices made after training. Garments (`simulate --scenario skirt`
+# …; none is in this model's training yet): the `tshirt` and `--vary` ≥ 7 of every garment are
+# held out, `--vary` 6 is for validation (research/garments/heldout.sh, chosen 2026-11-26).
 set -euo pipefail
 BIN=${BIN:-target/release/anisocb}
 WORK=${WORK:-target/weights-work}

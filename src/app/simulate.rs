@@ -115,17 +115,22 @@ pub fn spec_from_args(a: &Args) -> Result<ScenarioSpec> {
     spec.hr_restart = a.hr_restart;
     spec.hr_blind = a.hr_blind;
     spec.tracking_mode = crate::cloth::tracking::TrackingMode::from_name(&a.track)?;
-    if let Some(s) = a.substeps {
-        spec.params.substeps = s;
-    }
-    if let Some(dt) = a.dt {
-        spec.params.dt = dt;
-    }
-    if a.no_gravity {
-        spec.params.gravity = [0.0; 3];
-    }
+    set_sim_params(a, &mut spec.params);
     spec.validate()?;
     Ok(spec)
+}
+
+/// `--substeps`, `--dt` and `--no-gravity` on the scene's simulation parameters.
+fn set_sim_params(a: &Args, p: &mut crate::cloth::SimParams) {
+    if let Some(s) = a.substeps {
+        p.substeps = s;
+    }
+    if let Some(dt) = a.dt {
+        p.dt = dt;
+    }
+    if a.no_gravity {
+        p.gravity = [0.0; 3];
+    }
 }
 
 fn write_preview(dir: &Path, images: &Tensor) -> Result<()> {
@@ -157,15 +162,7 @@ pub fn garment_spec_from_args(a: &Args, garment: Garment) -> Result<GarmentSpec>
     spec.vary = a.vary;
     spec.material = Material::from_name(&a.material)?;
     spec.tracking = a.tracking;
-    if let Some(s) = a.substeps {
-        spec.params.substeps = s;
-    }
-    if let Some(dt) = a.dt {
-        spec.params.dt = dt;
-    }
-    if a.no_gravity {
-        spec.params.gravity = [0.0; 3];
-    }
+    set_sim_params(a, &mut spec.params);
     spec.validate()?;
     Ok(spec)
 }
