@@ -354,7 +354,7 @@ fn job(a: &Args) -> Result<CheckedJob> {
                     .map(|p| ColliderMesh::read(p).map(Arc::new))
                     .collect::<Result<_>>()?,
                 collider_thickness: a.collider_thickness.unwrap_or(COLLIDER_THICKNESS),
-                pin_vertices: pin_vertices(&a)?,
+                pin_vertices: pin_vertices(a)?,
             })
         }
     };
