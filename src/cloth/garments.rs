@@ -420,6 +420,11 @@ fn pattern(
     (m, ij)
 }
 
+/// A breeze of mean velocity `mean` (m/s); its gusts are added, seeded, by [`GarmentSpec::scene`].
+fn breeze(mean: [f32; 3]) -> Wind {
+    Wind { mean, gusts: Vec::new() }
+}
+
 /// A garment scene: the cloth, the body it is on, the breeze, and a floor (height, m) if any.
 pub struct GarmentScene {
     pub mesh: GarmentMesh,
@@ -585,8 +590,7 @@ fn cape(v: &GarmentVariation) -> GarmentScene {
         sway: Wave { offset: 0.0, amp: 0.08, freq: 0.5, phase: 1.0 }.scaled(v.motion, v.speed),
         bob: Wave { offset: 0.0, amp: 0.015, freq: 1.6, phase: 0.0 }.scaled(v.motion, v.speed),
     };
-    let wind = Wind::gusty([0.0, 0.0, -0.4 * v.wind], 0.6 * v.wind, 4, 0);
-    GarmentScene { mesh: m, body, wind, ground: None, tethers: true }
+    GarmentScene { mesh: m, body, wind: breeze([0.0, 0.0, -0.4 * v.wind]), ground: None, tethers: true }
 }
 
 /// A round tablecloth: a disk of triangles (rings of 6k vertices) dropped on a round table.
@@ -626,8 +630,13 @@ fn tablecloth(v: &GarmentVariation) -> GarmentScene {
     let table =
         Part { pos: tp, faces: tf, parent: None, pivot: [0.0; 3], axis: [0.0, 1.0, 0.0], angle: Wave::ZERO };
     let body = Body { parts: vec![table], yaw: Wave::ZERO, sway: Wave::ZERO, bob: Wave::ZERO };
-    let wind = Wind::gusty([0.5 * v.wind, 0.0, 0.4 * v.wind], 0.8 * v.wind, 4, 0);
-    GarmentScene { mesh: m, body, wind, ground: Some(0.0), tethers: false }
+    GarmentScene {
+        mesh: m,
+        body,
+        wind: breeze([0.5 * v.wind, 0.0, 0.4 * v.wind]),
+        ground: Some(0.0),
+        tethers: false,
+    }
 }
 
 /// A T-shirt: front and back T-shaped panels of quads, sewn along the sides, under the
@@ -757,8 +766,13 @@ fn holed_sheet(v: &GarmentVariation) -> GarmentScene {
     let ballp =
         Part { pos: bp, faces: bf, parent: None, pivot: [0.0; 3], axis: [0.0, 1.0, 0.0], angle: Wave::ZERO };
     let body = Body { parts: vec![ballp], yaw: Wave::ZERO, sway: Wave::ZERO, bob: Wave::ZERO };
-    let wind = Wind::gusty([0.6 * v.wind, 0.0, 0.5 * v.wind], 1.0 * v.wind, 4, 0);
-    GarmentScene { mesh: m, body, wind, ground: Some(0.0), tethers: false }
+    GarmentScene {
+        mesh: m,
+        body,
+        wind: breeze([0.6 * v.wind, 0.0, 0.5 * v.wind]),
+        ground: Some(0.0),
+        tethers: false,
+    }
 }
 
 impl GarmentSpec {
@@ -773,6 +787,7 @@ impl GarmentSpec {
             Garment::Tshirt => tshirt(&v),
             Garment::HoledSheet => holed_sheet(&v),
         };
+        // The breeze's gusts seeded by the spec's seed.
         if !g.wind.is_calm() {
             g.wind =
                 Wind::gusty(g.wind.mean, 0.8 * crate::geom::vec3::norm(g.wind.mean).max(0.1), 4, self.seed);
