@@ -284,7 +284,7 @@ fn the_upscaler_gives_a_mesh_the_vertices_upscale_writes() {
     let frames: Vec<Mesh> = (0..5).map(|k| m.rippled(0.01, 0.4 * k as f32)).collect();
     let input = write_frames(&dir, &frames);
     let out = dir.join("out");
-    let mut job = UpscaleJob::new(vec![input], &out);
+    let mut job = UpscaleJob::new(vec![input.clone()], &out);
     job.params.temporal = 1;
     run(job).unwrap();
     let (uv, fuv) = m.uv.clone().unwrap();
@@ -304,15 +304,43 @@ fn the_upscaler_gives_a_mesh_the_vertices_upscale_writes() {
         let file = read(&out.join(format!("f_{k:04}.obj")));
         assert!(file.pos == *hr, "frame {k}: the Upscaler's vertices are not upscale's");
     }
-    // A grid frame given to a mesh Upscaler is refused, and so is the physics pass (the
-    // library's frame-by-frame pass takes grids only so far).
+    // A grid frame given to a mesh Upscaler is refused.
     assert!(up.push(&anisocb::geom::GridMesh::flat(4, 4, 1.0, 1.0)).is_err());
-    let e = Upscaler::embedded()
-        .unwrap()
-        .with_mesh(m.faces.clone(), &m.pos, None)
-        .unwrap()
-        .with_physics(FollowParams::default());
-    assert!(e.is_err());
+    // With the physics pass, set before or after the mesh: the vertices `upscale --physics`
+    // writes, and a second shot starts a new cloth.
+    let out = dir.join("out-physics");
+    let mut job = UpscaleJob::new(vec![input], &out);
+    job.params.temporal = 1;
+    job.physics = Some(FollowParams::default());
+    run(job).unwrap();
+    let plain = read(&dir.join("out").join("f_0004.obj")).pos;
+    assert!(read(&out.join("f_0004.obj")).pos != plain, "the pass changed nothing");
+    for physics_first in [true, false] {
+        let up = Upscaler::new(embedded_model().unwrap(), params.clone()).unwrap();
+        let mut up = if physics_first {
+            up.with_physics(FollowParams::default()).unwrap().with_mesh(
+                m.faces.clone(),
+                &frames[0].pos,
+                Some((&uv, &fuv)),
+            )
+        } else {
+            up.with_mesh(m.faces.clone(), &frames[0].pos, Some((&uv, &fuv)))
+                .unwrap()
+                .with_physics(FollowParams::default())
+        }
+        .unwrap();
+        for shot in 0..2 {
+            let mut got = Vec::new();
+            for f in &frames {
+                got.extend(up.push_mesh(&f.pos).unwrap());
+            }
+            got.extend(up.flush_mesh().unwrap());
+            for (k, hr) in got.iter().enumerate() {
+                let file = read(&out.join(format!("f_{k:04}.obj")));
+                assert!(file.pos == *hr, "shot {shot} frame {k}: not upscale --physics's vertices");
+            }
+        }
+    }
 }
 
 /// RMS of `v`.

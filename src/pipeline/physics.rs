@@ -85,6 +85,11 @@ impl MeshPhysicsPass {
         MeshPhysicsPass { params, sub, lr, follower: None }
     }
 
+    /// Forget the shot: the next frame starts a new cloth.
+    pub fn reset(&mut self) {
+        self.follower = None;
+    }
+
     /// The pass's cloth for frame `k` of the shot whose HR vertices the nets gave as `hr`; the
     /// first call starts the cloth on it (and gives it back as it was).
     pub fn apply(&mut self, hr: Vec<[f32; 3]>, k: usize) -> Result<Vec<[f32; 3]>> {

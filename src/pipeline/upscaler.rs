@@ -6,7 +6,7 @@
 //! [`FrameWindow`] as the file pipeline, so each frame gives the same bits as `anisocb upscale`
 //! gives it in the whole shot ([`super::stream`]).
 
-use super::physics::PhysicsPass;
+use super::physics::{MeshPhysicsPass, PhysicsPass};
 use super::stream::{at_frame, temporal_radius, FrameWindow};
 use super::worker::Worker;
 use crate::cloth::follow::FollowParams;
@@ -38,8 +38,10 @@ pub struct Upscaler {
     ops: Box<dyn Ops>,
     /// Worker threads of its own (`None`: the global pool).
     pool: Option<Worker>,
-    /// The physics pass the HR frames go through, in shot order (`None`: off).
+    /// The physics pass the HR frames go through, in shot order (`None`: off): on grids.
     physics: Option<PhysicsPass>,
+    /// The same on a mesh ([`Upscaler::with_mesh`]).
+    mesh_physics: Option<MeshPhysicsPass>,
     /// The box geometry images are encoded with (Eq 1): the unit box for a cloth-frame model,
     /// for which each frame depends on itself alone.
     domain: Domain,
@@ -80,6 +82,7 @@ impl Upscaler {
             ops: Box::new(Cpu),
             pool: None,
             physics: None,
+            mesh_physics: None,
             domain: Domain::UNIT,
             grid: None,
             mesh: None,
@@ -151,13 +154,10 @@ impl Upscaler {
     /// it. Frames are read as metres.
     pub fn with_physics(mut self, params: FollowParams) -> Result<Upscaler> {
         params.validate()?;
-        if self.mesh.is_some() {
-            return Err(Error::invalid(
-                "physics",
-                "the frame-by-frame Upscaler runs the physics pass on grids only so far; on a mesh, upscale_files (anisocb upscale --physics) runs it",
-            ));
+        match &self.mesh {
+            Some(m) => self.mesh_physics = Some(MeshPhysicsPass::new(params, m.sub.clone(), m.lr_vertices())),
+            None => self.physics = Some(PhysicsPass::new(params)),
         }
-        self.physics = Some(PhysicsPass::new(params));
         Ok(self)
     }
 
@@ -167,23 +167,20 @@ impl Upscaler {
     /// laid out by `uv` (the mesh's texture coordinates and each face's indices into them) when
     /// they are a usable layout, else by ARAP. Frames then go in through
     /// [`Upscaler::push_mesh`] and come out as the vertices of the mesh's subdivision, whose
-    /// faces [`Upscaler::hr_faces`] gives; the same vertices `anisocb upscale` writes for them.
-    /// Not with the physics pass here (its frame-by-frame form takes grids only so far;
-    /// [`crate::pipeline::upscale_files`] runs it on meshes).
+    /// faces [`Upscaler::hr_faces`] gives; the same vertices `anisocb upscale` writes for them
+    /// (with [`Upscaler::with_physics`], before or after this, through the pass on the mesh).
     pub fn with_mesh(
         mut self,
         faces: Vec<Vec<u32>>,
         rest: &[[f32; 3]],
         uv: Option<FaceUvs>,
     ) -> Result<Upscaler> {
-        if self.physics.is_some() {
-            return Err(Error::invalid(
-                "physics",
-                "the frame-by-frame Upscaler runs the physics pass on grids only so far; on a mesh, upscale_files (anisocb upscale --physics) runs it",
-            ));
-        }
         let surface = Surface::new(rest.len(), faces, std::path::Path::new("the mesh"))?;
-        self.mesh = Some(Box::new(MeshLayout::new(surface, rest, uv)?));
+        let m = MeshLayout::new(surface, rest, uv)?;
+        if let Some(p) = self.physics.take() {
+            self.mesh_physics = Some(MeshPhysicsPass::new(p.params, m.sub.clone(), m.lr_vertices()));
+        }
+        self.mesh = Some(Box::new(m));
         Ok(self)
     }
 
@@ -220,12 +217,16 @@ impl Upscaler {
         Ok(out)
     }
 
-    /// [`Upscaler::emit`] of a mesh frame into a new list of HR vertices.
+    /// [`Upscaler::emit`] of a mesh frame into a new list of HR vertices (through the physics
+    /// pass, when there is one).
     fn emit_mesh_vertices(&mut self) -> Result<Vec<[f32; 3]>> {
         let n = self.mesh.as_ref().map_or(0, |m| m.sub.hr_vertices());
-        let mut out = vec![[0.0; 3]; n];
+        let (k, mut out) = (self.emitted, vec![[0.0; 3]; n]);
         self.emit(&mut out)?;
-        Ok(out)
+        match self.mesh_physics.as_mut() {
+            Some(p) => p.apply(out, k),
+            None => Ok(out),
+        }
     }
 
     /// Run on another op table (`crate::cuda::ops_for_device("cuda")`).
@@ -359,6 +360,9 @@ impl Upscaler {
         self.grid = None;
         self.window.reset();
         if let Some(p) = self.physics.as_mut() {
+            p.reset();
+        }
+        if let Some(p) = self.mesh_physics.as_mut() {
             p.reset();
         }
         (self.pushed, self.emitted) = (0, 0);
