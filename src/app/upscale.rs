@@ -390,6 +390,10 @@ fn job(a: &Args) -> Result<CheckedJob> {
 }
 
 pub fn run(a: Args) -> Result<()> {
+    #[cfg(feature = "usd")]
+    if a.input.len() == 1 && crate::io::usd::is_usd(&a.input[0]) {
+        return run_usd(a);
+    }
     // Every option checked before a file is read or a net runs.
     let job = job(&a)?;
     let device = Device::parse(&a.device)?;
@@ -408,6 +412,39 @@ pub fn run(a: Args) -> Result<()> {
         job.out.display(),
         done.format
     );
+    Ok(())
+}
+
+/// `upscale shot.usd[a|c] --out DIR`: the USD's animated mesh written as an OBJ sequence in
+/// DIR/.anisocb-usd/lr, upscaled as any mesh into DIR/.anisocb-usd/hr, and written back as
+/// DIR/STEM.usda (same prim path, static transforms, time codes; UVs subdivided).
+#[cfg(feature = "usd")]
+fn run_usd(mut a: Args) -> Result<()> {
+    use crate::io::usd::UsdShot;
+    let src = a.input[0].clone();
+    if a.format != "auto" || a.rest.is_some() {
+        return Err(Error::format(&src, "USD input takes neither --format nor --rest (the output is .usda)"));
+    }
+    let shot = UsdShot::read(&src)?;
+    for n in &shot.notes {
+        eprintln!("note: {n}");
+    }
+    let out = a.out.clone();
+    let work = out.join(".anisocb-usd");
+    let (lr, hr) = (work.join("lr"), work.join("hr"));
+    if work.exists() {
+        std::fs::remove_dir_all(&work).map_err(|e| Error::io(&work, e))?;
+    }
+    crate::io::atomic::ensure_dir(&lr)?;
+    shot.write_obj_frames(&lr)?;
+    a.input = vec![lr];
+    a.out = hr.clone();
+    run(a)?;
+    let stem = src.file_stem().unwrap_or_default().to_string_lossy().into_owned();
+    let dst = out.join(format!("{stem}.usda"));
+    shot.write_hr(&hr, &dst)?;
+    std::fs::remove_dir_all(&work).map_err(|e| Error::io(&work, e))?;
+    println!("wrote {} ({})", dst.display(), shot.prim);
     Ok(())
 }
 

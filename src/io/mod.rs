@@ -8,6 +8,8 @@ mod json_parse;
 pub mod npy;
 pub mod npz;
 pub mod point_cache;
+#[cfg(feature = "usd")]
+pub mod usd;
 
 pub use atomic::{write_atomic, write_atomic_bytes};
 
