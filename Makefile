@@ -1,7 +1,7 @@
 # anisocb — `make demo` runs the main job, `make test` runs every check.
 CARGO ?= cargo
 
-.PHONY: all build test lint c-example c-example-if-cc rust-example fmt-check clippy check-features cuda-parity dist-test bench bench-peers demo weights dist fixtures onnx blender-addon blender-test clean
+.PHONY: all build test lint c-example c-example-if-cc rust-example fmt-check clippy check-features cuda-parity dist-test bench bench-peers demo weights dist fixtures onnx blender-addon blender-test usd-test clean
 
 all: build
 
@@ -134,6 +134,10 @@ blender-addon:
 ##   python3.11 -m venv .venv-bpy && .venv-bpy/bin/pip install -r tests/blender/requirements.txt
 ## (bpy==4.5.4, a large download), then `make blender-test BLENDER_PY=.venv-bpy/bin/python`.
 BLENDER_PY ?= python3
+## USD in and out (feature `usd`, not in `make test`).
+usd-test:
+	$(CARGO) test --release --features usd --test usd_roundtrip
+
 blender-test: build blender-addon
 	$(BLENDER_PY) tests/blender/test_addon.py --anisocb target/release/anisocb --zip target/anisocb_addon.zip
 

@@ -316,7 +316,7 @@ fn the_upscaler_gives_a_mesh_the_vertices_upscale_writes() {
     let plain = read(&dir.join("out").join("f_0004.obj")).pos;
     assert!(read(&out.join("f_0004.obj")).pos != plain, "the pass changed nothing");
     for physics_first in [true, false] {
-        let up = Upscaler::new(embedded_model().unwrap(), params.clone()).unwrap();
+        let up = Upscaler::new(embedded_model().unwrap(), params).unwrap();
         let mut up = if physics_first {
             up.with_physics(FollowParams::default()).unwrap().with_mesh(
                 m.faces.clone(),

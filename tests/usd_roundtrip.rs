@@ -22,8 +22,11 @@ fn tmp(name: &str) -> PathBuf {
 
 const TIMES: [f64; 4] = [1.0, 2.0, 3.0, 4.0];
 
+/// Faces, positions per frame, a UV per vertex.
+type Disk = (Vec<Vec<u32>>, Vec<Vec<[f32; 3]>>, Vec<[f32; 2]>);
+
 /// A disk: a centre, two rings of 8; triangles inside, quads outside (not a grid).
-fn disk() -> (Vec<Vec<u32>>, Vec<Vec<[f32; 3]>>, Vec<[f32; 2]>) {
+fn disk() -> Disk {
     let mut faces = Vec::new();
     for i in 0..8u32 {
         let j = (i + 1) % 8;
