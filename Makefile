@@ -1,7 +1,7 @@
 # anisocb — `make demo` runs the main job, `make test` runs every check.
 CARGO ?= cargo
 
-.PHONY: all build test lint c-example c-example-if-cc rust-example fmt-check clippy check-features cuda-parity dist-test bench bench-peers demo weights dist fixtures onnx blender-addon blender-test usd-test clean
+.PHONY: all build test lint c-example c-example-if-cc rust-example fmt-check clippy check-features cuda-parity dist-test bench bench-peers demo weights dist fixtures onnx blender-addon blender-test blender-usd-test usd-test clean
 
 all: build
 
@@ -140,6 +140,12 @@ usd-test:
 
 blender-test: build blender-addon
 	$(BLENDER_PY) tests/blender/test_addon.py --anisocb target/release/anisocb --zip target/anisocb_addon.zip
+
+## USD from Blender's exporter through `anisocb upscale` (feature `usd`) and back through its
+## importer (tests/blender/test_usd.py; BLENDER_PY as for blender-test).
+blender-usd-test:
+	$(CARGO) build --release --features usd
+	$(BLENDER_PY) tests/blender/test_usd.py --anisocb target/release/anisocb
 
 ## Regenerate reference .npy files (needs Python; `make test` does not).
 fixtures:
