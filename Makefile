@@ -143,9 +143,11 @@ blender-test: build blender-addon
 
 ## USD from Blender's exporter through `anisocb upscale` (feature `usd`) and back through its
 ## importer (tests/blender/test_usd.py; BLENDER_PY as for blender-test).
+## USD_PY: a Python with usd-core (tests/blender/requirements-usd.txt) for Pixar's reader; empty: skipped.
+USD_PY ?=
 blender-usd-test:
 	$(CARGO) build --release --features usd
-	$(BLENDER_PY) tests/blender/test_usd.py --anisocb target/release/anisocb
+	$(BLENDER_PY) tests/blender/test_usd.py --anisocb target/release/anisocb $(if $(USD_PY),--pxr-python $(USD_PY))
 
 ## Regenerate reference .npy files (needs Python; `make test` does not).
 fixtures:

@@ -17,8 +17,12 @@ Runs in Blender's `bpy` module from PyPI (tests/blender/requirements.txt; Python
 
 Prints PASS/FAIL per check and a summary; exit status 1 if any failed.
 
+  5. with --pxr-python: Pixar's own reader (usd-core, tests/blender/check_usd_pxr.py) opens the
+     output and finds the same prim path, time codes, up axis and units, four faces per LR face,
+     one point count, and st on every face corner.
+
 Usage:
-    python3 tests/blender/test_usd.py --anisocb target/release/anisocb [--keep DIR]
+    python3 tests/blender/test_usd.py --anisocb target/release/anisocb [--keep DIR] [--pxr-python PY]
 """
 
 import argparse
@@ -49,6 +53,11 @@ def scene():
     bmesh.ops.create_circle(bm, cap_ends=True, cap_tris=True, segments=24, radius=0.45)
     bmesh.ops.subdivide_edges(bm, edges=bm.edges[:], cuts=1, use_grid_fill=True)
     bmesh.ops.triangulate(bm, faces=bm.faces[:])
+    # UVs: the disk seen from above (exported as primvars:st, kept subdivided).
+    uv = bm.loops.layers.uv.new("UVMap")
+    for f in bm.faces:
+        for loop in f.loops:
+            loop[uv].uv = (0.5 + loop.vert.co.x, 0.5 + loop.vert.co.y)
     bm.to_mesh(me)
     bm.free()
     disk = bpy.data.objects.new("Disk", me)
@@ -79,6 +88,7 @@ def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--anisocb", required=True)
     ap.add_argument("--keep")
+    ap.add_argument("--pxr-python", help="a Python with usd-core (tests/blender/requirements-usd.txt): check the output with Pixar's reader too")
     a = ap.parse_args(sys.argv[sys.argv.index("--") + 1 :] if "--" in sys.argv else sys.argv[1:])
     work = a.keep or tempfile.mkdtemp(prefix="anisocb-usd-")
     os.makedirs(work, exist_ok=True)
@@ -113,6 +123,7 @@ def main():
         len(hr.data.polygons) == 4 * f_lr and len(hr.data.vertices) == want_v,
         f"{len(hr.data.vertices)} vertices (want {want_v}), {len(hr.data.polygons)} faces (want {4 * f_lr})",
     )
+    check("with its UVs", len(hr.data.uv_layers) > 0, str([u.name for u in hr.data.uv_layers]))
     worst, moved, frame_rms = 0.0, 0.0, []
     first = None
     for k in range(1, FRAMES + 1):
@@ -133,6 +144,15 @@ def main():
         f"largest {1e3 * worst:.2f} mm",
     )
     check("it moves", moved > 0.05, f"{moved:.3f} m from the first frame")
+    if a.pxr_python:
+        here = os.path.dirname(os.path.abspath(__file__))
+        p = subprocess.run(
+            [a.pxr_python, os.path.join(here, "check_usd_pxr.py"), hr_file, shot], capture_output=True, text=True
+        )
+        print(p.stdout.strip())
+        check("Pixar's reader (usd-core) agrees", p.returncode == 0, p.stderr.strip()[-300:])
+    else:
+        print("note: no --pxr-python: Pixar's reader not run (pip install -r tests/blender/requirements-usd.txt)")
 
 
 if __name__ == "__main__":
