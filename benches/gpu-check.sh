@@ -4,9 +4,12 @@
 #   cargo build --release --features cuda
 #   cargo test --release --features cuda --no-run --test cuda_parity   # prints the test binary's path
 #   benches/gpu-check.sh target/release/anisocb target/release/deps/cuda_parity-HASH [OUT_DIR]
-# It runs tests/cuda_parity.rs on the GPU, `anisocb bench --device cuda`, the demo on cpu and cuda
-# twice each (output difference and upscaling time), and 100 training steps of both configs on
-# cpu and cuda (samples/s and the weights' difference). Needs python3 with numpy. ~2 min on an H100.
+# It runs tests/cuda_parity.rs on the GPU, `anisocb bench --device cuda` (the conv table, then the
+# shipped bundle device-resident by chunk size), the demo on cpu and cuda twice each (output
+# difference and upscaling time), `upscale` of a 64x64 flag (48 frames) on cpu and on cuda at
+# chunks of 16 and 1 (ms a frame from upscale.json, largest vertex difference), the same bundle in
+# PyTorch (benches/gpu/torch_peer.py, where torch is installed), and 100 training steps of both
+# configs on cpu and cuda (samples/s and the weights' difference). Needs python3 with numpy.
 set -u
 BIN=${1:?usage: gpu-check.sh ANISOCB_BIN CUDA_PARITY_TEST_BIN [OUT_DIR]}
 PARITY=${2:?usage: gpu-check.sh ANISOCB_BIN CUDA_PARITY_TEST_BIN [OUT_DIR]}
@@ -30,6 +33,22 @@ worst = max(np.abs(load(a) - load(a.replace('demo-cpu', 'demo-cuda'))).max()
             for a in sorted(glob.glob(t + '/demo-cpu/anisocb/*.obj')))
 print(f'demo: largest |cpu - cuda| vertex coordinate difference {worst:.2e} m')
 PY
+"$BIN" simulate --scenario flag --res 64x64 --frames 48 --seed 3 --out "$TMP/flag64" > /dev/null 2>&1
+for run in "cpu 8" "cuda 16" "cuda 1" "cpu 8" "cuda 16" "cuda 1"; do
+  set -- $run
+  "$BIN" upscale "$TMP/flag64" --out "$TMP/up-$1-$2" --device $1 --batch $2 --overwrite > "$OUT/upscale-$1-$2.log" 2>&1 \
+    || { echo "upscale --device $1 --batch $2 failed: $OUT/upscale-$1-$2.log"; exit 1; }
+  echo "upscale 64x64 -> 128x128, 48 frames, $1 chunk $2: $(grep -o '"ms_per_frame": *[0-9.]*' "$TMP/up-$1-$2/upscale.json") (whole command: read, nets, compose, write)"
+done
+python3 - "$TMP" <<'PY'
+import sys, numpy as np
+t = sys.argv[1]
+a = np.load(t + '/up-cpu-8/geometry.npy')
+for chunk in (16, 1):
+    d = np.abs(a - np.load(t + f'/up-cuda-{chunk}/geometry.npy')).max()
+    print(f'upscale 64x64 flag: largest |cpu - cuda chunk {chunk}| HR coordinate difference {d * 1e3:.4f} mm')
+PY
+python3 -c "import torch" 2>/dev/null && python3 "$(dirname "$0")/gpu/torch_peer.py" "$(dirname "$0")/../weights/anisocb-x2.npz" 2>&1 | tee "$OUT/torch.log"
 "$BIN" simulate --scenario flag --res 32x32 --pair --frames 60 --seed 1 --vary 1 --out "$TMP/runs/flag-1" > /dev/null 2>&1
 "$BIN" dataset --runs "$TMP"/runs/* --out "$TMP/data.npz" --input-frame cloth-frame > /dev/null 2>&1
 for cfg in small paper; do

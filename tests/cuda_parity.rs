@@ -10,7 +10,9 @@ use anisocb::rng::Rng;
 use close::{assert_close, assert_close_f32};
 #[path = "common/random.rs"]
 mod random;
-use anisocb::cuda::ops_for_device;
+use anisocb::cuda::{ops_for_device, MirrorView};
+use anisocb::geom::cloth_frame::{mirror_net_images, mirrored_axes, InputFrame, GRID_MIRRORS};
+use anisocb::nn::{AnisoCb, NetConfig, NetKind, Trunk};
 use anisocb::ops::conv2d::{conv2d_backward_ref, conv2d_ref};
 use anisocb::ops::loss::DetailEnergy;
 use anisocb::ops::{AdamParams, Cpu, Interp, Ops, Padding};
@@ -359,5 +361,85 @@ fn cuda_network_forward_backward_matches_cpu() {
 fn cuda_ten_adam_steps_match_cpu() {
     if let Some(dev) = device() {
         check_adam_training(dev.as_ref());
+    }
+}
+
+// ------------------------------------------- the whole bundle on the device (kernels/infer.cu)
+
+/// CPU reference of [`anisocb::cuda::nets_views`]: each view through `forward_with`, its
+/// outputs mirrored back and averaged, as `sr::upscale` does op by op.
+fn nets_views_cpu(model: &AnisoCb, x: &Tensor, views: &[MirrorView], enhance: bool) -> [Tensor; 4] {
+    let frame = model.input_frame();
+    let mut acc: Option<[Tensor; 4]> = None;
+    for v in views {
+        let o = model.forward_with(&Cpu, &mirror_net_images(x, v.rows, v.cols, frame, true), enhance).unwrap();
+        let back = [
+            o.interpolated.clone(),
+            mirror_net_images(&o.residual, v.rows, v.cols, frame, false),
+            o.boundary.flipped(v.rows, v.cols),
+            o.enhance.flipped(v.rows, v.cols),
+        ];
+        match acc.as_mut() {
+            None => acc = Some(back),
+            Some(a) => {
+                for (a, b) in a.iter_mut().skip(1).zip(&back[1..]) {
+                    a.data.iter_mut().zip(&b.data).for_each(|(s, t)| *s += t);
+                }
+            }
+        }
+    }
+    let mut a = acc.expect("one view at least");
+    for t in a.iter_mut().skip(1) {
+        t.data.iter_mut().for_each(|s| *s /= views.len() as f32);
+    }
+    a
+}
+
+/// Every net and mirror view at once on the device (fp16 operands, fp32 accumulation) against
+/// the CPU's fp32 forward of each view: bundles of the shipped shape and of channel counts the
+/// kernels pad (8 → 16), an ensemble of two GeometryNets, both paddings, odd sizes, one view
+/// and four. Tolerance: fp16 keeps 11 significant bits, so each output may differ by about
+/// 2⁻¹¹ of the activations' size per layer; 1e-2 of the output's own range over ~14 layers.
+#[test]
+fn cuda_whole_bundle_on_the_device_matches_cpu() {
+    let Some(dev) = device() else { return };
+    let mut rng = Rng::new(0xb0_d1e5);
+    let cases = [
+        (32, 4, Padding::Replicate, 16, 16, 3, true, 4),
+        (8, 1, Padding::Zero, 7, 13, 2, false, 1),
+        (32, 2, Padding::Replicate, 9, 5, 1, true, 4),
+    ];
+    for (channels, blocks, padding, h, w, n, ensemble, nv) in cases {
+        let cfg = NetConfig {
+            channels,
+            blocks,
+            padding,
+            input_frame: InputFrame::Cloth,
+            upsample: Interp::CatmullRom,
+            ..NetConfig::small()
+        };
+        let mut model = AnisoCb::new(cfg, rng.range(0, 1000) as u64);
+        if ensemble {
+            model = model.with_more_geometry(vec![Trunk::init(NetKind::Geometry, cfg, 77)]).unwrap();
+        }
+        let x = rng.tensor(&[n, 3, h, w], 0.0, 1.0);
+        let views: Vec<MirrorView> = GRID_MIRRORS[..nv]
+            .iter()
+            .map(|&(rows, cols)| MirrorView { rows, cols, axes: mirrored_axes(rows, cols) })
+            .collect();
+        let Some(got) = anisocb::cuda::nets_views(dev.as_ref(), &model, &x, &views, true) else {
+            println!("skipped: this GPU has no tensor-core path");
+            return;
+        };
+        assert!(dev.take_error().is_none(), "a driver failure in nets_views");
+        let want = nets_views_cpu(&model, &x, &views, true);
+        let tag = format!("C={channels} blocks={blocks} {padding:?} {n}x{h}x{w} views {nv}");
+        let range = |t: &Tensor| t.data.iter().fold(0f32, |m, v| m.max(v.abs()));
+        assert_close(&format!("{tag} U"), &got.interpolated, &want[0], 1e-6, 1e-5);
+        for (name, g, wt) in
+            [("R", &got.residual, &want[1]), ("Γb", &got.boundary, &want[2]), ("Γe", &got.enhance, &want[3])]
+        {
+            assert_close(&format!("{tag} {name}"), g, wt, 1e-2 * range(wt).max(1e-3), 0.0);
+        }
     }
 }

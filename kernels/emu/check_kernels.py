@@ -286,5 +286,125 @@ check("adam 10 steps p", p, pr, 1e-6, 1e-5)
 check("adam 10 steps m", m, mr, 1e-6, 1e-5)
 check("adam 10 steps v", v, vr, 1e-7, 1e-5)
 
+# ---------------- infer.cu: the tensor-core inference kernels ----------------
+TC_PIX, TC_COUT = 128, 32
+
+
+def f16(a):
+    return np.asarray(a, np.float32).astype(np.float16)
+
+
+def pack_w(w, ci, cop):
+    """(O, I, 3, 3) -> (COP, 9*CI) fp16 as infer.rs packs it: k = (ky*3 + kx)*CI + c."""
+    O, I = w.shape[:2]
+    p = np.zeros((cop, 9, ci), np.float32)
+    p[:O, :, :I] = w.transpose(0, 2, 3, 1).reshape(O, 9, I)
+    return f16(p.reshape(cop, 9 * ci))
+
+
+def tc_conv(x16, xz, w16, b, skip16, Z, NB, H, W, CI, COP, pad, mode, relu, nskip, ng=0, CO=3, cg=3, cm=1):
+    P = NB * H * W
+    if mode == 0:
+        y = np.zeros((Z, NB, H, W, COP), np.float16)
+    elif mode == 1:
+        y = np.zeros((Z, NB, 2 * H, 2 * W, COP // 4), np.float16)
+    else:
+        y = np.zeros((Z, NB, CO, H, W), np.float32)
+    sk = skip16 if skip16 is not None else np.zeros(1, np.float16)
+    launch("conv3x3_tc", (-(-P // TC_PIX), -(-COP // TC_COUT), Z), 128, x16.view(np.uint16), L(xz),
+           w16.view(np.uint16), b, sk.view(np.uint16), y.view(np.uint16) if mode != 2 else y,
+           I(NB), I(H), I(W), I(CI), I(COP), I(pad), I(mode), I(relu),
+           I(nskip if skip16 is not None else 0), I(ng), I(CO), I(cg), I(cm))
+    if skip16 is None and mode == 0:
+        pass
+    return y
+
+
+for (NB, H, W, I_, O_, pad, Z) in [(2, 5, 7, 3, 32, 1, 2), (1, 9, 4, 32, 40, 0, 1), (3, 3, 3, 16, 8, 1, 3)]:
+    CI = -(-I_ // 16) * 16
+    COP = -(-O_ // 8) * 8
+    xs = [rnd(NB, I_, H, W) for _ in range(Z)]
+    ws = [rnd(O_, I_, 3, 3) * 0.3 for _ in range(Z)]
+    bs = [rnd(O_) for _ in range(Z)]
+    x16 = np.zeros((Z, NB, H, W, CI), np.float16)
+    for z in range(Z):
+        x16[z, ..., :I_] = f16(xs[z].transpose(0, 2, 3, 1))
+    w16 = np.stack([pack_w(ws[z], CI, COP) for z in range(Z)])
+    b = np.zeros((Z, COP), np.float32)
+    for z in range(Z):
+        b[z, :O_] = bs[z]
+    skip = f16(rnd(Z, NB, H, W, COP))
+    refs = []
+    for z in range(Z):
+        xr = x16[z, ..., :I_].astype(np.float32).transpose(0, 3, 1, 2)
+        wr = w16[z].astype(np.float32).reshape(COP, 9, CI)[:O_, :, :I_].reshape(O_, 3, 3, I_).transpose(0, 3, 1, 2)
+        refs.append(conv_ref(xr, wr, bs[z], pad)[0])  # (NB, O, H, W) float64
+    # mode 0 with a skip on net 0 only, ReLU
+    y = tc_conv(x16, NB * H * W * CI, w16, b, skip, Z, NB, H, W, CI, COP, pad, 0, 1, 1)
+    want = np.zeros((Z, NB, H, W, COP))
+    for z in range(Z):
+        r = refs[z].transpose(0, 2, 3, 1)
+        if z < 1:
+            r = r + skip[z, ..., :O_].astype(np.float64)
+        want[z, ..., :O_] = np.maximum(r, 0)
+    check(f"conv3x3_tc mode 0 Z={Z} NB={NB} {H}x{W} {I_}->{O_} pad {pad}", y.astype(np.float32), want, 2e-3, 2e-3)
+    # mode 2: fp32 NCHW, 3 channels of net 0 (ng = 1), 1 of the others
+    y = tc_conv(x16, NB * H * W * CI, w16, b, None, Z, NB, H, W, CI, COP, pad, 2, 0, 0, ng=1)
+    for z in range(Z):
+        co = min(3 if z < 1 else 1, O_)
+        check(f"conv3x3_tc mode 2 net {z}", y[z, :, :co], refs[z][:, :co], 1e-3, 1e-3)
+    # mode 1: pixel shuffle x2 (COP a multiple of 4), one input shared by every net (xz = 0)
+    if COP % 4 == 0:
+        y = tc_conv(x16[:1].copy(), 0, w16, b, None, Z, NB, H, W, CI, COP, pad, 1, 0, 0)
+        for z in range(Z):
+            xr = x16[0, ..., :I_].astype(np.float32).transpose(0, 3, 1, 2)
+            wr = w16[z].astype(np.float32).reshape(COP, 9, CI)[:O_, :, :I_].reshape(O_, 3, 3, I_).transpose(0, 3, 1, 2)
+            r = np.zeros((NB, COP, H, W))
+            r[:, :O_] = conv_ref(xr, wr, bs[z], pad)[0]
+            r = r.reshape(NB, COP // 4, 2, 2, H, W).transpose(0, 4, 2, 5, 3, 1).reshape(NB, 2 * H, 2 * W, COP // 4)
+            check(f"conv3x3_tc mode 1 (shuffle) net {z}", y[z].astype(np.float32), r, 2e-3, 2e-3)
+
+# views_to_nhwc and views_average: view flags as infer.rs builds them
+N, H, W, V = 2, 5, 6, 4
+flags_l = [0, 1 | 4, 2 | 8, 3 | 4 | 8]
+flags = sum(f << (8 * v) for v, f in enumerate(flags_l))
+x = rng.uniform(0, 1, (N, 3, H, W)).astype(np.float32)
+y = np.zeros((V * N, H, W, 16), np.float16)
+launch("views_to_nhwc", grid1(V * N * H * W), THREADS, x, y.view(np.uint16), I(V), I(N), I(H), I(W), I(16), I(flags))
+want = np.zeros((V * N, H, W, 16), np.float32)
+for v, f in enumerate(flags_l):
+    m = x[:, :, ::-1] if f & 1 else x
+    m = m[:, :, :, ::-1] if f & 2 else m
+    m = m.copy()
+    for c in range(3):
+        if (f >> (2 + c)) & 1:
+            m[:, c] = 1 - m[:, c]
+    want[v * N:(v + 1) * N, ..., :3] = m.transpose(0, 2, 3, 1)
+check("views_to_nhwc", y.astype(np.float32), f16(want).astype(np.float32), 0, 0)
+Z, CO = 3, 3
+s = rnd(Z, V * N, CO, H, W)
+for (z0, z1, C, neg, sig) in [(0, 2, 3, 1, 0), (2, 3, 1, 0, 1)]:
+    out = np.zeros((N, C, H, W), np.float32)
+    launch("views_average", grid1(N * C * H * W), THREADS, s, out, I(z0), I(z1), I(V), I(N), I(CO), I(C), I(H), I(W),
+           I(flags), I(neg), I(sig))
+    acc = np.zeros((N, C, H, W))
+    for v, f in enumerate(flags_l):
+        t = s[z0:z1, v * N:(v + 1) * N, :C].astype(np.float64)
+        t = 1 / (1 + np.exp(-t)) if sig else t
+        t = t.mean(axis=0)
+        t = t[:, :, ::-1] if f & 1 else t
+        t = t[:, :, :, ::-1] if f & 2 else t
+        t = t.copy()
+        if neg:
+            for c in range(C):
+                if (f >> (2 + c)) & 1:
+                    t[:, c] = -t[:, c]
+        acc += t / V
+    check(f"views_average nets {z0}..{z1} C={C} neg={neg} sig={sig}", out, acc, 1e-6, 1e-5)
+h = np.zeros(7, np.float16)
+vals = np.array([0.1, -2.5, 65504.0, 1e-8, 3.14159, -0.0, 1.0 / 3], np.float32)
+launch("f32_to_f16", grid1(7), THREADS, vals, h.view(np.uint16), L(7))
+check("f32_to_f16 (round to nearest even)", h.astype(np.float32), vals.astype(np.float16).astype(np.float32), 0, 0)
+
 print(f"\n{len(failures)} failure(s)" + (": " + ", ".join(failures) if failures else ""))
 sys.exit(1 if failures else 0)

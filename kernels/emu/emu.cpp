@@ -38,6 +38,43 @@ using std::min;
 #include "../loss.cu"
 #include "../adam.cu"
 
+// infer.cu's warp-level pieces: fp16 conversions through _Float16 (round to nearest even, as
+// cvt.rn.f16.f32) and mma.sync m16n8k16 as a warp exchange through static arrays between two
+// block barriers (every thread of a block calls it equally often: infer.cu's loops are uniform).
+#include <cstring>
+#define ANISOCB_EMU
+static unsigned short f2h(float x) {
+    _Float16 h = (_Float16)x;
+    unsigned short u;
+    std::memcpy(&u, &h, 2);
+    return u;
+}
+static float h2f(unsigned short u) {
+    _Float16 h;
+    std::memcpy(&h, &u, 2);
+    return (float)h;
+}
+static unsigned g_mma_a[32][32][4], g_mma_b[32][32][2];
+static float half_of(unsigned r, int k) { return h2f((unsigned short)(k & 1 ? r >> 16 : r & 0xffff)); }
+static void mma16816(float* d, const unsigned* a, const unsigned* b) {
+    const int lane = threadIdx.x & 31, wp = threadIdx.x >> 5, g = lane >> 2, t = lane & 3;
+    for (int i = 0; i < 4; ++i) g_mma_a[wp][lane][i] = a[i];
+    for (int i = 0; i < 2; ++i) g_mma_b[wp][lane][i] = b[i];
+    __syncthreads();
+    for (int e = 0; e < 4; ++e) {
+        const int row = g + 8 * (e >> 1), col = 2 * t + (e & 1);
+        float s = 0.f;
+        for (int k = 0; k < 16; ++k) {
+            const float av = half_of(g_mma_a[wp][(row % 8) * 4 + (k % 8) / 2][(row >= 8) + 2 * (k >= 8)], k);
+            const float bv = half_of(g_mma_b[wp][col * 4 + (k % 8) / 2][k >= 8], k);
+            s += av * bv;
+        }
+        d[e] += s;
+    }
+    __syncthreads();
+}
+#include "../infer.cu"
+
 template <class F>
 static void launch(unsigned gx, unsigned gy, unsigned gz, unsigned bx, F f) {
     gridDim = {gx, gy, gz};
@@ -92,3 +129,7 @@ EXPORT(resize_bwd)
 EXPORT(mse_loss)
 EXPORT(bce_logits_loss)
 EXPORT(adam_step)
+EXPORT(f32_to_f16)
+EXPORT(views_to_nhwc)
+EXPORT(conv3x3_tc)
+EXPORT(views_average)

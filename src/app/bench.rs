@@ -51,5 +51,72 @@ pub fn run(args: Args) -> Result<()> {
         println!("{:<22} {fwd:>14.3} {all:>14.3} {:>10.1}", case.label(), 3.0 * case.flops() / all / 1e6);
     }
     println!("(device: {}; times include host↔device copies)", ops.name());
-    Ok(())
+    bundle_on_device(ops.as_ref(), args.quick)
+}
+
+/// The shipped bundle with every mirror view (16 net passes a frame), device-resident
+/// ([`crate::cuda::nets_views`]): ms a frame by chunk size, then the op-by-op path once.
+fn bundle_on_device(ops: &dyn crate::ops::Ops, quick: bool) -> Result<()> {
+    use crate::cuda::{nets_views, MirrorView};
+    use crate::geom::cloth_frame::{mirrored_axes, GRID_MIRRORS};
+    let model = crate::nn::weights::embedded_model()?;
+    let views: Vec<MirrorView> =
+        GRID_MIRRORS.iter().map(|&(rows, cols)| MirrorView { rows, cols, axes: mirrored_axes(rows, cols) }).collect();
+    // A gently folded sheet in the nets' [0, 1] frame.
+    let sheet = |n: usize, s: usize| {
+        let mut x = Tensor::zeros(&[n, 3, s, s]);
+        for f in 0..n {
+            for i in 0..s * s {
+                let (u, v) = ((i % s) as f32 / (s - 1) as f32, (i / s) as f32 / (s - 1) as f32);
+                let base = f * 3 * s * s + i;
+                x.data[base] = u;
+                x.data[base + s * s] = v;
+                x.data[base + 2 * s * s] = 0.5 + 0.05 * (9.0 * u + 0.3 * f as f32).sin() * v;
+            }
+        }
+        x
+    };
+    println!();
+    println!("shipped bundle, 4 mirror views x 4 nets a frame (16 passes), device-resident (fp16 tensor cores):");
+    if let Some(c) = ops.as_cuda() {
+        if let Err(why) = c.tensor_cores() {
+            println!("  unavailable: {why}");
+            return crate::ops::check_device(ops);
+        }
+    }
+    let reps = if quick { 5 } else { 20 };
+    for s in [64usize, 32] {
+        for chunk in [16usize, 1] {
+            let x = sheet(chunk, s);
+            let mut ms = Vec::with_capacity(reps);
+            for rep in 0..=reps {
+                let t = Instant::now();
+                let Some(out) = nets_views(ops, &model, &x, &views, true) else {
+                    println!("  {}: no device-resident path here", ops.name());
+                    return Ok(());
+                };
+                drop(out);
+                if rep > 0 {
+                    ms.push(1e3 * t.elapsed().as_secs_f64() / chunk as f64); // rep 0: packing, warm-up
+                }
+            }
+            ms.sort_by(f64::total_cmp);
+            println!(
+                "  {s}x{s} -> {}x{}, chunk {chunk:>2}: {:.3} ms a frame (median of {reps}; min {:.3})",
+                2 * s,
+                2 * s,
+                ms[ms.len() / 2],
+                ms[0]
+            );
+        }
+    }
+    // The op-by-op path (each op uploads its inputs and downloads its output), one frame.
+    let x = sheet(1, 64);
+    let t = Instant::now();
+    for v in &views {
+        let xv = crate::geom::cloth_frame::mirror_net_images(&x, v.rows, v.cols, model.input_frame(), true);
+        drop(model.packed().forward_with(ops, &xv, true)?);
+    }
+    println!("  64x64, op by op with copies (fp32), chunk  1: {:.1} ms a frame", 1e3 * t.elapsed().as_secs_f64());
+    crate::ops::check_device(ops)
 }

@@ -24,6 +24,7 @@ use cudarc::driver::{
 };
 use cudarc::nvrtc::{compile_ptx_with_opts, CompileOptions};
 
+use super::infer::{DeviceBundle, InferKernels};
 use super::KERNELS;
 use crate::error::{Error, Result};
 use crate::tensor::Tensor;
@@ -80,6 +81,10 @@ pub struct Cuda {
     device_name: String,
     /// Serialises the ops; holds the first driver failure (sticky until taken).
     lock: Mutex<Option<String>>,
+    /// `kernels/infer.cu` (tensor cores, compute capability 8.0 or newer), or why it is missing.
+    pub(super) infer: std::result::Result<InferKernels, String>,
+    /// The last bundle [`Cuda::nets_views`] ran, its weights on the device.
+    pub(super) bundle: Mutex<Option<Arc<DeviceBundle>>>,
 }
 
 impl std::fmt::Debug for Cuda {
@@ -207,7 +212,8 @@ impl Cuda {
             bce_logits_loss: f("bce_logits_loss")?,
             adam_step: f("adam_step")?,
         };
-        Ok(Cuda { ctx, stream, k, device_name, lock: Mutex::new(None) })
+        let infer = InferKernels::load(&ctx);
+        Ok(Cuda { ctx, stream, k, device_name, lock: Mutex::new(None), infer, bundle: Mutex::new(None) })
     }
 
     /// The GPU's name as the driver reports it.

@@ -34,6 +34,8 @@ mod device;
 #[cfg(feature = "cuda")]
 mod elementwise;
 #[cfg(feature = "cuda")]
+mod infer;
+#[cfg(feature = "cuda")]
 mod loss;
 #[cfg(feature = "cuda")]
 mod pixel_shuffle;
@@ -79,6 +81,58 @@ pub(crate) const KERNELS: [(&str, &str, &[&str]); 6] = [
     ("loss.cu", include_str!("../../kernels/loss.cu"), &["mse_loss", "bce_logits_loss"]),
     ("adam.cu", include_str!("../../kernels/adam.cu"), &["adam_step"]),
 ];
+
+/// `kernels/infer.cu`, the device-resident inference of a whole bundle ([`nets_views`]):
+/// compiled apart from [`KERNELS`], for compute capability 8.0 and newer (tensor-core `mma.sync`).
+#[cfg_attr(not(feature = "cuda"), allow(dead_code))]
+pub(crate) const INFER_KERNELS: (&str, &str, &[&str]) = (
+    "infer.cu",
+    include_str!("../../kernels/infer.cu"),
+    &["f32_to_f16", "views_to_nhwc", "conv3x3_tc", "views_average"],
+);
+
+/// One mirror view of a batch for [`nets_views`]: the grid's rows and/or columns flipped, and
+/// the net coordinates the flip reverses (`v ↦ 1 − v` on the way in, `R ↦ −R` on the way out;
+/// [`crate::geom::cloth_frame::mirror_net_images`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct MirrorView {
+    pub rows: bool,
+    pub cols: bool,
+    pub axes: [bool; 3],
+}
+
+impl MirrorView {
+    /// The view's bits in `kernels/infer.cu`: 1 rows, 2 columns, 4 << axis for each reversed axis.
+    #[cfg_attr(not(feature = "cuda"), allow(dead_code))]
+    pub(crate) fn flags(self) -> i32 {
+        let axes = self.axes.iter().enumerate().map(|(a, &on)| (on as i32) << (2 + a)).sum::<i32>();
+        self.rows as i32 | (self.cols as i32) << 1 | axes
+    }
+}
+
+/// The whole bundle's inference on the batch `x` (N, 3, H, W), already in the nets' frame, for
+/// each of `views` (the first is usually the identity), every output un-mirrored and averaged
+/// over the views: what [`crate::sr::upscale`] computes op by op with `forward_with` on each
+/// view. Runs where `ops` is a [`Cuda`] table whose GPU has tensor cores (compute capability
+/// 8.0+) and the bundle fits the fused kernels (×2, every net of one config): one upload of the
+/// batch, every net and view on the device in fp16 with fp32 accumulation, one download of U,
+/// R, Γb and Γe. `None` where it cannot (the caller runs the op table instead). A driver failure
+/// is recorded like any op's ([`Ops::take_error`]) and the outputs are NaN.
+pub fn nets_views(
+    ops: &dyn Ops,
+    model: &crate::nn::AnisoCb,
+    x: &crate::tensor::Tensor,
+    views: &[MirrorView],
+    enhance: bool,
+) -> Option<crate::nn::NetsOutput> {
+    #[cfg(feature = "cuda")]
+    return ops.as_cuda()?.nets_views(model, x, views, enhance);
+    #[cfg(not(feature = "cuda"))]
+    {
+        let _ = (model, x, views, enhance);
+        ops.as_cuda().map(|c| match *c {})
+    }
+}
 
 /// The devices [`ops_for_device`] knows, for option help texts.
 pub const DEVICES: &[&str] = &["cpu", "cuda"];
@@ -150,6 +204,13 @@ mod tests {
             let defined = src.matches("__global__ void").count();
             assert_eq!(defined, names.len(), "kernels/{file}: every kernel is listed in KERNELS");
         }
+        let (file, src, names) = INFER_KERNELS;
+        assert!(src.is_ascii(), "kernels/{file}: keep kernel sources ASCII for NVRTC");
+        for name in names {
+            let sig = format!("extern \"C\" __global__ void {name}(");
+            assert_eq!(src.matches(&sig).count(), 1, "kernels/{file} should define `{name}` once");
+        }
+        assert_eq!(src.matches("__global__ void").count(), names.len(), "kernels/{file}: all listed");
     }
 
     #[test]

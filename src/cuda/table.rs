@@ -16,6 +16,10 @@ impl Ops for Cuda {
         self.take_failure()
     }
 
+    fn as_cuda(&self) -> Option<&Cuda> {
+        Some(self)
+    }
+
     fn conv2d(&self, x: &Tensor, w: &Tensor, b: Option<&Tensor>, pad: Padding) -> Tensor {
         self.run(
             "conv2d",

@@ -277,6 +277,15 @@ pub fn mirrored_axes(flip_rows: bool, flip_cols: bool) -> [bool; 3] {
     [flip_cols, flip_rows, flip_rows ^ flip_cols]
 }
 
+/// The net coordinates the grid mirror (`rows`, `cols`) reverses in `frame`: the
+/// [`mirrored_axes`] in the cloth's frame, none in the paper's domain frame.
+pub fn net_axes(rows: bool, cols: bool, frame: InputFrame) -> [bool; 3] {
+    match frame {
+        InputFrame::Cloth => mirrored_axes(rows, cols),
+        InputFrame::Domain => [false; 3],
+    }
+}
+
 /// Net-frame images (N, 3, H, W) mirrored by the grid mirror (`rows`, `cols`) and re-expressed
 /// in the frame the mirrored grid gets: positions (`as_points`) `n ↦ 1 − n` and vectors (a
 /// residual) `v ↦ −v` on the [`mirrored_axes`]. In the paper's domain frame (`frame` =
@@ -284,10 +293,7 @@ pub fn mirrored_axes(flip_rows: bool, flip_cols: bool) -> [bool; 3] {
 /// inverse.
 pub fn mirror_net_images(t: &Tensor, rows: bool, cols: bool, frame: InputFrame, as_points: bool) -> Tensor {
     let mut m = t.flipped(rows, cols);
-    let axes = match frame {
-        InputFrame::Cloth => mirrored_axes(rows, cols),
-        InputFrame::Domain => [false; 3],
-    };
+    let axes = net_axes(rows, cols, frame);
     let (_, c, h, w) = m.dims4();
     debug_assert_eq!(c, 3, "mirror_net_images: xyz images");
     for (plane, _) in m.data.chunks_exact_mut(h * w).zip(axes.iter().cycle()).filter(|(_, a)| **a) {

@@ -157,6 +157,11 @@ pub trait Ops: Sync {
     fn take_error(&self) -> Option<crate::Error> {
         None
     }
+    /// The CUDA table this is, if it is one: the device-resident paths that take a whole
+    /// bundle at once ([`crate::cuda::nets_views`]) ask. Default: none.
+    fn as_cuda(&self) -> Option<&crate::cuda::Cuda> {
+        None
+    }
 }
 
 /// `Err` with the device's failure if `ops` recorded one ([`Ops::take_error`]).

@@ -13,9 +13,10 @@ use super::outline::{blend_outer_rings, loop_length, outline_base, outline_weigh
 use super::params::UpscaleParams;
 use super::strain::{hr_edge_targets, limit_strain};
 use super::temporal::smooth_in_time;
+use crate::cuda::MirrorView;
 use crate::error::{Error, Result};
 use crate::geom::cloth_frame::{
-    from_cloth_frames, into_cloth_frames, mirror_net_images, Affine, InputFrame, GRID_MIRRORS,
+    from_cloth_frames, into_cloth_frames, mirror_net_images, net_axes, Affine, InputFrame, GRID_MIRRORS,
 };
 use crate::geom::geometry_image::{images_to_sequence, sequence_to_images};
 use crate::geom::mesh::ring_vertices;
@@ -366,31 +367,46 @@ pub(crate) fn run_nets_into(
         let mut x = lr.slice_batch(done, n);
         into_cloth_frames(model.input_frame(), &mut x, domain, &mut out.net_frames);
         out.lr_net.data[done * 3 * h * w..(done + n) * 3 * h * w].copy_from_slice(&x.data);
-        let o = nets.forward_with(ops, &x, out.how.enhance_ran)?;
         let (r_at, m_at) = (done * px3..(done + n) * px3, done * px1..(done + n) * px1);
-        out.interpolated.data[r_at.clone()].copy_from_slice(&o.interpolated.data);
-        out.residual.data[r_at.clone()].copy_from_slice(&o.residual.data);
-        out.boundary.data[m_at.clone()].copy_from_slice(&o.boundary.data);
-        out.enhance.data[m_at.clone()].copy_from_slice(&o.enhance.data);
         // The other mirrors of the grid, each in its own frame; their outputs back onto this one.
         let mirrors = if params.mirrors { &GRID_MIRRORS[1..] } else { &[] };
         let frame = model.input_frame();
-        let add = |acc: &mut [f32], t: &Tensor| acc.iter_mut().zip(&t.data).for_each(|(a, b)| *a += b);
-        for &(rows, cols) in mirrors {
-            let o =
-                nets.forward_with(ops, &mirror_net_images(&x, rows, cols, frame, true), out.how.enhance_ran)?;
-            add(
-                &mut out.residual.data[r_at.clone()],
-                &mirror_net_images(&o.residual, rows, cols, frame, false),
-            );
-            add(&mut out.boundary.data[m_at.clone()], &o.boundary.flipped(rows, cols));
-            add(&mut out.enhance.data[m_at.clone()], &o.enhance.flipped(rows, cols));
-        }
-        if !mirrors.is_empty() {
-            let s = 1.0 / (1 + mirrors.len()) as f32;
-            out.residual.data[r_at].iter_mut().for_each(|v| *v *= s);
-            out.enhance.data[m_at.clone()].iter_mut().for_each(|v| *v *= s);
-            out.boundary.data[m_at.clone()].iter_mut().for_each(|v| *v *= s);
+        let views: Vec<MirrorView> = GRID_MIRRORS[..1 + mirrors.len()]
+            .iter()
+            .map(|&(rows, cols)| MirrorView { rows, cols, axes: net_axes(rows, cols, frame) })
+            .collect();
+        if let Some(o) = crate::cuda::nets_views(ops, model, &x, &views, out.how.enhance_ran) {
+            // A GPU with tensor cores: every view and net on the device, averaged there.
+            out.interpolated.data[r_at.clone()].copy_from_slice(&o.interpolated.data);
+            out.residual.data[r_at.clone()].copy_from_slice(&o.residual.data);
+            out.boundary.data[m_at.clone()].copy_from_slice(&o.boundary.data);
+            out.enhance.data[m_at.clone()].copy_from_slice(&o.enhance.data);
+        } else {
+            let o = nets.forward_with(ops, &x, out.how.enhance_ran)?;
+            out.interpolated.data[r_at.clone()].copy_from_slice(&o.interpolated.data);
+            out.residual.data[r_at.clone()].copy_from_slice(&o.residual.data);
+            out.boundary.data[m_at.clone()].copy_from_slice(&o.boundary.data);
+            out.enhance.data[m_at.clone()].copy_from_slice(&o.enhance.data);
+            let add = |acc: &mut [f32], t: &Tensor| acc.iter_mut().zip(&t.data).for_each(|(a, b)| *a += b);
+            for &(rows, cols) in mirrors {
+                let o = nets.forward_with(
+                    ops,
+                    &mirror_net_images(&x, rows, cols, frame, true),
+                    out.how.enhance_ran,
+                )?;
+                add(
+                    &mut out.residual.data[r_at.clone()],
+                    &mirror_net_images(&o.residual, rows, cols, frame, false),
+                );
+                add(&mut out.boundary.data[m_at.clone()], &o.boundary.flipped(rows, cols));
+                add(&mut out.enhance.data[m_at.clone()], &o.enhance.flipped(rows, cols));
+            }
+            if !mirrors.is_empty() {
+                let s = 1.0 / (1 + mirrors.len()) as f32;
+                out.residual.data[r_at].iter_mut().for_each(|v| *v *= s);
+                out.enhance.data[m_at.clone()].iter_mut().for_each(|v| *v *= s);
+                out.boundary.data[m_at.clone()].iter_mut().for_each(|v| *v *= s);
+            }
         }
         if params.pin_border {
             let mut b = out.boundary.slice_batch(done, n);

@@ -1,0 +1,247 @@
+// infer.cu - the device-resident inference of a whole bundle (anisocb::cuda::infer): every net of
+// the bundle and every mirror view of a chunk of frames in one batch, activations kept on the
+// device in fp16 NHWC, 3x3 convolutions on the tensor cores (mma.sync m16n8k16, fp16 operands,
+// fp32 accumulation) with the epilogue (bias, residual skip, ReLU, pixel shuffle) fused into the
+// store. Contract: anisocb::nn::AnisoCb::forward_with on each view, un-mirrored and averaged, as
+// sr::upscale::run_nets_into does op by op; fp16 rounding is the difference (tests/cuda_parity.rs).
+//
+// Layouts. "Z" indexes the nets of the bundle (the GeometryNets first, then BoundaryNet, then
+// EnhanceNet), "NB" the images of the batch (view v of frame n at v*N + n). Activations:
+// (Z, NB, H, W, CP) fp16, CP a multiple of 16 (padded channels hold 0). Weights of one layer:
+// (Z, COP, 9*CI) fp16, k = (ky*3 + kx)*CI + c, zero for padded rows and columns; bias (Z, COP).
+// Needs sm_80 or newer (mma.sync with f16 operands); compiled for compute_80.
+
+#define TC_WARPS 4
+#define TC_PIX (32 * TC_WARPS)  // pixels of a block: 32 per warp (two m16 tiles)
+#define TC_COUT 32              // output channels of a block: four n8 tiles
+
+#ifndef ANISOCB_EMU
+__device__ __forceinline__ unsigned short f2h(float x) {
+    unsigned short h;
+    asm("cvt.rn.f16.f32 %0, %1;" : "=h"(h) : "f"(x));
+    return h;
+}
+__device__ __forceinline__ float h2f(unsigned short h) {
+    float x;
+    asm("cvt.f32.f16 %0, %1;" : "=f"(x) : "h"(h));
+    return x;
+}
+// d += a * b for one warp: a the 16x16 A fragment (four .f16x2 registers), b the 16x8 B fragment
+// (two), d the 16x8 fp32 accumulator (four), in the PTX ISA's m16n8k16 fragment layouts.
+__device__ __forceinline__ void mma16816(float* d, const unsigned* a, const unsigned* b) {
+    asm volatile(
+        "mma.sync.aligned.m16n8k16.row.col.f32.f16.f16.f32 {%0,%1,%2,%3}, {%4,%5,%6,%7}, {%8,%9}, "
+        "{%0,%1,%2,%3};\n"
+        : "+f"(d[0]), "+f"(d[1]), "+f"(d[2]), "+f"(d[3])
+        : "r"(a[0]), "r"(a[1]), "r"(a[2]), "r"(a[3]), "r"(b[0]), "r"(b[1]));
+}
+#endif
+
+__device__ __forceinline__ int tc_pad(int p, int n, int mode) {  // mode 0 zero (-1), 1 replicate
+    if (p >= 0 && p < n) return p;
+    if (mode == 0) return -1;
+    return p < 0 ? 0 : n - 1;
+}
+
+// fp32 -> fp16 (round to nearest even), 1-D grid-stride over n.
+extern "C" __global__ void f32_to_f16(const float* __restrict__ x, unsigned short* __restrict__ y, long long n) {
+    for (long long i = (long long)blockIdx.x * blockDim.x + threadIdx.x; i < n;
+         i += (long long)gridDim.x * blockDim.x)
+        y[i] = f2h(x[i]);
+}
+
+// The views of a chunk, fp16 NHWC. x: (N, 3, H, W) fp32 -> y: (V*N, H, W, CP) fp16; view v of frame
+// n is image v*N + n: rows flipped if bit 0 of its flags, columns if bit 1, and channel ch (< 3)
+// replaced by 1 - value if bit 2 + ch (a mirrored axis of the cloth frame). flags: 8 bits a view,
+// view v at bits 8v. Channels 3..CP-1 are 0. 1-D grid-stride over V*N*H*W pixels.
+extern "C" __global__ void views_to_nhwc(const float* __restrict__ x, unsigned short* __restrict__ y,
+                                         int V, int N, int H, int W, int CP, int flags) {
+    const long long HW = (long long)H * W, total = (long long)V * N * HW;
+    for (long long i = (long long)blockIdx.x * blockDim.x + threadIdx.x; i < total;
+         i += (long long)gridDim.x * blockDim.x) {
+        const long long img = i / HW;
+        const int r = (int)(i - img * HW);
+        const int v = (int)(img / N), n = (int)(img - (long long)v * N);
+        const int f = (flags >> (8 * v)) & 255;
+        int yy = r / W, xx = r - (r / W) * W;
+        if (f & 1) yy = H - 1 - yy;
+        if (f & 2) xx = W - 1 - xx;
+        unsigned short* out = y + i * CP;
+        for (int ch = 0; ch < CP; ++ch) {
+            float val = 0.f;
+            if (ch < 3) {
+                val = x[((long long)n * 3 + ch) * HW + yy * W + xx];
+                if ((f >> (2 + ch)) & 1) val = 1.f - val;
+            }
+            out[ch] = f2h(val);
+        }
+    }
+}
+
+__device__ __forceinline__ unsigned tc_ld(const unsigned short* p, long long off) {
+    return off < 0 ? 0u : *(const unsigned*)(p + off);
+}
+
+// One 3x3 convolution ("same" size, stride 1) of every net z < gridDim.z on the tensor cores.
+//   x: (Z, NB, H, W, CI) fp16 (xz: elements between nets, 0 = one input shared by all nets)
+//   w: (Z, COP, 9*CI) fp16, b: (Z, COP) fp32; CI a multiple of 16, COP of 8
+//   acc[q, o] = b[o] + sum_{ky, kx, c} w[o, (ky*3 + kx)*CI + c] * x[pad(q + (ky-1, kx-1)), c]
+// then by mode:
+//   0: + skip[q, o] (fp16, like y, nets z < nskip only), ReLU if relu, y (Z, NB, H, W, COP) fp16
+//   1: pixel shuffle x2: o = c*4 + i*2 + j -> y (Z, NB, 2H, 2W, COP/4) at (2y + i, 2x + j, c) fp16
+//   2: y (Z, NB, CO, H, W) fp32, channels o < (z < ng ? co_geo : co_map) only (the nets' outputs)
+// pad_mode 0 zero, 1 replicate. Grid (ceil(NB*H*W / 128), ceil(COP / 32), Z), block 128.
+extern "C" __global__ void conv3x3_tc(const unsigned short* __restrict__ x, long long xz,
+                                      const unsigned short* __restrict__ w, const float* __restrict__ b,
+                                      const unsigned short* __restrict__ skip, void* __restrict__ y,
+                                      int NB, int H, int W, int CI, int COP, int pad_mode, int mode,
+                                      int relu, int nskip, int ng, int CO, int co_geo, int co_map) {
+    const int z = blockIdx.z;
+    const int lane = threadIdx.x & 31, warp = threadIdx.x >> 5;
+    const int g = lane >> 2, t = lane & 3;
+    const int HW = H * W, P = NB * HW, K9 = 9 * CI;
+    const int p0 = blockIdx.x * TC_PIX + warp * 32, n0 = blockIdx.y * TC_COUT;
+    x += (long long)z * xz;
+    w += (long long)z * COP * K9;
+    b += (long long)z * COP;
+
+    // This thread's four A rows: pixel p0 + mi*16 + hi*8 + g (clamped; not stored past P).
+    int rn[4], ry[4], rx[4];
+#pragma unroll
+    for (int k = 0; k < 4; ++k) {
+        int q = p0 + (k >> 1) * 16 + (k & 1) * 8 + g;
+        if (q > P - 1) q = P - 1;
+        rn[k] = q / HW;
+        const int r = q - rn[k] * HW;
+        ry[k] = r / W;
+        rx[k] = r - ry[k] * W;
+    }
+    int nt = (COP - n0) / 8;  // n8 tiles of this block (COP is a multiple of 8)
+    if (nt > 4) nt = 4;
+
+    float acc[2][4][4];
+#pragma unroll
+    for (int mi = 0; mi < 2; ++mi)
+#pragma unroll
+        for (int j = 0; j < 4; ++j)
+#pragma unroll
+            for (int e = 0; e < 4; ++e) acc[mi][j][e] = 0.f;
+
+    for (int tap = 0; tap < 9; ++tap) {
+        const int ky = tap / 3 - 1, kx = tap - (tap / 3) * 3 - 1;
+        long long off[4];
+#pragma unroll
+        for (int k = 0; k < 4; ++k) {
+            const int sy = tc_pad(ry[k] + ky, H, pad_mode), sx = tc_pad(rx[k] + kx, W, pad_mode);
+            off[k] = (sy < 0 || sx < 0) ? -1 : ((long long)(rn[k] * H + sy) * W + sx) * CI;
+        }
+        for (int c0 = 0; c0 < CI; c0 += 16) {
+            unsigned a[2][4];
+#pragma unroll
+            for (int mi = 0; mi < 2; ++mi) {
+                const long long o0 = off[2 * mi], o1 = off[2 * mi + 1];
+                const int c = c0 + 2 * t;
+                a[mi][0] = tc_ld(x, o0 < 0 ? -1 : o0 + c);
+                a[mi][1] = tc_ld(x, o1 < 0 ? -1 : o1 + c);
+                a[mi][2] = tc_ld(x, o0 < 0 ? -1 : o0 + c + 8);
+                a[mi][3] = tc_ld(x, o1 < 0 ? -1 : o1 + c + 8);
+            }
+            const int kk = tap * CI + c0 + 2 * t;
+#pragma unroll
+            for (int j = 0; j < 4; ++j) {
+                if (j < nt) {
+                    const unsigned short* wr = w + (long long)(n0 + j * 8 + g) * K9 + kk;
+                    unsigned bf[2];
+                    bf[0] = *(const unsigned*)wr;
+                    bf[1] = *(const unsigned*)(wr + 8);
+                    mma16816(acc[0][j], a[0], bf);
+                    mma16816(acc[1][j], a[1], bf);
+                }
+            }
+        }
+    }
+
+    const long long zy = (long long)z * P;  // images of this net, times pixels per image
+#pragma unroll
+    for (int mi = 0; mi < 2; ++mi) {
+#pragma unroll
+        for (int hi = 0; hi < 2; ++hi) {
+            const int q = p0 + mi * 16 + hi * 8 + g;
+            if (q >= P) continue;
+            const int k = mi * 2 + hi;
+#pragma unroll
+            for (int j = 0; j < 4; ++j) {
+                if (j >= nt) continue;
+                const int o = n0 + j * 8 + 2 * t;
+                float v0 = acc[mi][j][2 * hi] + b[o], v1 = acc[mi][j][2 * hi + 1] + b[o + 1];
+                if (mode == 0) {
+                    const long long at = (zy + q) * COP + o;
+                    if (skip != 0 && z < nskip) {
+                        v0 += h2f(skip[at]);
+                        v1 += h2f(skip[at + 1]);
+                    }
+                    if (relu) {
+                        v0 = v0 > 0.f ? v0 : 0.f;
+                        v1 = v1 > 0.f ? v1 : 0.f;
+                    }
+                    unsigned short* yo = (unsigned short*)y;
+                    *(unsigned*)(yo + at) = (unsigned)f2h(v0) | ((unsigned)f2h(v1) << 16);
+                } else if (mode == 1) {
+                    const int C4 = COP / 4, H2 = 2 * H, W2 = 2 * W;
+                    unsigned short* yo = (unsigned short*)y + (long long)z * NB * (4LL * HW) * C4;
+                    const float vv[2] = {v0, v1};
+#pragma unroll
+                    for (int e = 0; e < 2; ++e) {
+                        const int oc = o + e, c = oc >> 2, si = (oc >> 1) & 1, sj = oc & 1;
+                        const long long at =
+                            (((long long)rn[k] * H2 + 2 * ry[k] + si) * W2 + 2 * rx[k] + sj) * C4 + c;
+                        yo[at] = f2h(relu && vv[e] < 0.f ? 0.f : vv[e]);
+                    }
+                } else {
+                    const int co = z < ng ? co_geo : co_map;
+                    float* yo = (float*)y + ((long long)z * NB + rn[k]) * CO * HW + ry[k] * W + rx[k];
+                    if (o < co) yo[(long long)o * HW] = v0;
+                    if (o + 1 < co) yo[(long long)(o + 1) * HW] = v1;
+                }
+            }
+        }
+    }
+}
+
+// The nets' outputs back onto the frames, averaged over nets z0 <= z < z1 and the V views:
+//   y[n, c, yy, xx] = 1/((z1 - z0) V) sum_v sum_z f(s[z, v*N + n, c, flip_v(yy, xx)])
+// s: (Z, V*N, CO, H, W) fp32 (conv3x3_tc mode 2), y: (N, C, H, W) fp32, C <= CO; f: the logistic
+// sigmoid if sig, and the value negated where view v mirrored axis c (flags as in views_to_nhwc;
+// only if neg). Sums run in z, then v order. 1-D grid-stride over N*C*H*W.
+extern "C" __global__ void views_average(const float* __restrict__ s, float* __restrict__ y, int z0, int z1,
+                                         int V, int N, int CO, int C, int H, int W, int flags, int neg,
+                                         int sig) {
+    const long long HW = (long long)H * W, total = (long long)N * C * HW;
+    const float scale_z = 1.f / (float)(z1 - z0), scale_v = 1.f / (float)V;
+    for (long long i = (long long)blockIdx.x * blockDim.x + threadIdx.x; i < total;
+         i += (long long)gridDim.x * blockDim.x) {
+        const int r = (int)(i % HW);
+        const int c = (int)((i / HW) % C);
+        const int n = (int)(i / (HW * C));
+        float sum_v = 0.f;
+        for (int v = 0; v < V; ++v) {
+            const int f = (flags >> (8 * v)) & 255;
+            int yy = r / W, xx = r - (r / W) * W;
+            if (f & 1) yy = H - 1 - yy;
+            if (f & 2) xx = W - 1 - xx;
+            float sum_z = 0.f;
+            for (int z = z0; z < z1; ++z) {
+                float val = s[(((long long)z * V * N + (long long)v * N + n) * CO + c) * HW + yy * W + xx];
+                if (sig) {  // the stable form of elementwise.cu's sigmoid
+                    const float e = expf(val >= 0.f ? -val : val);
+                    val = val >= 0.f ? 1.f / (1.f + e) : e / (1.f + e);
+                }
+                sum_z += val;
+            }
+            sum_z *= scale_z;
+            if (neg && ((f >> (2 + c)) & 1)) sum_z = -sum_z;
+            sum_v += sum_z;
+        }
+        y[i] = sum_v * scale_v;
+    }
+}
