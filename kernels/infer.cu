@@ -12,7 +12,8 @@
 // Needs sm_80 or newer (mma.sync with f16 operands); compiled for compute_80.
 
 #define TC_WARPS 4
-#define TC_PIX (32 * TC_WARPS)  // pixels of a block: 32 per warp (two m16 tiles)
+#define TC_MT 4                         // m16 tiles (of pixels) a warp computes
+#define TC_PIX (16 * TC_MT * TC_WARPS)  // pixels of a block: 64 per warp
 #define TC_COUT 32              // output channels of a block: four n8 tiles
 
 #ifndef ANISOCB_EMU
@@ -90,7 +91,8 @@ __device__ __forceinline__ unsigned tc_ld(const unsigned short* p, long long off
 //   0: + skip[q, o] (fp16, like y, nets z < nskip only), ReLU if relu, y (Z, NB, H, W, COP) fp16
 //   1: pixel shuffle x2: o = c*4 + i*2 + j -> y (Z, NB, 2H, 2W, COP/4) at (2y + i, 2x + j, c) fp16
 //   2: y (Z, NB, CO, H, W) fp32, channels o < (z < ng ? co_geo : co_map) only (the nets' outputs)
-// pad_mode 0 zero, 1 replicate. Grid (ceil(NB*H*W / 128), ceil(COP / 32), Z), block 128.
+// pad_mode 0 zero, 1 replicate. Grid (ceil(NB*H*W / TC_PIX), ceil(COP / 32), Z), block 128.
+// A warp computes 64 pixels x 32 output channels: each B fragment serves four m16 tiles.
 extern "C" __global__ void conv3x3_tc(const unsigned short* __restrict__ x, long long xz,
                                       const unsigned short* __restrict__ w, const float* __restrict__ b,
                                       const unsigned short* __restrict__ skip, void* __restrict__ y,
@@ -100,15 +102,15 @@ extern "C" __global__ void conv3x3_tc(const unsigned short* __restrict__ x, long
     const int lane = threadIdx.x & 31, warp = threadIdx.x >> 5;
     const int g = lane >> 2, t = lane & 3;
     const int HW = H * W, P = NB * HW, K9 = 9 * CI;
-    const int p0 = blockIdx.x * TC_PIX + warp * 32, n0 = blockIdx.y * TC_COUT;
+    const int p0 = blockIdx.x * TC_PIX + warp * 16 * TC_MT, n0 = blockIdx.y * TC_COUT;
     x += (long long)z * xz;
     w += (long long)z * COP * K9;
     b += (long long)z * COP;
 
-    // This thread's four A rows: pixel p0 + mi*16 + hi*8 + g (clamped; not stored past P).
-    int rn[4], ry[4], rx[4];
+    // This thread's A rows: pixel p0 + mi*16 + hi*8 + g at k = 2*mi + hi (clamped; not stored past P).
+    int rn[2 * TC_MT], ry[2 * TC_MT], rx[2 * TC_MT];
 #pragma unroll
-    for (int k = 0; k < 4; ++k) {
+    for (int k = 0; k < 2 * TC_MT; ++k) {
         int q = p0 + (k >> 1) * 16 + (k & 1) * 8 + g;
         if (q > P - 1) q = P - 1;
         rn[k] = q / HW;
@@ -119,9 +121,9 @@ extern "C" __global__ void conv3x3_tc(const unsigned short* __restrict__ x, long
     int nt = (COP - n0) / 8;  // n8 tiles of this block (COP is a multiple of 8)
     if (nt > 4) nt = 4;
 
-    float acc[2][4][4];
+    float acc[TC_MT][4][4];
 #pragma unroll
-    for (int mi = 0; mi < 2; ++mi)
+    for (int mi = 0; mi < TC_MT; ++mi)
 #pragma unroll
         for (int j = 0; j < 4; ++j)
 #pragma unroll
@@ -129,16 +131,16 @@ extern "C" __global__ void conv3x3_tc(const unsigned short* __restrict__ x, long
 
     for (int tap = 0; tap < 9; ++tap) {
         const int ky = tap / 3 - 1, kx = tap - (tap / 3) * 3 - 1;
-        long long off[4];
+        long long off[2 * TC_MT];
 #pragma unroll
-        for (int k = 0; k < 4; ++k) {
+        for (int k = 0; k < 2 * TC_MT; ++k) {
             const int sy = tc_pad(ry[k] + ky, H, pad_mode), sx = tc_pad(rx[k] + kx, W, pad_mode);
             off[k] = (sy < 0 || sx < 0) ? -1 : ((long long)(rn[k] * H + sy) * W + sx) * CI;
         }
         for (int c0 = 0; c0 < CI; c0 += 16) {
-            unsigned a[2][4];
+            unsigned a[TC_MT][4];
 #pragma unroll
-            for (int mi = 0; mi < 2; ++mi) {
+            for (int mi = 0; mi < TC_MT; ++mi) {
                 const long long o0 = off[2 * mi], o1 = off[2 * mi + 1];
                 const int c = c0 + 2 * t;
                 a[mi][0] = tc_ld(x, o0 < 0 ? -1 : o0 + c);
@@ -154,8 +156,8 @@ extern "C" __global__ void conv3x3_tc(const unsigned short* __restrict__ x, long
                     unsigned bf[2];
                     bf[0] = *(const unsigned*)wr;
                     bf[1] = *(const unsigned*)(wr + 8);
-                    mma16816(acc[0][j], a[0], bf);
-                    mma16816(acc[1][j], a[1], bf);
+#pragma unroll
+                    for (int mi = 0; mi < TC_MT; ++mi) mma16816(acc[mi][j], a[mi], bf);
                 }
             }
         }
@@ -163,7 +165,7 @@ extern "C" __global__ void conv3x3_tc(const unsigned short* __restrict__ x, long
 
     const long long zy = (long long)z * P;  // images of this net, times pixels per image
 #pragma unroll
-    for (int mi = 0; mi < 2; ++mi) {
+    for (int mi = 0; mi < TC_MT; ++mi) {
 #pragma unroll
         for (int hi = 0; hi < 2; ++hi) {
             const int q = p0 + mi * 16 + hi * 8 + g;

@@ -427,7 +427,7 @@ fn cuda_whole_bundle_on_the_device_matches_cpu() {
             .iter()
             .map(|&(rows, cols)| MirrorView { rows, cols, axes: mirrored_axes(rows, cols) })
             .collect();
-        let Some(got) = anisocb::cuda::nets_views(dev.as_ref(), &model, &x, &views, true) else {
+        let Some(got) = anisocb::cuda::nets_views(dev.as_ref(), &model.packed(), &x, &views, true) else {
             println!("skipped: this GPU has no tensor-core path");
             return;
         };

@@ -287,7 +287,7 @@ check("adam 10 steps m", m, mr, 1e-6, 1e-5)
 check("adam 10 steps v", v, vr, 1e-7, 1e-5)
 
 # ---------------- infer.cu: the tensor-core inference kernels ----------------
-TC_PIX, TC_COUT = 128, 32
+TC_PIX, TC_COUT = 256, 32
 
 
 def f16(a):
@@ -320,7 +320,7 @@ def tc_conv(x16, xz, w16, b, skip16, Z, NB, H, W, CI, COP, pad, mode, relu, nski
     return y
 
 
-for (NB, H, W, I_, O_, pad, Z) in [(2, 5, 7, 3, 32, 1, 2), (1, 9, 4, 32, 40, 0, 1), (3, 3, 3, 16, 8, 1, 3)]:
+for (NB, H, W, I_, O_, pad, Z) in [(2, 5, 7, 3, 32, 1, 2), (1, 9, 4, 32, 40, 0, 1), (3, 3, 3, 16, 8, 1, 3), (2, 17, 9, 16, 16, 0, 1)]:
     CI = -(-I_ // 16) * 16
     COP = -(-O_ // 8) * 8
     xs = [rnd(NB, I_, H, W) for _ in range(Z)]

@@ -85,13 +85,14 @@ fn bundle_on_device(ops: &dyn crate::ops::Ops, quick: bool) -> Result<()> {
         }
     }
     let reps = if quick { 5 } else { 20 };
+    let nets = model.packed();
     for s in [64usize, 32] {
         for chunk in [16usize, 1] {
             let x = sheet(chunk, s);
             let mut ms = Vec::with_capacity(reps);
             for rep in 0..=reps {
                 let t = Instant::now();
-                let Some(out) = nets_views(ops, &model, &x, &views, true) else {
+                let Some(out) = nets_views(ops, &nets, &x, &views, true) else {
                     println!("  {}: no device-resident path here", ops.name());
                     return Ok(());
                 };

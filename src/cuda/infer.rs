@@ -21,12 +21,13 @@ use super::device::{grid1, i32_of, Cuda, DResult, DevBuf};
 use super::{MirrorView, INFER_KERNELS};
 use crate::nn::config::KERNEL;
 use crate::nn::layers::{layout, Layer};
-use crate::nn::{AnisoCb, NetsOutput};
+use crate::nn::bundle::PackedAnisoCb;
+use crate::nn::NetsOutput;
 use crate::ops::{Interp, Padding};
 use crate::tensor::Tensor;
 
 /// Pixels and output channels of one `conv3x3_tc` block (`TC_PIX`, `TC_COUT` in infer.cu).
-const TC_PIX: usize = 128;
+const TC_PIX: usize = 256;
 const TC_COUT: usize = 32;
 /// Threads of a `conv3x3_tc` block (`TC_WARPS` warps).
 const TC_THREADS: u32 = 128;
@@ -94,7 +95,7 @@ struct TcLayer {
 
 /// A bundle's weights on the device, packed for `conv3x3_tc`.
 pub(crate) struct DeviceBundle {
-    /// [`weights_key`] of the bundle these are.
+    /// [`PackedAnisoCb::checksum`] of the bundle these are.
     key: u64,
     /// Nets (GeometryNets, BoundaryNet, EnhanceNet) and how many are GeometryNets.
     nets: usize,
@@ -111,8 +112,8 @@ pub(crate) struct DeviceBundle {
 impl DeviceBundle {
     /// `None` where the bundle does not fit the kernels: a scale other than 2, or nets of
     /// different configs.
-    fn build(cuda: &Cuda, k: &InferKernels, model: &AnisoCb) -> Option<DResult<DeviceBundle>> {
-        let trunks = model.named_trunks();
+    fn build(cuda: &Cuda, k: &InferKernels, nets: &PackedAnisoCb) -> Option<DResult<DeviceBundle>> {
+        let trunks = nets.model().named_trunks();
         let cfg = trunks[0].1.config;
         if cfg.scale != 2 || trunks.iter().any(|(_, t)| t.config != cfg) {
             return None;
@@ -120,7 +121,7 @@ impl DeviceBundle {
         let cp = cfg.channels.next_multiple_of(16);
         let ng = trunks.iter().filter(|(_, t)| t.kind.residual()).count();
         let lay = layout(trunks[0].1.kind, cfg);
-        let nets = trunks.len();
+        let z = trunks.len();
         let build = || -> DResult<DeviceBundle> {
             let mut layers = Vec::with_capacity(lay.len());
             for &(l, _, _) in &lay {
@@ -130,7 +131,7 @@ impl DeviceBundle {
                     Layer::Tail(i) if i + 1 == crate::nn::config::TAIL_CONVS => (cp, 8, Store::Out),
                     _ => (cp, cp, Store::Same),
                 };
-                let (mut w, mut b) = (vec![0f32; nets * cop * 9 * ci], vec![0f32; nets * cop]);
+                let (mut w, mut b) = (vec![0f32; z * cop * 9 * ci], vec![0f32; z * cop]);
                 for (z, (_, t)) in trunks.iter().enumerate() {
                     let conv = t.conv(l);
                     let (o_n, i_n) = (conv.weight.shape[0], conv.weight.shape[1]);
@@ -155,8 +156,8 @@ impl DeviceBundle {
                 layers.push(TcLayer { w: w16, b: cuda.up(&b)?, ci, cop, store });
             }
             Ok(DeviceBundle {
-                key: weights_key(model),
-                nets,
+                key: nets.checksum(),
+                nets: z,
                 ng,
                 blocks: cfg.blocks,
                 cp,
@@ -182,7 +183,7 @@ impl Cuda {
     /// not fit.
     pub fn nets_views(
         &self,
-        model: &AnisoCb,
+        nets: &PackedAnisoCb,
         x: &Tensor,
         views: &[MirrorView],
         enhance: bool,
@@ -196,9 +197,9 @@ impl Cuda {
         let bundle = {
             let mut slot = self.bundle.lock().unwrap_or_else(|p| p.into_inner());
             match slot.as_ref() {
-                Some(b) if b.key == weights_key(model) => b.clone(),
+                Some(b) if b.key == nets.checksum() => b.clone(),
                 _ => {
-                    let b = match DeviceBundle::build(self, k, model)? {
+                    let b = match DeviceBundle::build(self, k, nets)? {
                         Ok(b) => Arc::new(b),
                         Err(e) => return Some(self.run("nets_views (weights)", failed, || Err(e))),
                     };
@@ -373,23 +374,6 @@ impl Cuda {
         unsafe { l.launch(tc_grid(nb * h * w, layer.cop, nets)) }?;
         Ok(())
     }
-}
-
-/// A hash of every weight's bits in the bundle's order, four interleaved multiply–xor lanes (a
-/// fraction of a millisecond for the shipped bundle, checked on every batch, so weights changed in
-/// place between two calls are packed again).
-fn weights_key(model: &AnisoCb) -> u64 {
-    let mut lanes = [0x9e37_79b9_7f4a_7c15u64, 1, 2, 3];
-    for (_, t) in model.named_trunks() {
-        for (_, p) in t.params() {
-            for (i, v) in p.data.iter().enumerate() {
-                let l = &mut lanes[i & 3];
-                *l = (*l ^ v.to_bits() as u64).wrapping_mul(0x0100_0000_01b3).rotate_left(5);
-            }
-            lanes[0] ^= p.data.len() as u64;
-        }
-    }
-    lanes.iter().fold(0, |h, l| (h ^ l).wrapping_mul(0x9e37_79b9_7f4a_7c15))
 }
 
 fn tc_grid(pixels: usize, cop: usize, nets: usize) -> LaunchConfig {

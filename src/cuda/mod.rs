@@ -110,7 +110,8 @@ impl MirrorView {
     }
 }
 
-/// The whole bundle's inference on the batch `x` (N, 3, H, W), already in the nets' frame, for
+/// The whole bundle's (`nets`, its weights kept on the GPU under its checksum while the same
+/// bundle runs) inference on the batch `x` (N, 3, H, W), already in the nets' frame, for
 /// each of `views` (the first is usually the identity), every output un-mirrored and averaged
 /// over the views: what [`crate::sr::upscale`] computes op by op with `forward_with` on each
 /// view. Runs where `ops` is a [`Cuda`] table whose GPU has tensor cores (compute capability
@@ -120,16 +121,16 @@ impl MirrorView {
 /// is recorded like any op's ([`Ops::take_error`]) and the outputs are NaN.
 pub fn nets_views(
     ops: &dyn Ops,
-    model: &crate::nn::AnisoCb,
+    nets: &crate::nn::bundle::PackedAnisoCb,
     x: &crate::tensor::Tensor,
     views: &[MirrorView],
     enhance: bool,
 ) -> Option<crate::nn::NetsOutput> {
     #[cfg(feature = "cuda")]
-    return ops.as_cuda()?.nets_views(model, x, views, enhance);
+    return ops.as_cuda()?.nets_views(nets, x, views, enhance);
     #[cfg(not(feature = "cuda"))]
     {
-        let _ = (model, x, views, enhance);
+        let _ = (nets, x, views, enhance);
         ops.as_cuda().map(|c| match *c {})
     }
 }

@@ -9,6 +9,7 @@ use crate::geom::cloth_frame::InputFrame;
 use crate::ops::conv2d::PackedConv;
 use crate::ops::Ops;
 use crate::tensor::Tensor;
+use std::sync::OnceLock;
 
 /// GeometryNet, BoundaryNet and EnhanceNet. All three must share the upscale factor.
 #[derive(Clone, Debug, PartialEq)]
@@ -142,7 +143,11 @@ impl AnisoCb {
 
     /// The bundle with every conv's weights packed once, for inference on many frames.
     pub fn packed(&self) -> PackedAnisoCb<'_> {
-        PackedAnisoCb { model: self, packed: Packing::Own(self.pack_all()) }
+        PackedAnisoCb {
+            model: self,
+            packed: Packing::Own(self.pack_all()),
+            checksum: Checksum::Own(OnceLock::new()),
+        }
     }
 
     /// [`Trunk::pack`] of every net, in [`AnisoCb::named_trunks`] order: for an owner that
@@ -152,9 +157,14 @@ impl AnisoCb {
     }
 
     /// The bundle with `packed` = [`AnisoCb::pack_all`] of this very bundle, weights unchanged
-    /// since (the caller's promise; crate-only for that reason).
-    pub(crate) fn packed_with<'a>(&'a self, packed: &'a [Vec<PackedConv>]) -> PackedAnisoCb<'a> {
-        PackedAnisoCb { model: self, packed: Packing::Lent(packed) }
+    /// since, and `checksum` empty or holding [`AnisoCb::checksum`] of it (the caller's promise;
+    /// crate-only for that reason).
+    pub(crate) fn packed_with<'a>(
+        &'a self,
+        packed: &'a [Vec<PackedConv>],
+        checksum: &'a OnceLock<u64>,
+    ) -> PackedAnisoCb<'a> {
+        PackedAnisoCb { model: self, packed: Packing::Lent(packed), checksum: Checksum::Lent(checksum) }
     }
 
     /// `packed`: [`Trunk::pack`] of every net, in [`AnisoCb::named_trunks`] order.
@@ -195,6 +205,14 @@ pub struct PackedAnisoCb<'a> {
     model: &'a AnisoCb,
     /// [`Trunk::pack`] of every net, in [`AnisoCb::named_trunks`] order.
     packed: Packing<'a>,
+    /// [`AnisoCb::checksum`] of the bundle, computed the first time it is asked for.
+    checksum: Checksum<'a>,
+}
+
+/// A lazily computed checksum of its own, or one kept by the owner of the bundle.
+enum Checksum<'a> {
+    Own(OnceLock<u64>),
+    Lent(&'a OnceLock<u64>),
 }
 
 /// Packed weights made for one [`PackedAnisoCb`], or kept by an owner of the bundle that runs
@@ -217,5 +235,15 @@ impl PackedAnisoCb<'_> {
     /// The bundle.
     pub fn model(&self) -> &AnisoCb {
         self.model
+    }
+
+    /// [`AnisoCb::checksum`] of the bundle, computed once (the weights cannot change while it is
+    /// borrowed): the key under which a device keeps its copy of the weights.
+    pub fn checksum(&self) -> u64 {
+        let cell = match &self.checksum {
+            Checksum::Own(c) => c,
+            Checksum::Lent(c) => *c,
+        };
+        *cell.get_or_init(|| self.model.checksum())
     }
 }

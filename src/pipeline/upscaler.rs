@@ -34,6 +34,8 @@ pub struct Upscaler {
     model: AnisoCb,
     /// Every conv's weights packed once ([`AnisoCb::pack_all`] of `model`, which never changes).
     packed: Vec<Vec<PackedConv>>,
+    /// `model`'s checksum, computed when a device first asks ([`PackedAnisoCb::checksum`]).
+    checksum: std::sync::OnceLock<u64>,
     params: UpscaleParams,
     ops: Box<dyn Ops>,
     /// Worker threads of its own (`None`: the global pool).
@@ -77,6 +79,7 @@ impl Upscaler {
         Ok(Upscaler {
             window: FrameWindow::new(temporal_radius(&model, &params)),
             packed: model.pack_all(),
+            checksum: std::sync::OnceLock::new(),
             model,
             params,
             ops: Box::new(Cpu),
@@ -331,7 +334,7 @@ impl Upscaler {
             }
         }
         let (ops, domain, params) = (self.ops.as_ref(), &self.domain, &self.params);
-        let nets = self.model.packed_with(&self.packed);
+        let nets = self.model.packed_with(&self.packed, &self.checksum);
         let new = self.scratch.fresh.get_or_insert_with(Predictions::none);
         let frame = self.pushed;
         in_pool(&self.pool, || run_nets_into(ops, &nets, img, domain, params, &mut |_| {}, new))

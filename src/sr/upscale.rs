@@ -375,7 +375,7 @@ pub(crate) fn run_nets_into(
             .iter()
             .map(|&(rows, cols)| MirrorView { rows, cols, axes: net_axes(rows, cols, frame) })
             .collect();
-        if let Some(o) = crate::cuda::nets_views(ops, model, &x, &views, out.how.enhance_ran) {
+        if let Some(o) = crate::cuda::nets_views(ops, nets, &x, &views, out.how.enhance_ran) {
             // A GPU with tensor cores: every view and net on the device, averaged there.
             out.interpolated.data[r_at.clone()].copy_from_slice(&o.interpolated.data);
             out.residual.data[r_at.clone()].copy_from_slice(&o.residual.data);
