@@ -11,10 +11,7 @@
 // (Z, COP, 9*CI) fp16, k = (ky*3 + kx)*CI + c, zero for padded rows and columns; bias (Z, COP).
 // Needs sm_80 or newer (mma.sync with f16 operands); compiled for compute_80.
 
-#define TC_WARPS 4
-#define TC_MT 4                         // m16 tiles (of pixels) a warp computes
-#define TC_PIX (16 * TC_MT * TC_WARPS)  // pixels of a block: 64 per warp
-#define TC_COUT 32              // output channels of a block: four n8 tiles
+#define TC_COUT 32  // output channels of a block: four n8 tiles
 
 #ifndef ANISOCB_EMU
 __device__ __forceinline__ unsigned short f2h(float x) {
@@ -79,11 +76,7 @@ extern "C" __global__ void views_to_nhwc(const float* __restrict__ x, unsigned s
     }
 }
 
-__device__ __forceinline__ unsigned tc_ld(const unsigned short* p, long long off) {
-    return off < 0 ? 0u : *(const unsigned*)(p + off);
-}
-
-// One 3x3 convolution ("same" size, stride 1) of every net z < gridDim.z on the tensor cores.
+// One 3x3 convolution ("same" size, stride 1) of every net on the tensor cores.
 //   x: (Z, NB, H, W, CI) fp16 (xz: elements between nets, 0 = one input shared by all nets)
 //   w: (Z, COP, 9*CI) fp16, b: (Z, COP) fp32; CI a multiple of 16, COP of 8
 //   acc[q, o] = b[o] + sum_{ky, kx, c} w[o, (ky*3 + kx)*CI + c] * x[pad(q + (ky-1, kx-1)), c]
@@ -91,93 +84,110 @@ __device__ __forceinline__ unsigned tc_ld(const unsigned short* p, long long off
 //   0: + skip[q, o] (fp16, like y, nets z < nskip only), ReLU if relu, y (Z, NB, H, W, COP) fp16
 //   1: pixel shuffle x2: o = c*4 + i*2 + j -> y (Z, NB, 2H, 2W, COP/4) at (2y + i, 2x + j, c) fp16
 //   2: y (Z, NB, CO, H, W) fp32, channels o < (z < ng ? co_geo : co_map) only (the nets' outputs)
-// pad_mode 0 zero, 1 replicate. Grid (ceil(NB*H*W / TC_PIX), ceil(COP / 32), Z), block 128.
-// A warp computes 64 pixels x 32 output channels: each B fragment serves four m16 tiles.
+// pad_mode 0 zero, 1 replicate.
+// A block computes an 8 x 16 pixel tile of one image and 32 output channels: per slab of 32
+// input channels it stages the tile with its one-pixel halo (padding applied as it loads) and
+// the slab of the 32 channels' weights in shared memory, then each of its 4 warps runs the 9 taps
+// on two tile rows (two m16 tiles) x four n8 tiles from there. Row strides are padded by 8 halves
+// so that a warp's fragment loads hit 32 different banks.
+// Grid (ceil(W/16) * ceil(H/8), ceil(COP/32), Z*NB), block 128.
+#define TC_TH 8
+#define TC_TW 16
+#define TC_HALO_H (TC_TH + 2)
+#define TC_HALO_W (TC_TW + 2)
+#define TC_SLAB 32
+#define TC_A_STRIDE (TC_SLAB + 8)
+#define TC_W_STRIDE (9 * TC_SLAB + 8)
 extern "C" __global__ void conv3x3_tc(const unsigned short* __restrict__ x, long long xz,
                                       const unsigned short* __restrict__ w, const float* __restrict__ b,
                                       const unsigned short* __restrict__ skip, void* __restrict__ y,
                                       int NB, int H, int W, int CI, int COP, int pad_mode, int mode,
                                       int relu, int nskip, int ng, int CO, int co_geo, int co_map) {
-    const int z = blockIdx.z;
+    __shared__ __align__(16) unsigned short As[TC_HALO_H * TC_HALO_W * TC_A_STRIDE];
+    __shared__ __align__(16) unsigned short Ws[TC_COUT * TC_W_STRIDE];
     const int lane = threadIdx.x & 31, warp = threadIdx.x >> 5;
     const int g = lane >> 2, t = lane & 3;
-    const int HW = H * W, P = NB * HW, K9 = 9 * CI;
-    const int p0 = blockIdx.x * TC_PIX + warp * 16 * TC_MT, n0 = blockIdx.y * TC_COUT;
-    x += (long long)z * xz;
+    const int HW = H * W, K9 = 9 * CI;
+    const int tiles_x = (W + TC_TW - 1) / TC_TW;
+    const int ty0 = (blockIdx.x / tiles_x) * TC_TH, tx0 = (blockIdx.x % tiles_x) * TC_TW;
+    const int z = blockIdx.z / NB, img = blockIdx.z - (blockIdx.z / NB) * NB;
+    const int n0 = blockIdx.y * TC_COUT;
+    const unsigned short* xi = x + (long long)z * xz + (long long)img * HW * CI;
     w += (long long)z * COP * K9;
     b += (long long)z * COP;
-
-    // This thread's A rows: pixel p0 + mi*16 + hi*8 + g at k = 2*mi + hi (clamped; not stored past P).
-    int rn[2 * TC_MT], ry[2 * TC_MT], rx[2 * TC_MT];
-#pragma unroll
-    for (int k = 0; k < 2 * TC_MT; ++k) {
-        int q = p0 + (k >> 1) * 16 + (k & 1) * 8 + g;
-        if (q > P - 1) q = P - 1;
-        rn[k] = q / HW;
-        const int r = q - rn[k] * HW;
-        ry[k] = r / W;
-        rx[k] = r - ry[k] * W;
-    }
     int nt = (COP - n0) / 8;  // n8 tiles of this block (COP is a multiple of 8)
     if (nt > 4) nt = 4;
 
-    float acc[TC_MT][4][4];
+    float acc[2][4][4];
 #pragma unroll
-    for (int mi = 0; mi < TC_MT; ++mi)
+    for (int mi = 0; mi < 2; ++mi)
 #pragma unroll
         for (int j = 0; j < 4; ++j)
 #pragma unroll
             for (int e = 0; e < 4; ++e) acc[mi][j][e] = 0.f;
 
-    for (int tap = 0; tap < 9; ++tap) {
-        const int ky = tap / 3 - 1, kx = tap - (tap / 3) * 3 - 1;
-        long long off[2 * TC_MT];
-#pragma unroll
-        for (int k = 0; k < 2 * TC_MT; ++k) {
-            const int sy = tc_pad(ry[k] + ky, H, pad_mode), sx = tc_pad(rx[k] + kx, W, pad_mode);
-            off[k] = (sy < 0 || sx < 0) ? -1 : ((long long)(rn[k] * H + sy) * W + sx) * CI;
+    for (int cs = 0; cs < CI; cs += TC_SLAB) {
+        const int sc = CI - cs < TC_SLAB ? CI - cs : TC_SLAB;  // 16 or 32
+        const int cpp = sc / 8;                                  // 16-byte chunks a pixel
+        __syncthreads();  // the previous slab's reads are done
+        for (int e = threadIdx.x; e < TC_HALO_H * TC_HALO_W * cpp; e += blockDim.x) {
+            const int pix = e / cpp, ch = (e - pix * cpp) * 8;
+            const int hy = pix / TC_HALO_W, hx = pix - hy * TC_HALO_W;
+            const int sy = tc_pad(ty0 + hy - 1, H, pad_mode), sx = tc_pad(tx0 + hx - 1, W, pad_mode);
+            uint4 v = make_uint4(0u, 0u, 0u, 0u);
+            if (sy >= 0 && sx >= 0) v = *(const uint4*)(xi + ((long long)sy * W + sx) * CI + cs + ch);
+            *(uint4*)(As + pix * TC_A_STRIDE + ch) = v;
         }
-        for (int c0 = 0; c0 < CI; c0 += 16) {
-            unsigned a[TC_MT][4];
+        for (int e = threadIdx.x; e < TC_COUT * 9 * cpp; e += blockDim.x) {
+            const int n = e / (9 * cpp), r = e - n * 9 * cpp, tap = r / cpp, ch = (r - tap * cpp) * 8;
+            uint4 v = make_uint4(0u, 0u, 0u, 0u);
+            if (n0 + n < COP) v = *(const uint4*)(w + (long long)(n0 + n) * K9 + tap * CI + cs + ch);
+            *(uint4*)(Ws + n * TC_W_STRIDE + tap * TC_SLAB + ch) = v;
+        }
+        __syncthreads();
+        for (int tap = 0; tap < 9; ++tap) {
+            const int ky = tap / 3, kx = tap - (tap / 3) * 3;
+            for (int c0 = 0; c0 < sc; c0 += 16) {
+                unsigned a[2][4];
 #pragma unroll
-            for (int mi = 0; mi < TC_MT; ++mi) {
-                const long long o0 = off[2 * mi], o1 = off[2 * mi + 1];
-                const int c = c0 + 2 * t;
-                a[mi][0] = tc_ld(x, o0 < 0 ? -1 : o0 + c);
-                a[mi][1] = tc_ld(x, o1 < 0 ? -1 : o1 + c);
-                a[mi][2] = tc_ld(x, o0 < 0 ? -1 : o0 + c + 8);
-                a[mi][3] = tc_ld(x, o1 < 0 ? -1 : o1 + c + 8);
-            }
-            const int kk = tap * CI + c0 + 2 * t;
+                for (int mi = 0; mi < 2; ++mi) {
+                    const unsigned short* r0 =
+                        As + ((2 * warp + mi + ky) * TC_HALO_W + g + kx) * TC_A_STRIDE + c0 + 2 * t;
+                    const unsigned short* r1 = r0 + 8 * TC_A_STRIDE;
+                    a[mi][0] = *(const unsigned*)r0;
+                    a[mi][1] = *(const unsigned*)r1;
+                    a[mi][2] = *(const unsigned*)(r0 + 8);
+                    a[mi][3] = *(const unsigned*)(r1 + 8);
+                }
 #pragma unroll
-            for (int j = 0; j < 4; ++j) {
-                if (j < nt) {
-                    const unsigned short* wr = w + (long long)(n0 + j * 8 + g) * K9 + kk;
-                    unsigned bf[2];
-                    bf[0] = *(const unsigned*)wr;
-                    bf[1] = *(const unsigned*)(wr + 8);
-#pragma unroll
-                    for (int mi = 0; mi < TC_MT; ++mi) mma16816(acc[mi][j], a[mi], bf);
+                for (int j = 0; j < 4; ++j) {
+                    if (j < nt) {
+                        const unsigned short* wr = Ws + (j * 8 + g) * TC_W_STRIDE + tap * TC_SLAB + c0 + 2 * t;
+                        unsigned bf[2];
+                        bf[0] = *(const unsigned*)wr;
+                        bf[1] = *(const unsigned*)(wr + 8);
+                        mma16816(acc[0][j], a[0], bf);
+                        mma16816(acc[1][j], a[1], bf);
+                    }
                 }
             }
         }
     }
 
-    const long long zy = (long long)z * P;  // images of this net, times pixels per image
 #pragma unroll
-    for (int mi = 0; mi < TC_MT; ++mi) {
+    for (int mi = 0; mi < 2; ++mi) {
 #pragma unroll
         for (int hi = 0; hi < 2; ++hi) {
-            const int q = p0 + mi * 16 + hi * 8 + g;
-            if (q >= P) continue;
-            const int k = mi * 2 + hi;
+            const int yy = ty0 + 2 * warp + mi, xx = tx0 + g + 8 * hi;
+            if (yy >= H || xx >= W) continue;
+            const long long q = ((long long)z * NB + img) * HW + yy * W + xx;  // pixel of (Z, NB, H, W)
 #pragma unroll
             for (int j = 0; j < 4; ++j) {
                 if (j >= nt) continue;
                 const int o = n0 + j * 8 + 2 * t;
                 float v0 = acc[mi][j][2 * hi] + b[o], v1 = acc[mi][j][2 * hi + 1] + b[o + 1];
                 if (mode == 0) {
-                    const long long at = (zy + q) * COP + o;
+                    const long long at = q * COP + o;
                     if (skip != 0 && z < nskip) {
                         v0 += h2f(skip[at]);
                         v1 += h2f(skip[at + 1]);
@@ -190,18 +200,17 @@ extern "C" __global__ void conv3x3_tc(const unsigned short* __restrict__ x, long
                     *(unsigned*)(yo + at) = (unsigned)f2h(v0) | ((unsigned)f2h(v1) << 16);
                 } else if (mode == 1) {
                     const int C4 = COP / 4, H2 = 2 * H, W2 = 2 * W;
-                    unsigned short* yo = (unsigned short*)y + (long long)z * NB * (4LL * HW) * C4;
+                    unsigned short* yo = (unsigned short*)y + ((long long)z * NB + img) * (4LL * HW) * C4;
                     const float vv[2] = {v0, v1};
 #pragma unroll
                     for (int e = 0; e < 2; ++e) {
                         const int oc = o + e, c = oc >> 2, si = (oc >> 1) & 1, sj = oc & 1;
-                        const long long at =
-                            (((long long)rn[k] * H2 + 2 * ry[k] + si) * W2 + 2 * rx[k] + sj) * C4 + c;
+                        const long long at = ((long long)(2 * yy + si) * W2 + 2 * xx + sj) * C4 + c;
                         yo[at] = f2h(relu && vv[e] < 0.f ? 0.f : vv[e]);
                     }
                 } else {
                     const int co = z < ng ? co_geo : co_map;
-                    float* yo = (float*)y + ((long long)z * NB + rn[k]) * CO * HW + ry[k] * W + rx[k];
+                    float* yo = (float*)y + ((long long)z * NB + img) * CO * HW + yy * W + xx;
                     if (o < co) yo[(long long)o * HW] = v0;
                     if (o + 1 < co) yo[(long long)(o + 1) * HW] = v1;
                 }

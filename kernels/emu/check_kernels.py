@@ -287,7 +287,7 @@ check("adam 10 steps m", m, mr, 1e-6, 1e-5)
 check("adam 10 steps v", v, vr, 1e-7, 1e-5)
 
 # ---------------- infer.cu: the tensor-core inference kernels ----------------
-TC_PIX, TC_COUT = 256, 32
+TC_COUT = 32
 
 
 def f16(a):
@@ -311,7 +311,7 @@ def tc_conv(x16, xz, w16, b, skip16, Z, NB, H, W, CI, COP, pad, mode, relu, nski
     else:
         y = np.zeros((Z, NB, CO, H, W), np.float32)
     sk = skip16 if skip16 is not None else np.zeros(1, np.float16)
-    launch("conv3x3_tc", (-(-P // TC_PIX), -(-COP // TC_COUT), Z), 128, x16.view(np.uint16), L(xz),
+    launch("conv3x3_tc", (-(-W // 16) * -(-H // 8), -(-COP // TC_COUT), Z * NB), 128, x16.view(np.uint16), L(xz),
            w16.view(np.uint16), b, sk.view(np.uint16), y.view(np.uint16) if mode != 2 else y,
            I(NB), I(H), I(W), I(CI), I(COP), I(pad), I(mode), I(relu),
            I(nskip if skip16 is not None else 0), I(ng), I(CO), I(cg), I(cm))
@@ -320,7 +320,7 @@ def tc_conv(x16, xz, w16, b, skip16, Z, NB, H, W, CI, COP, pad, mode, relu, nski
     return y
 
 
-for (NB, H, W, I_, O_, pad, Z) in [(2, 5, 7, 3, 32, 1, 2), (1, 9, 4, 32, 40, 0, 1), (3, 3, 3, 16, 8, 1, 3), (2, 17, 9, 16, 16, 0, 1)]:
+for (NB, H, W, I_, O_, pad, Z) in [(2, 5, 7, 3, 32, 1, 2), (1, 9, 4, 32, 40, 0, 1), (3, 3, 3, 16, 8, 1, 3), (2, 17, 9, 16, 16, 0, 1), (1, 10, 20, 64, 32, 1, 2)]:
     CI = -(-I_ // 16) * 16
     COP = -(-O_ // 8) * 8
     xs = [rnd(NB, I_, H, W) for _ in range(Z)]

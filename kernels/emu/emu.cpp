@@ -43,6 +43,11 @@ using std::min;
 // block barriers (every thread of a block calls it equally often: infer.cu's loops are uniform).
 #include <cstring>
 #define ANISOCB_EMU
+#define __align__(n) __attribute__((aligned(n)))
+struct uint4 {
+    unsigned x, y, z, w;
+};
+static inline uint4 make_uint4(unsigned a, unsigned b, unsigned c, unsigned d) { return {a, b, c, d}; }
 static unsigned short f2h(float x) {
     _Float16 h = (_Float16)x;
     unsigned short u;

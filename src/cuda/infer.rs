@@ -26,13 +26,17 @@ use crate::nn::NetsOutput;
 use crate::ops::{Interp, Padding};
 use crate::tensor::Tensor;
 
-/// Pixels and output channels of one `conv3x3_tc` block (`TC_PIX`, `TC_COUT` in infer.cu).
-const TC_PIX: usize = 256;
+/// The pixel tile (rows, columns) and output channels of one `conv3x3_tc` block (`TC_TH`,
+/// `TC_TW`, `TC_COUT` in infer.cu).
+const TC_TILE: (usize, usize) = (8, 16);
 const TC_COUT: usize = 32;
-/// Threads of a `conv3x3_tc` block (`TC_WARPS` warps).
+/// Threads of a `conv3x3_tc` block (four warps, two tile rows each).
 const TC_THREADS: u32 = 128;
 /// Channels of the fp16 input images (xyz and 13 zeros).
 const IN_CP: usize = 16;
+/// fp16 values of one HR activation buffer [`Cuda::nets_views`] allows itself (256 MiB): larger
+/// batches run in sub-batches.
+const HR_BUDGET: usize = 128 << 20;
 /// Channels of the last layer's fp32 output (GeometryNet's xyz; the map nets fill one).
 const OUT_CO: usize = 3;
 
@@ -208,7 +212,28 @@ impl Cuda {
                 }
             }
         };
-        Some(self.run("nets_views", failed, || self.nets_views_dev(k, &bundle, x, views, enhance)))
+        // Sub-batches of at most ≈ 256 MiB for each fp16 activation buffer at the HR size.
+        let per = (HR_BUDGET / (h * w * bundle.nets * views.len() * 4 * bundle.cp)).max(1);
+        Some(self.run("nets_views", failed, || {
+            if n <= per {
+                return self.nets_views_dev(k, &bundle, x, views, enhance);
+            }
+            let mut all = failed();
+            for f0 in (0..n).step_by(per) {
+                let m = per.min(n - f0);
+                let o = self.nets_views_dev(k, &bundle, &x.slice_batch(f0, m), views, enhance)?;
+                for (dst, src) in [
+                    (&mut all.interpolated, &o.interpolated),
+                    (&mut all.residual, &o.residual),
+                    (&mut all.boundary, &o.boundary),
+                    (&mut all.enhance, &o.enhance),
+                ] {
+                    let len = src.len();
+                    dst.data[f0 * len / m..(f0 + m) * len / m].copy_from_slice(&src.data);
+                }
+            }
+            Ok(all)
+        }))
     }
 
     fn nets_views_dev(
@@ -225,6 +250,7 @@ impl Cuda {
         let nb = v * n;
         let z = if enhance { m.nets } else { m.nets - 1 };
         let _ = i32_of(z * nb * hh * hw * 4 * m.cp, "nets_views activation size");
+        assert!(z * nb <= 65_535, "nets_views: {z} nets x {nb} images exceed the grid's z extent");
         let flags: i32 = views.iter().enumerate().map(|(i, vw)| vw.flags() << (8 * i)).sum();
 
         let xd = self.upload(x)?;
@@ -342,7 +368,7 @@ impl Cuda {
         l.arg(&nskip).arg(&ngi).arg(&coi).arg(&cg).arg(&cm);
         // SAFETY: matches conv3x3_tc; x holds nets·NB·H·W·CI values (or NB·H·W·CI with xz = 0),
         // y nets·NB·H·W·COP (Same) or nets·NB·2H·2W·COP/4 (Shuffle), skip is like y.
-        unsafe { l.launch(tc_grid(nb * h * w, layer.cop, nets)) }?;
+        unsafe { l.launch(tc_grid(nb, h, w, layer.cop, nets)) }?;
         Ok(())
     }
 
@@ -371,14 +397,16 @@ impl Cuda {
         l.arg(&nbi).arg(&hi).arg(&wi).arg(&cii).arg(&copi).arg(&m.pad).arg(&mode).arg(&zero);
         l.arg(&zero).arg(&ngi).arg(&coi).arg(&cg).arg(&cm);
         // SAFETY: matches conv3x3_tc; y holds nets·NB·3·H·W values.
-        unsafe { l.launch(tc_grid(nb * h * w, layer.cop, nets)) }?;
+        unsafe { l.launch(tc_grid(nb, h, w, layer.cop, nets)) }?;
         Ok(())
     }
 }
 
-fn tc_grid(pixels: usize, cop: usize, nets: usize) -> LaunchConfig {
+/// `conv3x3_tc`'s grid: pixel tiles of an image, output channel blocks, nets × images.
+fn tc_grid(nb: usize, h: usize, w: usize, cop: usize, nets: usize) -> LaunchConfig {
+    let tiles = h.div_ceil(TC_TILE.0) * w.div_ceil(TC_TILE.1);
     LaunchConfig {
-        grid_dim: (pixels.div_ceil(TC_PIX) as u32, cop.div_ceil(TC_COUT) as u32, nets as u32),
+        grid_dim: (tiles as u32, cop.div_ceil(TC_COUT) as u32, (nets * nb) as u32),
         block_dim: (TC_THREADS, 1, 1),
         shared_mem_bytes: 0,
     }
