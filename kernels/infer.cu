@@ -91,7 +91,8 @@ extern "C" __global__ void views_to_nhwc(const float* __restrict__ x, unsigned s
 // on two tile rows (two m16 tiles) x four n8 tiles from there. Row strides are padded by 8 halves
 // so that a warp's fragment loads hit 32 different banks.
 // Grid (ceil(W/16) * ceil(H/8), ceil(COP/32), Z*NB), block 128.
-#define TC_TH 8
+#define TC_MT 2  // m16 tiles (tile rows) of a warp; infer.rs's TC_TILE rows = 4 * TC_MT
+#define TC_TH (4 * TC_MT)
 #define TC_TW 16
 #define TC_HALO_H (TC_TH + 2)
 #define TC_HALO_W (TC_TW + 2)
@@ -118,9 +119,9 @@ extern "C" __global__ void conv3x3_tc(const unsigned short* __restrict__ x, long
     int nt = (COP - n0) / 8;  // n8 tiles of this block (COP is a multiple of 8)
     if (nt > 4) nt = 4;
 
-    float acc[2][4][4];
+    float acc[TC_MT][4][4];
 #pragma unroll
-    for (int mi = 0; mi < 2; ++mi)
+    for (int mi = 0; mi < TC_MT; ++mi)
 #pragma unroll
         for (int j = 0; j < 4; ++j)
 #pragma unroll
@@ -148,11 +149,11 @@ extern "C" __global__ void conv3x3_tc(const unsigned short* __restrict__ x, long
         for (int tap = 0; tap < 9; ++tap) {
             const int ky = tap / 3, kx = tap - (tap / 3) * 3;
             for (int c0 = 0; c0 < sc; c0 += 16) {
-                unsigned a[2][4];
+                unsigned a[TC_MT][4];
 #pragma unroll
-                for (int mi = 0; mi < 2; ++mi) {
+                for (int mi = 0; mi < TC_MT; ++mi) {
                     const unsigned short* r0 =
-                        As + ((2 * warp + mi + ky) * TC_HALO_W + g + kx) * TC_A_STRIDE + c0 + 2 * t;
+                        As + ((TC_MT * warp + mi + ky) * TC_HALO_W + g + kx) * TC_A_STRIDE + c0 + 2 * t;
                     const unsigned short* r1 = r0 + 8 * TC_A_STRIDE;
                     a[mi][0] = *(const unsigned*)r0;
                     a[mi][1] = *(const unsigned*)r1;
@@ -166,8 +167,8 @@ extern "C" __global__ void conv3x3_tc(const unsigned short* __restrict__ x, long
                         unsigned bf[2];
                         bf[0] = *(const unsigned*)wr;
                         bf[1] = *(const unsigned*)(wr + 8);
-                        mma16816(acc[0][j], a[0], bf);
-                        mma16816(acc[1][j], a[1], bf);
+#pragma unroll
+                        for (int mi = 0; mi < TC_MT; ++mi) mma16816(acc[mi][j], a[mi], bf);
                     }
                 }
             }
@@ -175,10 +176,10 @@ extern "C" __global__ void conv3x3_tc(const unsigned short* __restrict__ x, long
     }
 
 #pragma unroll
-    for (int mi = 0; mi < 2; ++mi) {
+    for (int mi = 0; mi < TC_MT; ++mi) {
 #pragma unroll
         for (int hi = 0; hi < 2; ++hi) {
-            const int yy = ty0 + 2 * warp + mi, xx = tx0 + g + 8 * hi;
+            const int yy = ty0 + TC_MT * warp + mi, xx = tx0 + g + 8 * hi;
             if (yy >= H || xx >= W) continue;
             const long long q = ((long long)z * NB + img) * HW + yy * W + xx;  // pixel of (Z, NB, H, W)
 #pragma unroll

@@ -111,6 +111,18 @@ fn bundle_on_device(ops: &dyn crate::ops::Ops, quick: bool) -> Result<()> {
             );
         }
     }
+    // The shipped default η = 0 skips EnhanceNet (12 passes a frame).
+    let x = sheet(16, 64);
+    let mut ms = Vec::with_capacity(reps);
+    for rep in 0..=reps {
+        let t = Instant::now();
+        drop(nets_views(ops, &nets, &x, &views, false));
+        if rep > 0 {
+            ms.push(1e3 * t.elapsed().as_secs_f64() / 16.0);
+        }
+    }
+    ms.sort_by(f64::total_cmp);
+    println!("  64x64 -> 128x128, chunk 16, without EnhanceNet (η = 0, the default): {:.3} ms a frame", ms[ms.len() / 2]);
     // The op-by-op path (each op uploads its inputs and downloads its output), one frame.
     let x = sheet(1, 64);
     let t = Instant::now();
