@@ -10,7 +10,10 @@ use anisocb::rng::Rng;
 use close::{assert_close, assert_close_f32};
 #[path = "common/random.rs"]
 mod random;
-use anisocb::cuda::{ops_for_device, MirrorView};
+use anisocb::cuda::{ops_for_device, DeviceTrainer, MirrorView, StepLoss};
+use anisocb::nn::geometry_net::{geometry_loss, GeometryLoss};
+use anisocb::nn::map_net::map_loss;
+use anisocb::train::adam::Adam;
 use anisocb::geom::cloth_frame::{mirror_net_images, mirrored_axes, InputFrame, GRID_MIRRORS};
 use anisocb::nn::{AnisoCb, NetConfig, NetKind, Trunk};
 use anisocb::ops::conv2d::{conv2d_backward_ref, conv2d_ref};
@@ -440,6 +443,60 @@ fn cuda_whole_bundle_on_the_device_matches_cpu() {
             [("R", &got.residual, &want[1]), ("Γb", &got.boundary, &want[2]), ("Γe", &got.enhance, &want[3])]
         {
             assert_close(&format!("{tag} {name}"), g, wt, 1e-2 * range(wt).max(1e-3), 0.0);
+        }
+    }
+}
+
+// ------------------------------------------------------ device-resident training (cuda::train)
+
+/// Ten steps of the device-resident trainer (the trunk, its gradients and Adam's moments kept
+/// on the GPU) against the CPU's op-by-op steps: GeometryNet with the paper's MSE, GeometryNet
+/// with an edge term (computed on the host from the downloaded estimate), and BoundaryNet's
+/// BCE; the losses of every step, then the weights and moments it stores back. Tolerances as
+/// the op table's training parity above (fp32 on both sides, different summation orders).
+#[test]
+fn cuda_device_resident_training_matches_cpu() {
+    let Some(dev) = device() else { return };
+    let Some(cuda) = dev.as_cuda() else { return };
+    let mut rng = Rng::new(0x7a1_2);
+    let edge = GeometryLoss { edge: 0.5, ..GeometryLoss::default() };
+    let cases = [
+        (NetKind::Geometry, StepLoss::Geometry(GeometryLoss::default())),
+        (NetKind::Geometry, StepLoss::Geometry(edge)),
+        (NetKind::Boundary, StepLoss::Map { pos_weight: 2.0 }),
+    ];
+    for (kind, loss) in cases {
+        let cfg = NetConfig { channels: 8, blocks: 2, padding: Padding::Replicate, ..NetConfig::small() };
+        let mut host = Trunk::init(kind, cfg, 5);
+        let sizes: Vec<usize> = host.params().iter().map(|(_, t)| t.len()).collect();
+        let mut host_adam = Adam::new(AdamParams { lr: 1e-3, ..AdamParams::default() }, &sizes);
+        let mut dt = DeviceTrainer::new(cuda, &host, &host_adam).expect("upload");
+        let oc = kind.out_channels();
+        for step in 0..10 {
+            let lr = rng.tensor(&[3, 3, 7, 9], 0.0, 1.0);
+            let u = rng.tensor(&[3, oc, 14, 18], 0.0, 1.0);
+            let t = rng.tensor(&[3, oc, 14, 18], 0.0, 1.0);
+            let got = dt.step(&lr, &u, &t, loss);
+            assert!(dev.take_error().is_none(), "a driver failure in the training step");
+            let mut g = host.zeros_like();
+            let want = match loss {
+                StepLoss::Geometry(w) => geometry_loss(&Cpu, &host, &lr, &u, &t, w, Some(&mut g)),
+                StepLoss::Map { pos_weight } => map_loss(&Cpu, &host, &lr, &t, pos_weight, Some(&mut g)),
+            }
+            .unwrap();
+            let gs: Vec<&[f32]> = g.params().into_iter().map(|(_, g)| g.data.as_slice()).collect();
+            let mut ps: Vec<&mut [f32]> = host.params_mut().into_iter().map(|p| p.data.as_mut_slice()).collect();
+            host_adam.step(&Cpu, &mut ps, &gs);
+            assert_close_f32(&format!("{kind:?} {loss:?} loss step {}", step + 1), got, want, 1e-5, 1e-4);
+        }
+        let (mut stored, mut stored_adam) = (host.zeros_like(), host_adam.clone());
+        dt.store(&mut stored, &mut stored_adam).expect("download");
+        for ((name, a), (_, b)) in stored.params().into_iter().zip(host.params()) {
+            assert_close(&format!("{kind:?} {loss:?} trained {name}"), a, b, 1e-5, 1e-3);
+        }
+        assert_eq!(stored_adam.step, host_adam.step, "Adam's step count");
+        for (a, b) in stored_adam.m.iter().zip(&host_adam.m) {
+            close::assert_close_slice(&format!("{kind:?} Adam m"), a, b, 1e-6, 1e-3);
         }
     }
 }

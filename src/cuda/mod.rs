@@ -44,12 +44,37 @@ mod resample;
 #[cfg(feature = "cuda")]
 mod table;
 #[cfg(feature = "cuda")]
+mod train;
+#[cfg(feature = "cuda")]
 pub use device::{Cuda, DevBuf};
+#[cfg(feature = "cuda")]
+pub use train::DeviceTrainer;
 
 #[cfg(not(feature = "cuda"))]
 mod stub;
 #[cfg(not(feature = "cuda"))]
-pub use stub::Cuda;
+pub use stub::{Cuda, DeviceTrainer};
+
+/// What a [`DeviceTrainer`] step minimises: GeometryNet's `U + R` against HR (Eq 3 and the
+/// optional terms), or a map net's BCE (Eq 10, 11).
+#[derive(Clone, Copy, Debug)]
+pub enum StepLoss {
+    Geometry(crate::nn::geometry_net::GeometryLoss),
+    Map { pos_weight: f32 },
+}
+
+/// A [`DeviceTrainer`] for `trunk` with Adam's state `adam` where `ops` is the CUDA table, else
+/// `None` (the trainer runs op by op on the table).
+pub fn device_trainer<'a>(
+    ops: &'a dyn Ops,
+    trunk: &crate::nn::Trunk,
+    adam: &crate::train::adam::Adam,
+) -> Result<Option<DeviceTrainer<'a>>> {
+    match ops.as_cuda() {
+        Some(c) => DeviceTrainer::new(c, trunk, adam).map(Some),
+        None => Ok(None),
+    }
+}
 
 /// The embedded kernel sources, compiled by NVRTC when [`Cuda`] starts: (file under
 /// `kernels/`, source, the `extern "C" __global__` kernels it defines). Sources are kept ASCII.

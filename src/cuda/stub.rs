@@ -35,6 +35,29 @@ impl Cuda {
     }
 }
 
+/// Stand-in for the device-resident trainer. Uninhabited, like [`Cuda`].
+pub enum DeviceTrainer<'a> {
+    #[doc(hidden)]
+    _Never(std::convert::Infallible, std::marker::PhantomData<&'a ()>),
+}
+
+impl<'a> DeviceTrainer<'a> {
+    /// Never called: there is no [`Cuda`] to pass.
+    pub fn new(cuda: &'a Cuda, _: &crate::nn::Trunk, _: &crate::train::adam::Adam) -> Result<Self> {
+        match *cuda {}
+    }
+    pub fn step(&mut self, _: &Tensor, _: &Tensor, _: &Tensor, _: super::StepLoss) -> f32 {
+        match self {
+            DeviceTrainer::_Never(n, _) => match *n {},
+        }
+    }
+    pub fn store(&self, _: &mut crate::nn::Trunk, _: &mut crate::train::adam::Adam) -> Result<()> {
+        match self {
+            DeviceTrainer::_Never(n, _) => match *n {},
+        }
+    }
+}
+
 impl Ops for Cuda {
     fn name(&self) -> &'static str {
         match *self {}

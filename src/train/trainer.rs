@@ -18,6 +18,7 @@ use crate::error::{Error, Result};
 use crate::io::json::Object;
 use crate::io::{read_npz, write_atomic_bytes, write_npz, NpzEntries};
 use crate::nn::geometry_net::{geometry_loss, GeometryLoss};
+use crate::cuda::StepLoss;
 use crate::nn::map_net::map_loss;
 use crate::nn::weights::{push_trunk, save_net, trunk_from_npz};
 use crate::nn::{AnisoCb, NetConfig, NetKind, Trunk};
@@ -469,19 +470,35 @@ pub fn train(
         baseline_val,
     });
     let mut grads = st.trunk.zeros_like();
+    // On a GPU: the trunk, its gradients and Adam's state stay on the device between steps,
+    // and come back to `st` for validation, checkpoints and the weights file.
+    let mut device = crate::cuda::device_trainer(ops, &st.trunk, &st.adam)?;
+    let step_loss = match net {
+        NetKind::Geometry => StepLoss::Geometry(opts.geometry_loss()),
+        _ => StepLoss::Map { pos_weight: opts.pos_weight },
+    };
     let t0 = std::time::Instant::now();
     let first = st.step;
     let mut last_val = st.history.iter().rev().find(|r| !r.val.is_nan()).map(|r| r.val);
     while st.step < opts.steps {
         let b = sampler.batch(data, u_all.as_ref(), net, st.step);
-        grads.fill_zero();
-        let loss = crate::ops::entered(ops, || {
-            batch_loss(ops, &st.trunk, &b.lr, &b.u, &b.target, opts, Some(&mut grads))
-        })?;
+        let loss = match device.as_mut() {
+            Some(d) => d.step(&b.lr, &b.u, &b.target, step_loss),
+            None => {
+                grads.fill_zero();
+                crate::ops::entered(ops, || {
+                    batch_loss(ops, &st.trunk, &b.lr, &b.u, &b.target, opts, Some(&mut grads))
+                })?
+            }
+        };
         // A device failure makes the loss NaN: say what failed, not "try a lower --lr".
         crate::ops::check_device(ops)?;
-        let bad_grad =
-            grads.params().into_iter().find_map(|(n, g)| g.first_non_finite().map(|(_, v)| (n, v)));
+        // (On the device the gradients are not inspected: a non-finite one shows as the loss.)
+        let bad_grad = if device.is_some() {
+            None
+        } else {
+            grads.params().into_iter().find_map(|(n, g)| g.first_non_finite().map(|(_, v)| (n, v)))
+        };
         if !loss.is_finite() || bad_grad.is_some() {
             let what = match bad_grad {
                 Some((n, v)) if loss.is_finite() => format!("gradient of {n} is {v}"),
@@ -498,17 +515,24 @@ pub fn train(
                 st.step + 1
             )));
         }
-        let gs: Vec<&[f32]> = grads.params().into_iter().map(|(_, g)| g.data.as_slice()).collect();
-        let mut ps: Vec<&mut [f32]> =
-            st.trunk.params_mut().into_iter().map(|p| p.data.as_mut_slice()).collect();
-        st.adam.step(ops, &mut ps, &gs);
-        // A GPU table's driver failure (its results are NaN from then on) stops the run here.
-        crate::ops::check_device(ops)?;
+        if device.is_none() {
+            let gs: Vec<&[f32]> = grads.params().into_iter().map(|(_, g)| g.data.as_slice()).collect();
+            let mut ps: Vec<&mut [f32]> =
+                st.trunk.params_mut().into_iter().map(|p| p.data.as_mut_slice()).collect();
+            st.adam.step(ops, &mut ps, &gs);
+            // A GPU table's driver failure (its results are NaN from then on) stops the run here.
+            crate::ops::check_device(ops)?;
+        }
         st.step += 1;
         on_event(Event::Step { net, step: st.step, loss });
         let last_step = st.step == opts.steps;
+        let validate = last_step || (opts.val_every > 0 && st.step % opts.val_every == 0);
+        let checkpoint = !last_step && opts.checkpoint_every > 0 && st.step % opts.checkpoint_every == 0;
+        if let (Some(d), true) = (&device, validate || checkpoint || last_step) {
+            d.store(&mut st.trunk, &mut st.adam)?;
+        }
         let mut row = LogRow { step: st.step, train: loss, val: f32::NAN };
-        if last_step || (opts.val_every > 0 && st.step % opts.val_every == 0) {
+        if validate {
             if let Some(vl) = validation_loss(ops, &st.trunk, data, u_all.as_ref(), &val_idx, opts)? {
                 if !vl.is_finite() {
                     return Err(Error::numeric(format!(
@@ -524,7 +548,7 @@ pub fn train(
             }
         }
         st.history.push(row);
-        if !last_step && opts.checkpoint_every > 0 && st.step % opts.checkpoint_every == 0 {
+        if checkpoint {
             write_checkpoint(&ckpt, net, opts, fp, &st)?;
             write_loss_csv(&opts.out.join("loss.csv"), &st.history)?;
             on_event(Event::Checkpoint { net, step: st.step, dir: &opts.out, history: &st.history });
