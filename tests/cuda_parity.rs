@@ -11,14 +11,14 @@ use close::{assert_close, assert_close_f32};
 #[path = "common/random.rs"]
 mod random;
 use anisocb::cuda::{ops_for_device, DeviceTrainer, MirrorView, StepLoss};
+use anisocb::geom::cloth_frame::{mirror_net_images, mirrored_axes, InputFrame, GRID_MIRRORS};
 use anisocb::nn::geometry_net::{geometry_loss, GeometryLoss};
 use anisocb::nn::map_net::map_loss;
-use anisocb::train::adam::Adam;
-use anisocb::geom::cloth_frame::{mirror_net_images, mirrored_axes, InputFrame, GRID_MIRRORS};
 use anisocb::nn::{AnisoCb, NetConfig, NetKind, Trunk};
 use anisocb::ops::conv2d::{conv2d_backward_ref, conv2d_ref};
 use anisocb::ops::loss::DetailEnergy;
 use anisocb::ops::{AdamParams, Cpu, Interp, Ops, Padding};
+use anisocb::train::adam::Adam;
 use anisocb::{Error, Tensor};
 use random::TestData;
 
@@ -375,7 +375,8 @@ fn nets_views_cpu(model: &AnisoCb, x: &Tensor, views: &[MirrorView], enhance: bo
     let frame = model.input_frame();
     let mut acc: Option<[Tensor; 4]> = None;
     for v in views {
-        let o = model.forward_with(&Cpu, &mirror_net_images(x, v.rows, v.cols, frame, true), enhance).unwrap();
+        let o =
+            model.forward_with(&Cpu, &mirror_net_images(x, v.rows, v.cols, frame, true), enhance).unwrap();
         let back = [
             o.interpolated.clone(),
             mirror_net_images(&o.residual, v.rows, v.cols, frame, false),
@@ -452,7 +453,8 @@ fn cuda_whole_bundle_on_the_device_matches_cpu() {
 /// Ten steps of the device-resident trainer (the trunk, its gradients and Adam's moments kept
 /// on the GPU) against the CPU's op-by-op steps: GeometryNet with the paper's MSE, GeometryNet
 /// with an edge term (computed on the host from the downloaded estimate), and BoundaryNet's
-/// BCE; the losses of every step, then the weights and moments it stores back. Tolerances as
+/// BCE; the losses of every step, a validation loss (forward only), then the weights and
+/// moments it stores back. Tolerances as
 /// the op table's training parity above (fp32 on both sides, different summation orders).
 #[test]
 fn cuda_device_resident_training_matches_cpu() {
@@ -485,10 +487,29 @@ fn cuda_device_resident_training_matches_cpu() {
             }
             .unwrap();
             let gs: Vec<&[f32]> = g.params().into_iter().map(|(_, g)| g.data.as_slice()).collect();
-            let mut ps: Vec<&mut [f32]> = host.params_mut().into_iter().map(|p| p.data.as_mut_slice()).collect();
+            let mut ps: Vec<&mut [f32]> =
+                host.params_mut().into_iter().map(|p| p.data.as_mut_slice()).collect();
             host_adam.step(&Cpu, &mut ps, &gs);
             assert_close_f32(&format!("{kind:?} {loss:?} loss step {}", step + 1), got, want, 1e-5, 1e-4);
         }
+        // The validation loss of the trained weights, forward only.
+        let (lr, u, t) = (
+            rng.tensor(&[2, 3, 5, 6], 0.0, 1.0),
+            rng.tensor(&[2, oc, 10, 12], 0.0, 1.0),
+            rng.tensor(&[2, oc, 10, 12], 0.0, 1.0),
+        );
+        let want = match loss {
+            StepLoss::Geometry(w) => geometry_loss(&Cpu, &host, &lr, &u, &t, w, None),
+            StepLoss::Map { pos_weight } => map_loss(&Cpu, &host, &lr, &t, pos_weight, None),
+        }
+        .unwrap();
+        assert_close_f32(
+            &format!("{kind:?} {loss:?} validation loss"),
+            dt.loss(&lr, &u, &t, loss),
+            want,
+            1e-5,
+            1e-4,
+        );
         let (mut stored, mut stored_adam) = (host.zeros_like(), host_adam.clone());
         dt.store(&mut stored, &mut stored_adam).expect("download");
         for ((name, a), (_, b)) in stored.params().into_iter().zip(host.params()) {

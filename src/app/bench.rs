@@ -60,8 +60,10 @@ fn bundle_on_device(ops: &dyn crate::ops::Ops, quick: bool) -> Result<()> {
     use crate::cuda::{nets_views, MirrorView};
     use crate::geom::cloth_frame::{mirrored_axes, GRID_MIRRORS};
     let model = crate::nn::weights::embedded_model()?;
-    let views: Vec<MirrorView> =
-        GRID_MIRRORS.iter().map(|&(rows, cols)| MirrorView { rows, cols, axes: mirrored_axes(rows, cols) }).collect();
+    let views: Vec<MirrorView> = GRID_MIRRORS
+        .iter()
+        .map(|&(rows, cols)| MirrorView { rows, cols, axes: mirrored_axes(rows, cols) })
+        .collect();
     // A gently folded sheet in the nets' [0, 1] frame.
     let sheet = |n: usize, s: usize| {
         let mut x = Tensor::zeros(&[n, 3, s, s]);
@@ -77,7 +79,9 @@ fn bundle_on_device(ops: &dyn crate::ops::Ops, quick: bool) -> Result<()> {
         x
     };
     println!();
-    println!("shipped bundle, 4 mirror views x 4 nets a frame (16 passes), device-resident (fp16 tensor cores):");
+    println!(
+        "shipped bundle, 4 mirror views x 4 nets a frame (16 passes), device-resident (fp16 tensor cores):"
+    );
     if let Some(c) = ops.as_cuda() {
         if let Err(why) = c.tensor_cores() {
             println!("  unavailable: {why}");
@@ -122,7 +126,10 @@ fn bundle_on_device(ops: &dyn crate::ops::Ops, quick: bool) -> Result<()> {
         }
     }
     ms.sort_by(f64::total_cmp);
-    println!("  64x64 -> 128x128, chunk 16, without EnhanceNet (η = 0, the default): {:.3} ms a frame", ms[ms.len() / 2]);
+    println!(
+        "  64x64 -> 128x128, chunk 16, without EnhanceNet (η = 0, the default): {:.3} ms a frame",
+        ms[ms.len() / 2]
+    );
     // The op-by-op path (each op uploads its inputs and downloads its output), one frame.
     let x = sheet(1, 64);
     let t = Instant::now();
@@ -130,6 +137,9 @@ fn bundle_on_device(ops: &dyn crate::ops::Ops, quick: bool) -> Result<()> {
         let xv = crate::geom::cloth_frame::mirror_net_images(&x, v.rows, v.cols, model.input_frame(), true);
         drop(model.packed().forward_with(ops, &xv, true)?);
     }
-    println!("  64x64, op by op with copies (fp32), chunk  1: {:.1} ms a frame", 1e3 * t.elapsed().as_secs_f64());
+    println!(
+        "  64x64, op by op with copies (fp32), chunk  1: {:.1} ms a frame",
+        1e3 * t.elapsed().as_secs_f64()
+    );
     crate::ops::check_device(ops)
 }

@@ -19,9 +19,9 @@ use cudarc::nvrtc::{compile_ptx_with_opts, CompileOptions};
 
 use super::device::{grid1, i32_of, Cuda, DResult, DevBuf};
 use super::{MirrorView, INFER_KERNELS};
+use crate::nn::bundle::PackedAnisoCb;
 use crate::nn::config::KERNEL;
 use crate::nn::layers::{layout, Layer};
-use crate::nn::bundle::PackedAnisoCb;
 use crate::nn::NetsOutput;
 use crate::ops::{Interp, Padding};
 use crate::tensor::Tensor;
@@ -198,7 +198,8 @@ impl Cuda {
         assert_eq!(c, 3, "nets_views: xyz images, got {c} channels");
         assert!(!views.is_empty() && views.len() <= 4, "nets_views: 1 to 4 views, got {}", views.len());
         let nan = |ch: usize| Tensor::full(&[n, ch, 2 * h, 2 * w], f32::NAN);
-        let failed = || NetsOutput { interpolated: nan(3), residual: nan(3), boundary: nan(1), enhance: nan(1) };
+        let failed =
+            || NetsOutput { interpolated: nan(3), residual: nan(3), boundary: nan(1), enhance: nan(1) };
         let bundle = {
             let mut slot = self.bundle.lock().unwrap_or_else(|p| p.into_inner());
             match slot.as_ref() {
@@ -268,14 +269,15 @@ impl Cuda {
 
         let at = |l: Layer| &m.layers[l.index(m.blocks)];
         let lr_act = |cp: usize| z * nb * h * w * cp;
-        let conv = |layer: &TcLayer,
-                    x: &CudaSlice<u16>,
-                    xz: usize,
-                    skip: Option<&CudaSlice<u16>>,
-                    y: &mut CudaSlice<u16>,
-                    (hh_, ww_): (usize, usize),
-                    relu: bool|
-         -> DResult<()> { self.tc_conv(k, m, layer, x, xz, skip, y, nb, hh_, ww_, relu, z) };
+        let conv =
+            |layer: &TcLayer,
+             x: &CudaSlice<u16>,
+             xz: usize,
+             skip: Option<&CudaSlice<u16>>,
+             y: &mut CudaSlice<u16>,
+             (hh_, ww_): (usize, usize),
+             relu: bool|
+             -> DResult<()> { self.tc_conv(k, m, layer, x, xz, skip, y, nb, hh_, ww_, relu, z) };
 
         let mut a = unsafe { self.stream.alloc::<u16>(lr_act(m.cp)) }?;
         conv(at(Layer::ConvIn), &xv, 0, None, &mut a, (h, w), false)?;
@@ -363,7 +365,8 @@ impl Cuda {
         let mut l = self.stream.launch_builder(&k.conv3x3_tc);
         let xz = xz as i64;
         let (nbi, hi, wi, cii, copi) = (nb as i32, h as i32, w as i32, layer.ci as i32, layer.cop as i32);
-        let (mode, relui, ngi, coi, cg, cm) = (layer.store as i32, relu as i32, m.ng as i32, 3i32, 3i32, 1i32);
+        let (mode, relui, ngi, coi, cg, cm) =
+            (layer.store as i32, relu as i32, m.ng as i32, 3i32, 3i32, 1i32);
         l.arg(x).arg(&xz).arg(&layer.w).arg(&layer.b).arg(sk).arg(y);
         l.arg(&nbi).arg(&hi).arg(&wi).arg(&cii).arg(&copi).arg(&m.pad).arg(&mode).arg(&relui);
         l.arg(&nskip).arg(&ngi).arg(&coi).arg(&cg).arg(&cm);
@@ -393,7 +396,8 @@ impl Cuda {
         let mut l = self.stream.launch_builder(&k.conv3x3_tc);
         let xz = xz as i64;
         let (nbi, hi, wi, cii, copi) = (nb as i32, h as i32, w as i32, layer.ci as i32, layer.cop as i32);
-        let (mode, zero, ngi, coi, cg, cm) = (Store::Out as i32, 0i32, m.ng as i32, OUT_CO as i32, 3i32, 1i32);
+        let (mode, zero, ngi, coi, cg, cm) =
+            (Store::Out as i32, 0i32, m.ng as i32, OUT_CO as i32, 3i32, 1i32);
         l.arg(x).arg(&xz).arg(&layer.w).arg(&layer.b).arg(&dummy).arg(y);
         l.arg(&nbi).arg(&hi).arg(&wi).arg(&cii).arg(&copi).arg(&m.pad).arg(&mode).arg(&zero);
         l.arg(&zero).arg(&ngi).arg(&coi).arg(&cg).arg(&cm);

@@ -35,26 +35,24 @@ impl Cuda {
     }
 }
 
-/// Stand-in for the device-resident trainer. Uninhabited, like [`Cuda`].
-pub enum DeviceTrainer<'a> {
-    #[doc(hidden)]
-    _Never(std::convert::Infallible, std::marker::PhantomData<&'a ()>),
+/// Stand-in for the device-resident trainer: it holds a [`Cuda`], which cannot exist here.
+pub struct DeviceTrainer<'a> {
+    cuda: &'a Cuda,
 }
 
 impl<'a> DeviceTrainer<'a> {
     /// Never called: there is no [`Cuda`] to pass.
     pub fn new(cuda: &'a Cuda, _: &crate::nn::Trunk, _: &crate::train::adam::Adam) -> Result<Self> {
-        match *cuda {}
+        Ok(DeviceTrainer { cuda })
     }
     pub fn step(&mut self, _: &Tensor, _: &Tensor, _: &Tensor, _: super::StepLoss) -> f32 {
-        match self {
-            DeviceTrainer::_Never(n, _) => match *n {},
-        }
+        match *self.cuda {}
+    }
+    pub fn loss(&self, _: &Tensor, _: &Tensor, _: &Tensor, _: super::StepLoss) -> f32 {
+        match *self.cuda {}
     }
     pub fn store(&self, _: &mut crate::nn::Trunk, _: &mut crate::train::adam::Adam) -> Result<()> {
-        match self {
-            DeviceTrainer::_Never(n, _) => match *n {},
-        }
+        match *self.cuda {}
     }
 }
 

@@ -46,7 +46,8 @@ impl<'a> DeviceTrainer<'a> {
     /// `trunk` and `adam` (its state for `trunk.params()`, e.g. from a checkpoint) uploaded.
     pub fn new(cuda: &'a Cuda, trunk: &Trunk, adam: &Adam) -> crate::Result<DeviceTrainer<'a>> {
         let up = || -> DResult<DeviceTrainer<'a>> {
-            let params = trunk.params().into_iter().map(|(_, t)| cuda.upload(t)).collect::<DResult<Vec<_>>>()?;
+            let params =
+                trunk.params().into_iter().map(|(_, t)| cuda.upload(t)).collect::<DResult<Vec<_>>>()?;
             let grads = params.iter().map(|p| cuda.zeros(&p.shape)).collect::<DResult<Vec<_>>>()?;
             let m = adam.m.iter().map(|m| cuda.up(m)).collect::<DResult<Vec<_>>>()?;
             let v = adam.v.iter().map(|v| cuda.up(v)).collect::<DResult<Vec<_>>>()?;
@@ -62,7 +63,9 @@ impl<'a> DeviceTrainer<'a> {
                 adam: adam.params,
             })
         };
-        up().map_err(|e| crate::Error::device(format!("CUDA: uploading the trunk for training failed: {e:?}")))
+        up().map_err(|e| {
+            crate::Error::device(format!("CUDA: uploading the trunk for training failed: {e:?}"))
+        })
     }
 
     /// One step on a batch: lr (N, 3, h, w), u and target (N, C, rh, rw) (u unused for a map
@@ -72,14 +75,29 @@ impl<'a> DeviceTrainer<'a> {
         self.cuda.run("train step", || f32::NAN, || self.step_dev(lr, u, target, loss))
     }
 
-    fn step_dev(&mut self, lr: &Tensor, u: &Tensor, target: &Tensor, loss: StepLoss) -> DResult<f32> {
+    /// The loss of the current weights on a batch, without a step (validation).
+    pub fn loss(&self, lr: &Tensor, u: &Tensor, target: &Tensor, loss: StepLoss) -> f32 {
+        self.cuda.run(
+            "validation loss",
+            || f32::NAN,
+            || {
+                let (y, _) = self.forward_train(self.cuda.upload(lr)?)?;
+                Ok(self.loss_and_grad(y, lr, u, target, loss)?.0)
+            },
+        )
+    }
+
+    /// The loss of the output `y` (R for GeometryNet, logits for a map net) and its gradient.
+    fn loss_and_grad(
+        &self,
+        mut y: DevBuf,
+        lr: &Tensor,
+        u: &Tensor,
+        target: &Tensor,
+        loss: StepLoss,
+    ) -> DResult<(f32, DevBuf)> {
         let c = self.cuda;
-        for g in &mut self.grads {
-            c.stream.memset_zeros(&mut g.buf)?;
-        }
-        let x = c.upload(lr)?;
-        let (mut y, tape) = self.forward_train(x)?;
-        let (l, dy) = match loss {
+        Ok(match loss {
             StepLoss::Geometry(w) => {
                 c.add_assign_dev(&mut y, &c.upload(u)?)?;
                 if w == GeometryLoss::default() {
@@ -91,8 +109,16 @@ impl<'a> DeviceTrainer<'a> {
                 }
             }
             StepLoss::Map { pos_weight } => c.bce_with_logits_dev(&y, &c.upload(target)?, pos_weight)?,
-        };
-        drop(y);
+        })
+    }
+
+    fn step_dev(&mut self, lr: &Tensor, u: &Tensor, target: &Tensor, loss: StepLoss) -> DResult<f32> {
+        let c = self.cuda;
+        for g in &mut self.grads {
+            c.stream.memset_zeros(&mut g.buf)?;
+        }
+        let (y, tape) = self.forward_train(c.upload(lr)?)?;
+        let (l, dy) = self.loss_and_grad(y, lr, u, target, loss)?;
         self.backward(&tape, &dy)?;
         self.step += 1;
         for i in 0..self.params.len() {

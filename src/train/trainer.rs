@@ -14,11 +14,11 @@
 
 use super::adam::Adam;
 use super::patches::{gather, interpolate_all, split, PatchSampler, TrainingData};
+use crate::cuda::{DeviceTrainer, StepLoss};
 use crate::error::{Error, Result};
 use crate::io::json::Object;
 use crate::io::{read_npz, write_atomic_bytes, write_npz, NpzEntries};
 use crate::nn::geometry_net::{geometry_loss, GeometryLoss};
-use crate::cuda::StepLoss;
 use crate::nn::map_net::map_loss;
 use crate::nn::weights::{push_trunk, save_net, trunk_from_npz};
 use crate::nn::{AnisoCb, NetConfig, NetKind, Trunk};
@@ -241,10 +241,12 @@ fn batch_loss(
     }
 }
 
-/// Mean loss over the validation frames (whole frames, 8 at a time), weighted by pixels.
+/// Mean loss over the validation frames (whole frames, 8 at a time), weighted by pixels; on
+/// `device`'s copy of the weights where there is one (`trunk` is then not read).
 fn validation_loss(
     ops: &dyn Ops,
     trunk: &Trunk,
+    device: Option<(&DeviceTrainer, StepLoss)>,
     data: &TrainingData,
     u_all: Option<&Tensor>,
     val: &[usize],
@@ -258,7 +260,12 @@ fn validation_loss(
         let lr = gather(&data.lr, chunk);
         let u = u_all.map(|u| gather(u, chunk)).unwrap_or_else(|| Tensor::zeros(&[0]));
         let t = gather(data.target(trunk.kind), chunk);
-        sum += batch_loss(ops, trunk, &lr, &u, &t, o, None)? as f64 * chunk.len() as f64;
+        let l = match device {
+            Some((d, loss)) => d.loss(&lr, &u, &t, loss),
+            None => batch_loss(ops, trunk, &lr, &u, &t, o, None)?,
+        };
+        crate::ops::check_device(ops)?;
+        sum += l as f64 * chunk.len() as f64;
     }
     Ok(Some((sum / val.len() as f64) as f32))
 }
@@ -528,12 +535,15 @@ pub fn train(
         let last_step = st.step == opts.steps;
         let validate = last_step || (opts.val_every > 0 && st.step % opts.val_every == 0);
         let checkpoint = !last_step && opts.checkpoint_every > 0 && st.step % opts.checkpoint_every == 0;
-        if let (Some(d), true) = (&device, validate || checkpoint || last_step) {
+        if let (Some(d), true) = (&device, checkpoint || last_step) {
             d.store(&mut st.trunk, &mut st.adam)?;
         }
         let mut row = LogRow { step: st.step, train: loss, val: f32::NAN };
         if validate {
-            if let Some(vl) = validation_loss(ops, &st.trunk, data, u_all.as_ref(), &val_idx, opts)? {
+            let on_device = device.as_ref().map(|d| (d, step_loss));
+            if let Some(vl) =
+                validation_loss(ops, &st.trunk, on_device, data, u_all.as_ref(), &val_idx, opts)?
+            {
                 if !vl.is_finite() {
                     return Err(Error::numeric(format!(
                         "{} net, step {}: validation loss is {vl}; stopped (last good checkpoint kept at {})",
