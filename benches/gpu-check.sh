@@ -9,7 +9,8 @@
 # difference and upscaling time), `upscale` of a 64x64 flag (48 frames) on cpu and on cuda at
 # chunks of 16 and 1 (ms a frame from upscale.json, largest vertex difference), the same bundle in
 # PyTorch (benches/gpu/torch_peer.py, where torch is installed), and 100 training steps of both
-# configs on cpu and cuda (samples/s and the weights' difference). Needs python3 with numpy.
+# configs on cpu and cuda (samples/s and the weights' difference); last, each target of docs/gpu.md
+# met or missed. Needs python3 with numpy. About 75 s on an H200 machine.
 set -u
 BIN=${1:?usage: gpu-check.sh ANISOCB_BIN CUDA_PARITY_TEST_BIN [OUT_DIR]}
 PARITY=${2:?usage: gpu-check.sh ANISOCB_BIN CUDA_PARITY_TEST_BIN [OUT_DIR]}
@@ -66,4 +67,22 @@ m = max(float(np.abs(a[k]).max()) for k in keys)
 print(f'train {sys.argv[3]}: weights after 100 steps, largest |cpu - cuda| {d:.2e} (largest weight {m:.2e})')
 PY
 done
+# The targets of the GPU work (docs/gpu.md), from the logs above.
+python3 - "$OUT" <<'PY'
+import re, sys
+out = sys.argv[1]
+bench = open(out + '/bench.log').read()
+def ms(chunk):
+    m = re.search(r'64x64 -> 128x128, chunk +%d: ([0-9.]+) ms' % chunk, bench)
+    return float(m.group(1)) if m else float('nan')
+def sps(d, cfg):
+    v = re.findall(r'([0-9.]+) samples/s', open(f'{out}/train-{d}-{cfg}.log').read().replace('\r', '\n'))
+    return float(v[-1]) if v else float('nan')
+ok = lambda c: 'met' if c else 'MISSED'
+for chunk, target in ((16, 0.5), (1, 1.5)):
+    print(f'target: bundle 64x64 -> 128x128 at chunk {chunk} <= {target} ms a frame: {ms(chunk):.3f} ms, {ok(ms(chunk) <= target)}')
+for cfg in ('small', 'paper'):
+    r = sps('cuda', cfg) / sps('cpu', cfg)
+    print(f'target: training samples/s >= 10x the CPU ({cfg}): {r:.1f}x, {ok(r >= 10)}')
+PY
 rm -rf "$TMP"
