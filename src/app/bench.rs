@@ -58,11 +58,11 @@ pub fn run(args: Args) -> Result<()> {
 /// ([`crate::cuda::nets_views`]): ms a frame by chunk size, then the op-by-op path once.
 fn bundle_on_device(ops: &dyn crate::ops::Ops, quick: bool) -> Result<()> {
     use crate::cuda::{nets_views, MirrorView};
-    use crate::geom::cloth_frame::{mirrored_axes, GRID_MIRRORS};
+    use crate::geom::cloth_frame::{net_axes, GRID_MIRRORS};
     let model = crate::nn::weights::embedded_model()?;
     let views: Vec<MirrorView> = GRID_MIRRORS
         .iter()
-        .map(|&(rows, cols)| MirrorView { rows, cols, axes: mirrored_axes(rows, cols) })
+        .map(|&(rows, cols)| MirrorView { rows, cols, axes: net_axes(rows, cols, model.input_frame()) })
         .collect();
     // A gently folded sheet in the nets' [0, 1] frame.
     let sheet = |n: usize, s: usize| {
@@ -90,46 +90,39 @@ fn bundle_on_device(ops: &dyn crate::ops::Ops, quick: bool) -> Result<()> {
     }
     let reps = if quick { 5 } else { 20 };
     let nets = model.packed();
+    // Median ms a frame of `reps` runs on `frames` frames (a first run packs and warms up).
+    let median_ms = |x: &Tensor, enhance: bool| -> Option<(f64, f64)> {
+        let frames = x.shape[0] as f64;
+        let mut ms = Vec::with_capacity(reps);
+        for rep in 0..=reps {
+            let t = Instant::now();
+            drop(nets_views(ops, &nets, x, &views, enhance)?);
+            if rep > 0 {
+                ms.push(1e3 * t.elapsed().as_secs_f64() / frames);
+            }
+        }
+        ms.sort_by(f64::total_cmp);
+        Some((ms[ms.len() / 2], ms[0]))
+    };
     for s in [64usize, 32] {
         for chunk in [16usize, 1] {
-            let x = sheet(chunk, s);
-            let mut ms = Vec::with_capacity(reps);
-            for rep in 0..=reps {
-                let t = Instant::now();
-                let Some(out) = nets_views(ops, &nets, &x, &views, true) else {
-                    println!("  {}: no device-resident path here", ops.name());
-                    return Ok(());
-                };
-                drop(out);
-                if rep > 0 {
-                    ms.push(1e3 * t.elapsed().as_secs_f64() / chunk as f64); // rep 0: packing, warm-up
-                }
-            }
-            ms.sort_by(f64::total_cmp);
+            let Some((median, min)) = median_ms(&sheet(chunk, s), true) else {
+                println!("  {}: no device-resident path here", ops.name());
+                return Ok(());
+            };
             println!(
-                "  {s}x{s} -> {}x{}, chunk {chunk:>2}: {:.3} ms a frame (median of {reps}; min {:.3})",
+                "  {s}x{s} -> {}x{}, chunk {chunk:>2}: {median:.3} ms a frame (median of {reps}; min {min:.3})",
                 2 * s,
-                2 * s,
-                ms[ms.len() / 2],
-                ms[0]
+                2 * s
             );
         }
     }
     // The shipped default η = 0 skips EnhanceNet (12 passes a frame).
-    let x = sheet(16, 64);
-    let mut ms = Vec::with_capacity(reps);
-    for rep in 0..=reps {
-        let t = Instant::now();
-        drop(nets_views(ops, &nets, &x, &views, false));
-        if rep > 0 {
-            ms.push(1e3 * t.elapsed().as_secs_f64() / 16.0);
-        }
+    if let Some((median, _)) = median_ms(&sheet(16, 64), false) {
+        println!(
+            "  64x64 -> 128x128, chunk 16, without EnhanceNet (η = 0, the default): {median:.3} ms a frame"
+        );
     }
-    ms.sort_by(f64::total_cmp);
-    println!(
-        "  64x64 -> 128x128, chunk 16, without EnhanceNet (η = 0, the default): {:.3} ms a frame",
-        ms[ms.len() / 2]
-    );
     // The op-by-op path (each op uploads its inputs and downloads its output), one frame.
     let x = sheet(1, 64);
     let t = Instant::now();

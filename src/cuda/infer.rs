@@ -303,11 +303,8 @@ impl Cuda {
         }
         drop(t1);
         let mut out = unsafe { self.stream.alloc::<f32>(z * nb * OUT_CO * hh * hw) }?;
-        {
-            // The last layer writes fp32: the same launch with an f32 destination.
-            let layer = at(Layer::Tail(tails - 1));
-            self.tc_conv_out(k, m, layer, &t0, hz, &mut out, nb, hh, hw, z)?;
-        }
+        // The last layer writes fp32.
+        self.tc_conv(k, m, at(Layer::Tail(tails - 1)), &t0, hz, None, &mut out, nb, hh, hw, false, z)?;
         drop(t0);
 
         let avg = |z0: usize, z1: usize, ch: usize, neg: bool, sig: bool| -> DResult<DevBuf> {
@@ -337,9 +334,10 @@ impl Cuda {
         })
     }
 
-    /// One fp16-output `conv3x3_tc` launch (store `Same` or `Shuffle`) over `nets` nets.
+    /// One `conv3x3_tc` launch over `nets` nets with `layer`'s store: into fp16 `y` (`Same`,
+    /// `Shuffle`) or fp32 `y` (`Out`, the nets' outputs (nets, NB, 3, H, W)).
     #[allow(clippy::too_many_arguments)]
-    fn tc_conv(
+    fn tc_conv<T: cudarc::driver::DeviceRepr>(
         &self,
         k: &InferKernels,
         m: &DeviceBundle,
@@ -347,7 +345,7 @@ impl Cuda {
         x: &CudaSlice<u16>,
         xz: usize,
         skip: Option<&CudaSlice<u16>>,
-        y: &mut CudaSlice<u16>,
+        y: &mut CudaSlice<T>,
         nb: usize,
         h: usize,
         w: usize,
@@ -365,43 +363,14 @@ impl Cuda {
         let mut l = self.stream.launch_builder(&k.conv3x3_tc);
         let xz = xz as i64;
         let (nbi, hi, wi, cii, copi) = (nb as i32, h as i32, w as i32, layer.ci as i32, layer.cop as i32);
-        let (mode, relui, ngi, coi, cg, cm) =
-            (layer.store as i32, relu as i32, m.ng as i32, 3i32, 3i32, 1i32);
+        let (mode, relui, ngi) = (layer.store as i32, relu as i32, m.ng as i32);
+        let (coi, cg, cm) = (OUT_CO as i32, 3i32, 1i32);
         l.arg(x).arg(&xz).arg(&layer.w).arg(&layer.b).arg(sk).arg(y);
         l.arg(&nbi).arg(&hi).arg(&wi).arg(&cii).arg(&copi).arg(&m.pad).arg(&mode).arg(&relui);
         l.arg(&nskip).arg(&ngi).arg(&coi).arg(&cg).arg(&cm);
         // SAFETY: matches conv3x3_tc; x holds nets·NB·H·W·CI values (or NB·H·W·CI with xz = 0),
-        // y nets·NB·H·W·COP (Same) or nets·NB·2H·2W·COP/4 (Shuffle), skip is like y.
-        unsafe { l.launch(tc_grid(nb, h, w, layer.cop, nets)) }?;
-        Ok(())
-    }
-
-    /// The last layer: `conv3x3_tc` with store `Out` into fp32 (nets, NB, 3, H, W).
-    #[allow(clippy::too_many_arguments)]
-    fn tc_conv_out(
-        &self,
-        k: &InferKernels,
-        m: &DeviceBundle,
-        layer: &TcLayer,
-        x: &CudaSlice<u16>,
-        xz: usize,
-        y: &mut CudaSlice<f32>,
-        nb: usize,
-        h: usize,
-        w: usize,
-        nets: usize,
-    ) -> DResult<()> {
-        debug_assert!(layer.store == Store::Out);
-        let dummy = self.stream.alloc_zeros::<u16>(2)?;
-        let mut l = self.stream.launch_builder(&k.conv3x3_tc);
-        let xz = xz as i64;
-        let (nbi, hi, wi, cii, copi) = (nb as i32, h as i32, w as i32, layer.ci as i32, layer.cop as i32);
-        let (mode, zero, ngi, coi, cg, cm) =
-            (Store::Out as i32, 0i32, m.ng as i32, OUT_CO as i32, 3i32, 1i32);
-        l.arg(x).arg(&xz).arg(&layer.w).arg(&layer.b).arg(&dummy).arg(y);
-        l.arg(&nbi).arg(&hi).arg(&wi).arg(&cii).arg(&copi).arg(&m.pad).arg(&mode).arg(&zero);
-        l.arg(&zero).arg(&ngi).arg(&coi).arg(&cg).arg(&cm);
-        // SAFETY: matches conv3x3_tc; y holds nets·NB·3·H·W values.
+        // y nets·NB·H·W·COP fp16 (Same), nets·NB·2H·2W·COP/4 fp16 (Shuffle) or nets·NB·3·H·W
+        // fp32 (Out), as the caller allocated for the layer's store; skip is like y.
         unsafe { l.launch(tc_grid(nb, h, w, layer.cop, nets)) }?;
         Ok(())
     }

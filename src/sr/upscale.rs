@@ -375,18 +375,18 @@ pub(crate) fn run_nets_into(
             .iter()
             .map(|&(rows, cols)| MirrorView { rows, cols, axes: net_axes(rows, cols, frame) })
             .collect();
-        if let Some(o) = crate::cuda::nets_views(ops, nets, &x, &views, out.how.enhance_ran) {
-            // A GPU with tensor cores: every view and net on the device, averaged there.
-            out.interpolated.data[r_at.clone()].copy_from_slice(&o.interpolated.data);
-            out.residual.data[r_at.clone()].copy_from_slice(&o.residual.data);
-            out.boundary.data[m_at.clone()].copy_from_slice(&o.boundary.data);
-            out.enhance.data[m_at.clone()].copy_from_slice(&o.enhance.data);
-        } else {
-            let o = nets.forward_with(ops, &x, out.how.enhance_ran)?;
-            out.interpolated.data[r_at.clone()].copy_from_slice(&o.interpolated.data);
-            out.residual.data[r_at.clone()].copy_from_slice(&o.residual.data);
-            out.boundary.data[m_at.clone()].copy_from_slice(&o.boundary.data);
-            out.enhance.data[m_at.clone()].copy_from_slice(&o.enhance.data);
+        // A GPU with tensor cores runs every view and net at once and averages them there.
+        let on_device = crate::cuda::nets_views(ops, nets, &x, &views, out.how.enhance_ran);
+        let averaged = on_device.is_some();
+        let o = match on_device {
+            Some(o) => o,
+            None => nets.forward_with(ops, &x, out.how.enhance_ran)?,
+        };
+        out.interpolated.data[r_at.clone()].copy_from_slice(&o.interpolated.data);
+        out.residual.data[r_at.clone()].copy_from_slice(&o.residual.data);
+        out.boundary.data[m_at.clone()].copy_from_slice(&o.boundary.data);
+        out.enhance.data[m_at.clone()].copy_from_slice(&o.enhance.data);
+        if !averaged && !mirrors.is_empty() {
             let add = |acc: &mut [f32], t: &Tensor| acc.iter_mut().zip(&t.data).for_each(|(a, b)| *a += b);
             for &(rows, cols) in mirrors {
                 let o = nets.forward_with(
@@ -401,12 +401,10 @@ pub(crate) fn run_nets_into(
                 add(&mut out.boundary.data[m_at.clone()], &o.boundary.flipped(rows, cols));
                 add(&mut out.enhance.data[m_at.clone()], &o.enhance.flipped(rows, cols));
             }
-            if !mirrors.is_empty() {
-                let s = 1.0 / (1 + mirrors.len()) as f32;
-                out.residual.data[r_at].iter_mut().for_each(|v| *v *= s);
-                out.enhance.data[m_at.clone()].iter_mut().for_each(|v| *v *= s);
-                out.boundary.data[m_at.clone()].iter_mut().for_each(|v| *v *= s);
-            }
+            let s = 1.0 / (1 + mirrors.len()) as f32;
+            out.residual.data[r_at].iter_mut().for_each(|v| *v *= s);
+            out.enhance.data[m_at.clone()].iter_mut().for_each(|v| *v *= s);
+            out.boundary.data[m_at.clone()].iter_mut().for_each(|v| *v *= s);
         }
         if params.pin_border {
             let mut b = out.boundary.slice_batch(done, n);

@@ -477,8 +477,8 @@ pub fn train(
         baseline_val,
     });
     let mut grads = st.trunk.zeros_like();
-    // On a GPU: the trunk, its gradients and Adam's state stay on the device between steps,
-    // and come back to `st` for validation, checkpoints and the weights file.
+    // On a GPU: the trunk, its gradients and Adam's state stay on the device between steps
+    // (validation runs there too), and come back to `st` for checkpoints and the weights file.
     let mut device = crate::cuda::device_trainer(ops, &st.trunk, &st.adam)?;
     let step_loss = match net {
         NetKind::Geometry => StepLoss::Geometry(opts.geometry_loss()),
