@@ -548,6 +548,14 @@ class Job:
             self.collider_dirs[c.name] = path
             if o.physics:
                 args += ["--collider", path]
+        if colliders and o.physics:
+            # The gap Blender keeps around its colliders (Collision > Thickness Outer), for the
+            # physics pass; anisocb takes one gap for all colliders (the largest) up to 10 cm.
+            thick = max(c.collision.thickness_outer for c in colliders)
+            if thick > 0.1:
+                self.notes.append(f"collider Thickness Outer {thick:g} capped to anisocb's largest, 0.1")
+                thick = 0.1
+            args += ["--collider-thickness", f"{thick:.6g}"]
         if colliders and not o.physics:
             self.notes.append(f"{len(colliders)} collider(s) exported, used only with Physics on")
         self.args = args

@@ -267,12 +267,13 @@ def check_cloth(obj, out, exe, expect_pin):
     check(f"{name}: export and command line",
           head["samples"] == FRAMES and head["points"] == len(obj.data.vertices) and head["start"] == 1
           and os.path.isfile(os.path.join(d, "rest.obj")) and "--physics" in args and opt("--fps") == str(FPS)
-          and opt("--gravity") == "0,-9.81,0" and expect_pin(args) and len(colliders) == 1,
+          and opt("--gravity") == "0,-9.81,0" and expect_pin(args) and len(colliders) == 1
+          and opt("--collider-thickness") == "0.01",
           f"PC2 {head['samples']} samples x {head['points']} points from frame {head['start']:g}; "
           f"--fps {opt('--fps')} --gravity {opt('--gravity')} --material {opt('--material')} "
           f"--physics-pin {opt('--physics-pin')} --physics-pin-vertices "
           f"{os.path.basename(opt('--physics-pin-vertices') or '-')} --collider "
-          f"{[os.path.relpath(c, d) for c in colliders]}")
+          f"{[os.path.relpath(c, d) for c in colliders]} --collider-thickness {opt('--collider-thickness')}")
     if colliders:
         col = colliders[0]
         files = sorted(os.listdir(col)) if os.path.isdir(col) else []
