@@ -53,7 +53,7 @@ c-example:
 	$(C_OUT)/upscale_static $(C_OUT)/sim/obj $(C_OUT)/cli 24
 	$(C_OUT)/upscale_shared $(C_OUT)/sim/obj $(C_OUT)/cli-t2 24 2
 	$(C_OUT)/upscale_static $(C_OUT)/sim/obj $(C_OUT)/cli-phys 24 0 corners
-	$(CARGO) test --release --features capi --test upscaler_allocations --test c_abi_physics --test c_abi_memory
+	$(CARGO) test --release --features capi --test upscaler_allocations --test c_abi_physics --test c_abi_memory --test c_abi_mesh
 
 c-example-if-cc:
 	@if command -v $(CC) >/dev/null 2>&1; then $(MAKE) c-example; \

@@ -92,8 +92,25 @@ uint32_t anisocb_latency(const anisocb_upscaler *up);
 int anisocb_push(anisocb_upscaler *up, uint32_t w, uint32_t h, const float *lr, float *hr,
                  size_t hr_cap);
 /* At the end of a shot: writes the next held-back HR frame and returns ANISOCB_OK, or returns
- * ANISOCB_DONE when none is left. */
+ * ANISOCB_DONE when none is left. Grids and meshes (anisocb_set_mesh) alike. */
 int anisocb_flush(anisocb_upscaler *up, float *hr, size_t hr_cap);
+
+/* Any mesh, not only a grid (a garment, a disk, a sheet with a hole): n_vertices vertices at
+ * rest (3*n_vertices floats, metres), n_faces faces of face_sizes[i] (3 or 4) vertex indices
+ * each, concatenated in indices (0-based). Laid out by ARAP (UVs are not taken here yet). Call
+ * between shots; frames then go in through anisocb_push_mesh. */
+int anisocb_set_mesh(anisocb_upscaler *up, uint32_t n_vertices, const float *rest, uint32_t n_faces,
+                     const uint32_t *face_sizes, const uint32_t *indices);
+/* The HR mesh: its vertex count (0 without a mesh), and its faces, 4 per LR face in its order
+ * (a triangle into 4 triangles, a quad into 4 quads): sizes into face_sizes, vertex indices
+ * concatenated into indices. */
+uint32_t anisocb_hr_vertex_count(const anisocb_upscaler *up);
+int anisocb_hr_faces(const anisocb_upscaler *up, uint32_t *face_sizes, size_t sizes_cap,
+                     uint32_t *indices, size_t indices_cap);
+/* anisocb_push for the mesh: the next LR frame (3*n_vertices floats, the mesh's vertex order);
+ * writes the next HR frame (3*anisocb_hr_vertex_count floats) and returns ANISOCB_OK, or returns
+ * ANISOCB_PENDING. */
+int anisocb_push_mesh(anisocb_upscaler *up, const float *lr, float *hr, size_t hr_cap);
 
 #ifdef __cplusplus
 }

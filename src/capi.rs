@@ -355,8 +355,139 @@ pub unsafe extern "C" fn anisocb_push(
     })
 }
 
+/// Most faces [`anisocb_set_mesh`] takes (with at most 4 indices each).
+const MAX_MESH_FACES: usize = 4 * MAX_LR_VERTICES;
+
+/// Switch the upscaler to a mesh that is not a regular grid: `n_vertices` vertices at rest
+/// (`rest`: 3·n_vertices floats, metres), `n_faces` faces of `face_sizes[i]` (3 or 4) vertex
+/// indices each, concatenated in `indices` (0-based). Between shots only.
+///
+/// # Safety
+/// `up` is a live handle; `rest` points to 3·n_vertices floats, `face_sizes` to n_faces
+/// values, `indices` to their sum.
+#[no_mangle]
+pub unsafe extern "C" fn anisocb_set_mesh(
+    up: *mut Upscaler,
+    n_vertices: u32,
+    rest: *const f32,
+    n_faces: u32,
+    face_sizes: *const u32,
+    indices: *const u32,
+) -> c_int {
+    guard(|| {
+        let up = up.as_mut().ok_or_else(|| argument("anisocb_set_mesh: null handle"))?;
+        let (nv, nf) = (n_vertices as usize, n_faces as usize);
+        if rest.is_null() || face_sizes.is_null() || indices.is_null() {
+            return Err(argument("anisocb_set_mesh: rest, face_sizes and indices must not be null"));
+        }
+        if nv == 0 || nv > MAX_LR_VERTICES || nf == 0 || nf > MAX_MESH_FACES {
+            return Err(argument(&format!(
+                "anisocb_set_mesh: {nv} vertices and {nf} faces; a mesh has 1 to {MAX_LR_VERTICES} \
+                 vertices and 1 to {MAX_MESH_FACES} faces"
+            )));
+        }
+        let sizes = std::slice::from_raw_parts(face_sizes, nf);
+        if let Some((i, k)) = sizes.iter().enumerate().find(|(_, &k)| k != 3 && k != 4) {
+            return Err(argument(&format!(
+                "anisocb_set_mesh: face {i} has {k} vertices; faces are triangles or quads (3 or 4)"
+            )));
+        }
+        let flat = std::slice::from_raw_parts(indices, sizes.iter().map(|&k| k as usize).sum());
+        let mut faces = Vec::with_capacity(nf);
+        let mut at = 0;
+        for &k in sizes {
+            faces.push(flat[at..at + k as usize].to_vec());
+            at += k as usize;
+        }
+        let rest: &[[f32; 3]] = bytemuck::cast_slice(std::slice::from_raw_parts(rest, 3 * nv));
+        up.set_mesh(faces, rest, None)?;
+        Ok(ANISOCB_OK)
+    })
+}
+
+/// The vertex count of the HR frames of the mesh set by [`anisocb_set_mesh`]; 0 without one.
+///
+/// # Safety
+/// `up` is a live handle or null.
+#[no_mangle]
+pub unsafe extern "C" fn anisocb_hr_vertex_count(up: *const Upscaler) -> u32 {
+    up.as_ref().and_then(|u| u.mesh_vertices()).map_or(0, |(_, hr)| hr as u32)
+}
+
+/// The HR mesh's faces: 4 per LR face, in its order (a triangle splits into 4 triangles, a
+/// quad into 4 quads): their sizes into `face_sizes` (`sizes_cap` values) and their vertex
+/// indices, concatenated, into `indices` (`indices_cap` values).
+///
+/// # Safety
+/// `up` is a live handle; the buffers hold their caps' values.
+#[no_mangle]
+pub unsafe extern "C" fn anisocb_hr_faces(
+    up: *const Upscaler,
+    face_sizes: *mut u32,
+    sizes_cap: usize,
+    indices: *mut u32,
+    indices_cap: usize,
+) -> c_int {
+    guard(|| {
+        let up = up.as_ref().ok_or_else(|| argument("anisocb_hr_faces: null handle"))?;
+        let faces =
+            up.hr_faces().ok_or_else(|| argument("anisocb_hr_faces: no mesh: call anisocb_set_mesh"))?;
+        let total: usize = faces.iter().map(Vec::len).sum();
+        if face_sizes.is_null() || indices.is_null() || sizes_cap < faces.len() || indices_cap < total {
+            return Err(argument(&format!(
+                "anisocb_hr_faces: the HR mesh has {} faces and {total} indices; the buffers hold {sizes_cap} \
+                 and {indices_cap}",
+                faces.len()
+            )));
+        }
+        let sizes = std::slice::from_raw_parts_mut(face_sizes, faces.len());
+        let flat = std::slice::from_raw_parts_mut(indices, total);
+        let mut at = 0;
+        for (s, f) in sizes.iter_mut().zip(faces) {
+            *s = f.len() as u32;
+            flat[at..at + f.len()].copy_from_slice(f);
+            at += f.len();
+        }
+        Ok(ANISOCB_OK)
+    })
+}
+
+/// [`anisocb_push`] for the mesh set by [`anisocb_set_mesh`]: the next LR frame (3·n_vertices
+/// floats, the mesh's vertex order) in; the next HR frame (3·anisocb_hr_vertex_count floats)
+/// written to `hr` and `ANISOCB_OK`, or `ANISOCB_PENDING`.
+///
+/// # Safety
+/// `up` is a live handle; `lr` points to 3·n_vertices floats; `hr` to `hr_cap` writable floats.
+#[no_mangle]
+pub unsafe extern "C" fn anisocb_push_mesh(
+    up: *mut Upscaler,
+    lr: *const f32,
+    hr: *mut f32,
+    hr_cap: usize,
+) -> c_int {
+    guard(|| {
+        let up = up.as_mut().ok_or_else(|| argument("anisocb_push_mesh: null handle"))?;
+        let (nv, nh) = up
+            .mesh_vertices()
+            .ok_or_else(|| argument("anisocb_push_mesh: no mesh: call anisocb_set_mesh first"))?;
+        if lr.is_null() {
+            return Err(argument("anisocb_push_mesh: lr is null"));
+        }
+        let out = hr_buffer(hr, hr_cap, 3 * nh)?;
+        let pos: &[[f32; 3]] = bytemuck::cast_slice(std::slice::from_raw_parts(lr, 3 * nv));
+        Ok(match up.push_mesh(pos)? {
+            Some(v) => {
+                out.copy_from_slice(&v);
+                ANISOCB_OK
+            }
+            None => ANISOCB_PENDING,
+        })
+    })
+}
+
 /// At the end of a shot: writes the next held-back HR frame to `hr` and returns `ANISOCB_OK`,
-/// or returns `ANISOCB_DONE` when none is left (the next push starts a new shot).
+/// or returns `ANISOCB_DONE` when none is left (the next push starts a new shot). Grids and
+/// meshes alike.
 ///
 /// # Safety
 /// `up` is a live handle; `hr` points to `hr_cap` writable floats.
@@ -364,6 +495,20 @@ pub unsafe extern "C" fn anisocb_push(
 pub unsafe extern "C" fn anisocb_flush(up: *mut Upscaler, hr: *mut f32, hr_cap: usize) -> c_int {
     guard(|| {
         let up = up.as_mut().ok_or_else(|| argument("anisocb_flush: null handle"))?;
+        if let Some((_, nh)) = up.mesh_vertices() {
+            if up.held_back() == 0 {
+                up.flush_mesh_one()?;
+                return Ok(ANISOCB_DONE);
+            }
+            let out = hr_buffer(hr, hr_cap, 3 * nh)?;
+            return Ok(match up.flush_mesh_one()? {
+                Some(v) => {
+                    out.copy_from_slice(&v);
+                    ANISOCB_OK
+                }
+                None => ANISOCB_DONE,
+            });
+        }
         let out = match up.grid() {
             Some((w, h)) if up.held_back() > 0 => hr_buffer(hr, hr_cap, 3 * up.scale().pow(2) * w * h)?,
             _ => &mut [],

@@ -178,13 +178,36 @@ impl Upscaler {
         rest: &[[f32; 3]],
         uv: Option<FaceUvs>,
     ) -> Result<Upscaler> {
+        self.set_mesh(faces, rest, uv)?;
+        Ok(self)
+    }
+
+    /// [`Upscaler::with_mesh`] on a live upscaler, between shots (before a shot's first frame,
+    /// or after its flush); on an error the upscaler is unchanged. A physics pass set for grids
+    /// or for another mesh moves to this one.
+    pub fn set_mesh(&mut self, faces: Vec<Vec<u32>>, rest: &[[f32; 3]], uv: Option<FaceUvs>) -> Result<()> {
+        if self.pushed > 0 {
+            return Err(Error::config(
+                "the mesh can change only between shots: flush the shot's last frames first",
+            ));
+        }
         let surface = Surface::new(rest.len(), faces, std::path::Path::new("the mesh"))?;
         let m = MeshLayout::new(surface, rest, uv)?;
-        if let Some(p) = self.physics.take() {
-            self.mesh_physics = Some(MeshPhysicsPass::new(p.params, m.sub.clone(), m.lr_vertices()));
+        let params = match (self.physics.take(), self.mesh_physics.take()) {
+            (Some(p), _) => Some(p.params),
+            (None, Some(p)) => Some(p.params),
+            (None, None) => None,
+        };
+        if let Some(params) = params {
+            self.mesh_physics = Some(MeshPhysicsPass::new(params, m.sub.clone(), m.lr_vertices()));
         }
         self.mesh = Some(Box::new(m));
-        Ok(self)
+        Ok(())
+    }
+
+    /// The vertices of a mesh's LR and HR frames after [`Upscaler::with_mesh`]; `None` for grids.
+    pub fn mesh_vertices(&self) -> Option<(usize, usize)> {
+        self.mesh.as_ref().map(|m| (m.lr_vertices(), m.sub.hr_vertices()))
     }
 
     /// The faces of the HR mesh (four per face of the mesh, in its order) after
@@ -212,12 +235,21 @@ impl Upscaler {
     /// the next [`Upscaler::push_mesh`] starts a new shot.
     pub fn flush_mesh(&mut self) -> Result<Vec<Vec<[f32; 3]>>> {
         let mut out = Vec::new();
-        while self.emitted < self.pushed {
-            out.push(self.emit_mesh_vertices()?);
+        while let Some(v) = self.flush_mesh_one()? {
+            out.push(v);
+        }
+        Ok(out)
+    }
+
+    /// [`Upscaler::flush_mesh`] one frame at a time: the next held-back frame's HR vertices, or
+    /// `None` (and the next [`Upscaler::push_mesh`] starts a new shot).
+    pub fn flush_mesh_one(&mut self) -> Result<Option<Vec<[f32; 3]>>> {
+        if self.emitted < self.pushed {
+            return self.emit_mesh_vertices().map(Some);
         }
         self.flush_one()?;
         self.lr_held.clear();
-        Ok(out)
+        Ok(None)
     }
 
     /// [`Upscaler::emit`] of a mesh frame into a new list of HR vertices (through the physics

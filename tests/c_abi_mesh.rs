@@ -1,0 +1,228 @@
+//! Any mesh through the C ABI (feature `capi`): `anisocb_set_mesh`, `anisocb_hr_faces`,
+//! `anisocb_push_mesh` and `anisocb_flush` give, frame for frame and bit for bit, what
+//! [`Upscaler::with_mesh`] gives the Rust API; bad meshes and misuse are error codes with a
+//! message naming the face or the call, never a crash.
+#![cfg(feature = "capi")]
+
+use anisocb::capi::*;
+use anisocb::pipeline::Upscaler;
+use std::ffi::CStr;
+use std::mem::MaybeUninit;
+
+/// A sleeve-like open tube of quads (`around` × `along` vertices, no grid: it has no corners)
+/// with a triangle fan capping nothing, plus a flap of two triangles: a mixed mesh.
+fn tube(around: usize, along: usize) -> (Vec<[f32; 3]>, Vec<Vec<u32>>) {
+    let mut pos = Vec::new();
+    for j in 0..along {
+        for i in 0..around {
+            let a = i as f32 / around as f32 * std::f32::consts::TAU;
+            pos.push([0.1 * a.cos(), 0.1 * a.sin(), 0.03 * j as f32]);
+        }
+    }
+    let at = |i: usize, j: usize| (j * around + i % around) as u32;
+    let mut faces = Vec::new();
+    for j in 0..along - 1 {
+        for i in 0..around {
+            if i % 3 == 0 {
+                faces.push(vec![at(i, j), at(i + 1, j), at(i + 1, j + 1)]);
+                faces.push(vec![at(i, j), at(i + 1, j + 1), at(i, j + 1)]);
+            } else {
+                faces.push(vec![at(i, j), at(i + 1, j), at(i + 1, j + 1), at(i, j + 1)]);
+            }
+        }
+    }
+    (pos, faces)
+}
+
+/// Frame `t` of the tube swaying and bulging.
+fn frame(rest: &[[f32; 3]], t: usize) -> Vec<f32> {
+    let s = t as f32 * 0.3;
+    rest.iter().flat_map(|p| [p[0] * (1.0 + 0.05 * (p[2] * 40.0 + s).sin()) + 0.01 * s, p[1], p[2]]).collect()
+}
+
+unsafe fn new_upscaler() -> *mut anisocb::pipeline::Upscaler {
+    let mut opts = MaybeUninit::<AnisocbOptions>::uninit();
+    assert_eq!(anisocb_options_default(opts.as_mut_ptr()), ANISOCB_OK);
+    let mut opts = opts.assume_init();
+    opts.threads = 1;
+    let mut up = std::ptr::null_mut();
+    assert_eq!(anisocb_new(&opts, &mut up), ANISOCB_OK);
+    up
+}
+
+unsafe fn last_error() -> String {
+    CStr::from_ptr(anisocb_last_error()).to_string_lossy().into_owned()
+}
+
+#[test]
+fn a_mesh_through_the_c_abi_is_the_rust_apis_bit_for_bit() {
+    let (rest, faces) = tube(16, 6);
+    let frames = 7;
+    // The Rust API.
+    let mut rust =
+        Upscaler::embedded().unwrap().with_threads(1).unwrap().with_mesh(faces.clone(), &rest, None).unwrap();
+    let mut want = Vec::new();
+    for t in 0..frames {
+        let lr: Vec<[f32; 3]> = frame(&rest, t).chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
+        want.extend(rust.push_mesh(&lr).unwrap());
+    }
+    want.extend(rust.flush_mesh().unwrap());
+    assert_eq!(want.len(), frames);
+    unsafe {
+        let up = new_upscaler();
+        let sizes: Vec<u32> = faces.iter().map(|f| f.len() as u32).collect();
+        let flat: Vec<u32> = faces.concat();
+        let rest_flat: Vec<f32> = rest.concat();
+        let st = anisocb_set_mesh(
+            up,
+            rest.len() as u32,
+            rest_flat.as_ptr(),
+            sizes.len() as u32,
+            sizes.as_ptr(),
+            flat.as_ptr(),
+        );
+        assert_eq!(st, ANISOCB_OK, "{}", last_error());
+        let nh = anisocb_hr_vertex_count(up) as usize;
+        assert_eq!(nh, want[0].len(), "HR vertex count");
+        // The HR faces: 4 per LR face, each of its LR face's size, the Rust API's.
+        let hr_faces = rust.hr_faces().unwrap();
+        let total: usize = hr_faces.iter().map(Vec::len).sum();
+        let (mut hs, mut hi) = (vec![0u32; hr_faces.len()], vec![0u32; total]);
+        assert_eq!(anisocb_hr_faces(up, hs.as_mut_ptr(), hs.len(), hi.as_mut_ptr(), hi.len()), ANISOCB_OK);
+        assert_eq!(hs.len(), 4 * faces.len());
+        assert_eq!(hi, hr_faces.concat());
+        assert!(hs.iter().zip(faces.iter().flat_map(|f| [f.len(); 4])).all(|(&a, b)| a as usize == b));
+        // A buffer too small for the faces is refused.
+        assert_eq!(
+            anisocb_hr_faces(up, hs.as_mut_ptr(), hs.len() - 1, hi.as_mut_ptr(), hi.len()),
+            ANISOCB_ERR_ARGUMENT
+        );
+        assert!(last_error().contains("faces"), "{}", last_error());
+
+        let mut got = Vec::new();
+        let mut hr = vec![0.0f32; 3 * nh];
+        for t in 0..frames {
+            let lr = frame(&rest, t);
+            match anisocb_push_mesh(up, lr.as_ptr(), hr.as_mut_ptr(), hr.len()) {
+                ANISOCB_OK => got.push(hr.clone()),
+                ANISOCB_PENDING => {}
+                s => panic!("anisocb_push_mesh: status {s}: {}", last_error()),
+            }
+            // The mesh cannot change in the middle of a shot.
+            if t == 1 {
+                let sizes: Vec<u32> = faces.iter().map(|f| f.len() as u32).collect();
+                let st = anisocb_set_mesh(
+                    up,
+                    rest.len() as u32,
+                    rest_flat.as_ptr(),
+                    sizes.len() as u32,
+                    sizes.as_ptr(),
+                    flat.as_ptr(),
+                );
+                assert_eq!(st, ANISOCB_ERR_CONFIG);
+                assert!(last_error().contains("between shots"), "{}", last_error());
+            }
+        }
+        // An HR buffer too small is refused, and takes nothing from the shot.
+        let lr = frame(&rest, frames);
+        assert_eq!(anisocb_push_mesh(up, lr.as_ptr(), hr.as_mut_ptr(), hr.len() - 1), ANISOCB_ERR_ARGUMENT);
+        loop {
+            match anisocb_flush(up, hr.as_mut_ptr(), hr.len()) {
+                ANISOCB_OK => got.push(hr.clone()),
+                ANISOCB_DONE => break,
+                s => panic!("anisocb_flush: status {s}: {}", last_error()),
+            }
+        }
+        assert_eq!(got.len(), frames, "every frame out once");
+        for (t, (g, w)) in got.iter().zip(&want).enumerate() {
+            let w: Vec<f32> = w.concat();
+            assert!(
+                g.iter().zip(&w).all(|(a, b)| a.to_bits() == b.to_bits()),
+                "frame {t} differs from the Rust API's"
+            );
+        }
+        // After the flush, the next shot may set another mesh.
+        let (rest2, faces2) = tube(12, 5);
+        let sizes2: Vec<u32> = faces2.iter().map(|f| f.len() as u32).collect();
+        let st = anisocb_set_mesh(
+            up,
+            rest2.len() as u32,
+            rest2.concat().as_ptr(),
+            sizes2.len() as u32,
+            sizes2.as_ptr(),
+            faces2.concat().as_ptr(),
+        );
+        assert_eq!(st, ANISOCB_OK, "{}", last_error());
+        anisocb_free(up);
+    }
+}
+
+#[test]
+fn bad_meshes_and_misuse_through_the_c_abi_are_error_codes_with_messages() {
+    let (rest, faces) = tube(8, 4);
+    let rest_flat: Vec<f32> = rest.concat();
+    unsafe {
+        let up = new_upscaler();
+        let mut hr = vec![0.0f32; 3 * 1000];
+        // Frames before a mesh.
+        assert_eq!(
+            anisocb_push_mesh(up, rest_flat.as_ptr(), hr.as_mut_ptr(), hr.len()),
+            ANISOCB_ERR_ARGUMENT
+        );
+        assert!(last_error().contains("anisocb_set_mesh"), "{}", last_error());
+        assert_eq!(anisocb_hr_vertex_count(up), 0);
+        // A pentagon.
+        let (sizes, idx) = (vec![5u32], vec![0u32, 1, 2, 3, 4]);
+        assert_eq!(
+            anisocb_set_mesh(up, rest.len() as u32, rest_flat.as_ptr(), 1, sizes.as_ptr(), idx.as_ptr()),
+            ANISOCB_ERR_ARGUMENT
+        );
+        assert!(last_error().contains("face 0 has 5 vertices"), "{}", last_error());
+        // A vertex index past the mesh's vertices.
+        let mut flat: Vec<u32> = faces.concat();
+        flat[5] = rest.len() as u32 + 7;
+        let sizes: Vec<u32> = faces.iter().map(|f| f.len() as u32).collect();
+        let st = anisocb_set_mesh(
+            up,
+            rest.len() as u32,
+            rest_flat.as_ptr(),
+            sizes.len() as u32,
+            sizes.as_ptr(),
+            flat.as_ptr(),
+        );
+        assert!(st < 0, "an index out of range was accepted");
+        let msg = last_error();
+        assert!(msg.contains(&(rest.len() + 7).to_string()) || msg.contains("face"), "{msg}");
+        // Null pointers and no vertices.
+        assert_eq!(
+            anisocb_set_mesh(up, 0, rest_flat.as_ptr(), 1, sizes.as_ptr(), flat.as_ptr()),
+            ANISOCB_ERR_ARGUMENT
+        );
+        assert_eq!(
+            anisocb_set_mesh(up, rest.len() as u32, std::ptr::null(), 1, sizes.as_ptr(), flat.as_ptr()),
+            ANISOCB_ERR_ARGUMENT
+        );
+        // Still no mesh after the failures; a good one is then taken.
+        assert_eq!(anisocb_hr_vertex_count(up), 0);
+        let flat: Vec<u32> = faces.concat();
+        let st = anisocb_set_mesh(
+            up,
+            rest.len() as u32,
+            rest_flat.as_ptr(),
+            sizes.len() as u32,
+            sizes.as_ptr(),
+            flat.as_ptr(),
+        );
+        assert_eq!(st, ANISOCB_OK, "{}", last_error());
+        assert!(anisocb_hr_vertex_count(up) as usize > rest.len());
+        // A frame holding a NaN.
+        let mut bad = rest_flat.clone();
+        bad[4] = f32::NAN;
+        let n = 3 * anisocb_hr_vertex_count(up) as usize;
+        let mut hr = vec![0.0f32; n];
+        let st = anisocb_push_mesh(up, bad.as_ptr(), hr.as_mut_ptr(), hr.len());
+        assert!(st < 0, "a NaN frame was accepted");
+        assert!(!last_error().is_empty());
+        anisocb_free(up);
+    }
+}
