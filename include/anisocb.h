@@ -97,10 +97,13 @@ int anisocb_flush(anisocb_upscaler *up, float *hr, size_t hr_cap);
 
 /* Any mesh, not only a grid (a garment, a disk, a sheet with a hole): n_vertices vertices at
  * rest (3*n_vertices floats, metres), n_faces faces of face_sizes[i] (3 or 4) vertex indices
- * each, concatenated in indices (0-based). Laid out by ARAP (UVs are not taken here yet). Call
- * between shots; frames then go in through anisocb_push_mesh. */
+ * each, concatenated in indices (0-based). Its UVs lay it out where they are a usable layout:
+ * n_uv coordinates (uv: 2*n_uv floats) and each face corner's index into them (uv_indices, laid
+ * out like indices); uv = NULL: an ARAP layout. Call between shots; frames then go in through
+ * anisocb_push_mesh. */
 int anisocb_set_mesh(anisocb_upscaler *up, uint32_t n_vertices, const float *rest, uint32_t n_faces,
-                     const uint32_t *face_sizes, const uint32_t *indices);
+                     const uint32_t *face_sizes, const uint32_t *indices, uint32_t n_uv,
+                     const float *uv, const uint32_t *uv_indices);
 /* The HR mesh: its vertex count (0 without a mesh), and its faces, 4 per LR face in its order
  * (a triangle into 4 triangles, a quad into 4 quads): sizes into face_sizes, vertex indices
  * concatenated into indices. */

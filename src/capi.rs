@@ -360,12 +360,15 @@ const MAX_MESH_FACES: usize = 4 * MAX_LR_VERTICES;
 
 /// Switch the upscaler to a mesh that is not a regular grid: `n_vertices` vertices at rest
 /// (`rest`: 3·n_vertices floats, metres), `n_faces` faces of `face_sizes[i]` (3 or 4) vertex
-/// indices each, concatenated in `indices` (0-based). Between shots only.
+/// indices each, concatenated in `indices` (0-based); optionally its UVs, `n_uv` coordinates
+/// (`uv`: 2·n_uv floats) with each face corner's index into them in `uv_indices` (laid out like
+/// `indices`), else (`uv` null) an ARAP layout. Between shots only.
 ///
 /// # Safety
 /// `up` is a live handle; `rest` points to 3·n_vertices floats, `face_sizes` to n_faces
-/// values, `indices` to their sum.
+/// values, `indices` (and `uv_indices` with `uv`) to their sum, `uv` to 2·n_uv floats or null.
 #[no_mangle]
+#[allow(clippy::too_many_arguments)]
 pub unsafe extern "C" fn anisocb_set_mesh(
     up: *mut Upscaler,
     n_vertices: u32,
@@ -373,6 +376,9 @@ pub unsafe extern "C" fn anisocb_set_mesh(
     n_faces: u32,
     face_sizes: *const u32,
     indices: *const u32,
+    n_uv: u32,
+    uv: *const f32,
+    uv_indices: *const u32,
 ) -> c_int {
     guard(|| {
         let up = up.as_mut().ok_or_else(|| argument("anisocb_set_mesh: null handle"))?;
@@ -392,15 +398,43 @@ pub unsafe extern "C" fn anisocb_set_mesh(
                 "anisocb_set_mesh: face {i} has {k} vertices; faces are triangles or quads (3 or 4)"
             )));
         }
-        let flat = std::slice::from_raw_parts(indices, sizes.iter().map(|&k| k as usize).sum());
-        let mut faces = Vec::with_capacity(nf);
-        let mut at = 0;
-        for &k in sizes {
-            faces.push(flat[at..at + k as usize].to_vec());
-            at += k as usize;
-        }
+        let total = sizes.iter().map(|&k| k as usize).sum();
+        // The concatenated corners cut into faces.
+        let split = |flat: &[u32]| {
+            let mut at = 0;
+            sizes
+                .iter()
+                .map(|&k| {
+                    at += k as usize;
+                    flat[at - k as usize..at].to_vec()
+                })
+                .collect::<Vec<_>>()
+        };
+        let faces = split(std::slice::from_raw_parts(indices, total));
         let rest: &[[f32; 3]] = bytemuck::cast_slice(std::slice::from_raw_parts(rest, 3 * nv));
-        up.set_mesh(faces, rest, None)?;
+        if uv.is_null() {
+            up.set_mesh(faces, rest, None)?;
+            return Ok(ANISOCB_OK);
+        }
+        let nu = n_uv as usize;
+        if uv_indices.is_null() || nu == 0 || nu > MAX_MESH_FACES {
+            return Err(argument(&format!(
+                "anisocb_set_mesh: with uv, give 1 to {MAX_MESH_FACES} coordinates (n_uv = {nu}) and \
+                 uv_indices (one per face corner); or pass uv = NULL for an ARAP layout"
+            )));
+        }
+        let coords: &[[f32; 2]] = bytemuck::cast_slice(std::slice::from_raw_parts(uv, 2 * nu));
+        let uv_faces = split(std::slice::from_raw_parts(uv_indices, total));
+        if let Some((i, &k)) = uv_faces
+            .iter()
+            .enumerate()
+            .find_map(|(i, f)| f.iter().find(|&&k| k as usize >= nu).map(|k| (i, k)))
+        {
+            return Err(argument(&format!(
+                "anisocb_set_mesh: face {i} has UV index {k}, but there are {nu} UV coordinates (n_uv)"
+            )));
+        }
+        up.set_mesh(faces, rest, Some((coords, &uv_faces)))?;
         Ok(ANISOCB_OK)
     })
 }

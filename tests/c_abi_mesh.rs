@@ -80,6 +80,9 @@ fn a_mesh_through_the_c_abi_is_the_rust_apis_bit_for_bit() {
             sizes.len() as u32,
             sizes.as_ptr(),
             flat.as_ptr(),
+            0,
+            std::ptr::null(),
+            std::ptr::null(),
         );
         assert_eq!(st, ANISOCB_OK, "{}", last_error());
         let nh = anisocb_hr_vertex_count(up) as usize;
@@ -118,6 +121,9 @@ fn a_mesh_through_the_c_abi_is_the_rust_apis_bit_for_bit() {
                     sizes.len() as u32,
                     sizes.as_ptr(),
                     flat.as_ptr(),
+                    0,
+                    std::ptr::null(),
+                    std::ptr::null(),
                 );
                 assert_eq!(st, ANISOCB_ERR_CONFIG);
                 assert!(last_error().contains("between shots"), "{}", last_error());
@@ -151,6 +157,9 @@ fn a_mesh_through_the_c_abi_is_the_rust_apis_bit_for_bit() {
             sizes2.len() as u32,
             sizes2.as_ptr(),
             faces2.concat().as_ptr(),
+            0,
+            std::ptr::null(),
+            std::ptr::null(),
         );
         assert_eq!(st, ANISOCB_OK, "{}", last_error());
         anisocb_free(up);
@@ -174,7 +183,17 @@ fn bad_meshes_and_misuse_through_the_c_abi_are_error_codes_with_messages() {
         // A pentagon.
         let (sizes, idx) = (vec![5u32], vec![0u32, 1, 2, 3, 4]);
         assert_eq!(
-            anisocb_set_mesh(up, rest.len() as u32, rest_flat.as_ptr(), 1, sizes.as_ptr(), idx.as_ptr()),
+            anisocb_set_mesh(
+                up,
+                rest.len() as u32,
+                rest_flat.as_ptr(),
+                1,
+                sizes.as_ptr(),
+                idx.as_ptr(),
+                0,
+                std::ptr::null(),
+                std::ptr::null()
+            ),
             ANISOCB_ERR_ARGUMENT
         );
         assert!(last_error().contains("face 0 has 5 vertices"), "{}", last_error());
@@ -189,17 +208,40 @@ fn bad_meshes_and_misuse_through_the_c_abi_are_error_codes_with_messages() {
             sizes.len() as u32,
             sizes.as_ptr(),
             flat.as_ptr(),
+            0,
+            std::ptr::null(),
+            std::ptr::null(),
         );
         assert!(st < 0, "an index out of range was accepted");
         let msg = last_error();
         assert!(msg.contains(&(rest.len() + 7).to_string()) || msg.contains("face"), "{msg}");
         // Null pointers and no vertices.
         assert_eq!(
-            anisocb_set_mesh(up, 0, rest_flat.as_ptr(), 1, sizes.as_ptr(), flat.as_ptr()),
+            anisocb_set_mesh(
+                up,
+                0,
+                rest_flat.as_ptr(),
+                1,
+                sizes.as_ptr(),
+                flat.as_ptr(),
+                0,
+                std::ptr::null(),
+                std::ptr::null()
+            ),
             ANISOCB_ERR_ARGUMENT
         );
         assert_eq!(
-            anisocb_set_mesh(up, rest.len() as u32, std::ptr::null(), 1, sizes.as_ptr(), flat.as_ptr()),
+            anisocb_set_mesh(
+                up,
+                rest.len() as u32,
+                std::ptr::null(),
+                1,
+                sizes.as_ptr(),
+                flat.as_ptr(),
+                0,
+                std::ptr::null(),
+                std::ptr::null()
+            ),
             ANISOCB_ERR_ARGUMENT
         );
         // Still no mesh after the failures; a good one is then taken.
@@ -212,6 +254,9 @@ fn bad_meshes_and_misuse_through_the_c_abi_are_error_codes_with_messages() {
             sizes.len() as u32,
             sizes.as_ptr(),
             flat.as_ptr(),
+            0,
+            std::ptr::null(),
+            std::ptr::null(),
         );
         assert_eq!(st, ANISOCB_OK, "{}", last_error());
         assert!(anisocb_hr_vertex_count(up) as usize > rest.len());
@@ -223,6 +268,101 @@ fn bad_meshes_and_misuse_through_the_c_abi_are_error_codes_with_messages() {
         let st = anisocb_push_mesh(up, bad.as_ptr(), hr.as_mut_ptr(), hr.len());
         assert!(st < 0, "a NaN frame was accepted");
         assert!(!last_error().is_empty());
+        anisocb_free(up);
+    }
+}
+
+/// The tube's UVs unrolled: column i of row j at (i / around, j / (along − 1)), a seam where the
+/// last column meets the first (its own coordinates at u = 1); per face, its corners' indices.
+fn tube_uvs(around: usize, along: usize, faces: &[Vec<u32>]) -> (Vec<[f32; 2]>, Vec<Vec<u32>>) {
+    let uv: Vec<[f32; 2]> = (0..along)
+        .flat_map(|j| (0..=around).map(move |i| [i as f32 / around as f32, j as f32 / (along - 1) as f32]))
+        .collect();
+    let uv_faces = faces
+        .iter()
+        .map(|f| {
+            // A face's corners as (column, row); a corner on column 0 of a face that also has the
+            // last column takes the seam's copy (column `around`).
+            let cols: Vec<usize> = f.iter().map(|&v| v as usize % around).collect();
+            let wraps = cols.contains(&(around - 1)) && cols.contains(&0);
+            f.iter()
+                .zip(&cols)
+                .map(|(&v, &c)| {
+                    let (c, j) = (if wraps && c == 0 { around } else { c }, v as usize / around);
+                    (j * (around + 1) + c) as u32
+                })
+                .collect()
+        })
+        .collect();
+    (uv, uv_faces)
+}
+
+#[test]
+fn a_mesh_with_uvs_through_the_c_abi_is_the_rust_apis_bit_for_bit() {
+    let (around, along) = (16, 6);
+    let (rest, faces) = tube(around, along);
+    let (uv, uv_faces) = tube_uvs(around, along, &faces);
+    let frames = 5;
+    let mut rust = Upscaler::embedded()
+        .unwrap()
+        .with_threads(1)
+        .unwrap()
+        .with_mesh(faces.clone(), &rest, Some((&uv, &uv_faces)))
+        .unwrap();
+    let mut want = Vec::new();
+    for t in 0..frames {
+        let lr: Vec<[f32; 3]> = frame(&rest, t).chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
+        want.extend(rust.push_mesh(&lr).unwrap());
+    }
+    want.extend(rust.flush_mesh().unwrap());
+    // The UVs are used: an ARAP layout of the same tube gives other HR vertices.
+    let mut arap =
+        Upscaler::embedded().unwrap().with_threads(1).unwrap().with_mesh(faces.clone(), &rest, None).unwrap();
+    let lr: Vec<[f32; 3]> = frame(&rest, 0).chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
+    let mut by_arap = arap.push_mesh(&lr).unwrap().into_iter().collect::<Vec<_>>();
+    by_arap.extend(arap.flush_mesh().unwrap());
+    assert_ne!(by_arap[0], want[0], "the UV layout gave the ARAP layout's vertices");
+    unsafe {
+        let up = new_upscaler();
+        let sizes: Vec<u32> = faces.iter().map(|f| f.len() as u32).collect();
+        let (flat, uv_flat, uv_idx) = (faces.concat(), uv.concat(), uv_faces.concat());
+        let rest_flat: Vec<f32> = rest.concat();
+        let set = |uv_idx: &[u32]| {
+            anisocb_set_mesh(
+                up,
+                rest.len() as u32,
+                rest_flat.as_ptr(),
+                sizes.len() as u32,
+                sizes.as_ptr(),
+                flat.as_ptr(),
+                uv.len() as u32,
+                uv_flat.as_ptr(),
+                uv_idx.as_ptr(),
+            )
+        };
+        // A UV index past the coordinates is refused, with a message.
+        let mut bad = uv_idx.clone();
+        bad[3] = uv.len() as u32 + 2;
+        assert_eq!(set(&bad), ANISOCB_ERR_ARGUMENT, "a UV index out of range was accepted");
+        assert!(last_error().contains(&format!("UV index {}", uv.len() + 2)), "{}", last_error());
+        assert_eq!(set(&uv_idx), ANISOCB_OK, "{}", last_error());
+        let nh = anisocb_hr_vertex_count(up) as usize;
+        let mut hr = vec![0.0f32; 3 * nh];
+        let mut got = Vec::new();
+        for t in 0..frames {
+            let lr = frame(&rest, t);
+            if anisocb_push_mesh(up, lr.as_ptr(), hr.as_mut_ptr(), hr.len()) == ANISOCB_OK {
+                got.push(hr.clone());
+            }
+        }
+        while anisocb_flush(up, hr.as_mut_ptr(), hr.len()) == ANISOCB_OK {
+            got.push(hr.clone());
+        }
+        assert_eq!(got.len(), frames);
+        for (t, (g, w)) in got.iter().zip(&want).enumerate() {
+            let w: Vec<f32> = w.concat();
+            assert!(g.iter().zip(&w).all(|(a, b)| a.to_bits() == b.to_bits()), "frame {t} differs");
+        }
         anisocb_free(up);
     }
 }
