@@ -521,3 +521,32 @@ fn cuda_device_resident_training_matches_cpu() {
         }
     }
 }
+
+/// `--precision`: auto is fp32 on the CPU and fp16 on a GPU with tensor cores; fp16 on the CPU
+/// is refused saying where it runs; fp32 on the GPU turns the tensor-core path off.
+#[test]
+fn precision_resolves_per_device_and_fp32_turns_the_tensor_cores_off() {
+    use anisocb::pipeline::job::Precision;
+    assert_eq!(Precision::resolve("auto", &Cpu).unwrap(), Precision::Fp32);
+    assert_eq!(Precision::resolve("fp32", &Cpu).unwrap(), Precision::Fp32);
+    let e = Precision::resolve("fp16", &Cpu).unwrap_err();
+    assert!(
+        matches!(e, Error::Invalid { field: "precision", .. }) && e.to_string().contains("--device cuda"),
+        "{e}"
+    );
+    assert!(Precision::resolve("fp8", &Cpu).is_err());
+    let Some(dev) = device() else { return };
+    let cuda = dev.as_cuda().expect("the cuda table");
+    if cuda.tensor_cores().is_err() {
+        println!("skipped: this GPU has no tensor-core path");
+        return;
+    }
+    let model = AnisoCb::new(NetConfig { channels: 8, blocks: 1, ..NetConfig::small() }, 3);
+    let x = Rng::new(5).tensor(&[1, 3, 6, 6], 0.0, 1.0);
+    let view = [MirrorView { rows: false, cols: false, axes: [false; 3] }];
+    assert_eq!(Precision::resolve("auto", dev.as_ref()).unwrap(), Precision::Fp16);
+    assert!(anisocb::cuda::nets_views(dev.as_ref(), &model.packed(), &x, &view, true).is_some());
+    assert_eq!(Precision::resolve("fp32", dev.as_ref()).unwrap(), Precision::Fp32);
+    assert!(anisocb::cuda::nets_views(dev.as_ref(), &model.packed(), &x, &view, true).is_none());
+    cuda.use_tensor_cores(true);
+}

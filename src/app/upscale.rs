@@ -130,8 +130,9 @@ pub struct Args {
     /// Compute device: cpu or cuda.
     #[arg(help_heading = "Model and engine", long, default_value = "cpu")]
     pub device: String,
-    /// The nets' arithmetic: fp32 (today the only one; the audited path).
-    #[arg(help_heading = "Model and engine", long, default_value = "fp32", value_parser = ["fp32"])]
+    /// The nets' arithmetic: auto (fp16 on a GPU with tensor cores, else fp32), fp32 (the
+    /// audited path; on a GPU the op-by-op kernels) or fp16 (--device cuda only).
+    #[arg(help_heading = "Model and engine", long, default_value = "auto", value_parser = ["auto", "fp32", "fp16"])]
     pub precision: String,
     /// Output format: auto (same as input), obj or npy.
     #[arg(help_heading = "Input and output", long, default_value = "auto", value_parser = ["auto", "obj", "npy"])]
@@ -399,6 +400,7 @@ pub fn run(a: Args) -> Result<()> {
     let device = Device::parse(&a.device)?;
     set_threads(a.threads)?;
     let ops = device.ops()?;
+    let job = job.with_precision(Precision::resolve(&a.precision, ops.as_ref())?);
     let model = load_model(a.weights.as_deref())?;
     let done = upscale_files(ops.as_ref(), &model, &job, &mut Stderr::default())?;
     let (n, secs) = (done.frames, done.seconds);

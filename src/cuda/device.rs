@@ -85,6 +85,8 @@ pub struct Cuda {
     pub(super) infer: std::result::Result<InferKernels, String>,
     /// The last bundle [`Cuda::nets_views`] ran, its weights on the device.
     pub(super) bundle: Mutex<Option<Arc<DeviceBundle>>>,
+    /// Whether [`Cuda::nets_views`] may run (`--precision fp32` turns it off).
+    pub(super) tensor_cores_on: std::sync::atomic::AtomicBool,
 }
 
 impl std::fmt::Debug for Cuda {
@@ -213,7 +215,16 @@ impl Cuda {
             adam_step: f("adam_step")?,
         };
         let infer = InferKernels::load(&ctx);
-        Ok(Cuda { ctx, stream, k, device_name, lock: Mutex::new(None), infer, bundle: Mutex::new(None) })
+        Ok(Cuda {
+            ctx,
+            stream,
+            k,
+            device_name,
+            lock: Mutex::new(None),
+            infer,
+            bundle: Mutex::new(None),
+            tensor_cores_on: std::sync::atomic::AtomicBool::new(true),
+        })
     }
 
     /// The GPU's name as the driver reports it.

@@ -184,6 +184,12 @@ impl Cuda {
         self.infer.as_ref().map(|_| ()).map_err(Clone::clone)
     }
 
+    /// Let [`Cuda::nets_views`] run (the default where it can), or not: the nets then run op by
+    /// op in fp32 (`--precision fp32`).
+    pub fn use_tensor_cores(&self, on: bool) {
+        self.tensor_cores_on.store(on, std::sync::atomic::Ordering::Relaxed);
+    }
+
     /// [`super::nets_views`] on this GPU: `None` without infer.cu or for a bundle the kernels do
     /// not fit.
     pub fn nets_views(
@@ -193,6 +199,9 @@ impl Cuda {
         views: &[MirrorView],
         enhance: bool,
     ) -> Option<NetsOutput> {
+        if !self.tensor_cores_on.load(std::sync::atomic::Ordering::Relaxed) {
+            return None;
+        }
         let k = self.infer.as_ref().ok()?;
         let (n, c, h, w) = x.dims4();
         assert_eq!(c, 3, "nets_views: xyz images, got {c} channels");

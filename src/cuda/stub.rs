@@ -33,6 +33,11 @@ impl Cuda {
     pub fn tensor_cores(&self) -> std::result::Result<(), String> {
         match *self {}
     }
+
+    /// Turn the tensor-core path on or off: there is none in this build.
+    pub fn use_tensor_cores(&self, _on: bool) {
+        match *self {}
+    }
 }
 
 /// Stand-in for the device-resident trainer: it holds a [`Cuda`], which cannot exist here.

@@ -43,9 +43,11 @@ pub enum OutputFormat {
 /// The arithmetic the nets run in.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum Precision {
-    /// f32 throughout: the audited path, and today the only one.
+    /// f32 throughout: the audited path, and the CPU's.
     #[default]
     Fp32,
+    /// fp16 operands with f32 accumulation: the CUDA tensor-core path (`cuda::nets_views`).
+    Fp16,
 }
 
 impl Precision {
@@ -53,6 +55,33 @@ impl Precision {
     pub fn name(self) -> &'static str {
         match self {
             Precision::Fp32 => "fp32",
+            Precision::Fp16 => "fp16",
+        }
+    }
+
+    /// The precision `request` (`auto`, `fp32` or `fp16`) resolved for `ops`: `auto` is fp16
+    /// where `ops` is a GPU with tensor cores, else fp32. `fp32` on such a GPU turns its
+    /// tensor-core path off (the op-by-op fp32 kernels run). Errors: fp16 where it cannot run.
+    pub fn resolve(request: &str, ops: &dyn crate::ops::Ops) -> Result<Precision> {
+        let tc = ops.as_cuda().map(|c| c.tensor_cores());
+        match (request, tc) {
+            ("fp32", Some(_)) => {
+                ops.as_cuda().expect("a CUDA table").use_tensor_cores(false);
+                Ok(Precision::Fp32)
+            }
+            ("fp32", None) | ("auto", None) | ("auto", Some(Err(_))) => Ok(Precision::Fp32),
+            ("auto", Some(Ok(()))) | ("fp16", Some(Ok(()))) => Ok(Precision::Fp16),
+            ("fp16", Some(Err(why))) => {
+                Err(Error::invalid("precision", format!("fp16 cannot run here: {why}")))
+            }
+            ("fp16", None) => Err(Error::invalid(
+                "precision",
+                "fp16 runs on --device cuda (a GPU with tensor cores); the CPU runs fp32",
+            )),
+            (other, _) => Err(Error::invalid(
+                "precision",
+                format!("unknown precision `{other}`: expected auto, fp32 or fp16"),
+            )),
         }
     }
 }
@@ -189,6 +218,15 @@ impl UpscaleJob {
 /// An [`UpscaleJob`] whose options passed [`UpscaleJob::check`]: what [`upscale_files`] runs.
 #[derive(Clone, Debug)]
 pub struct CheckedJob(UpscaleJob);
+
+impl CheckedJob {
+    /// The job with the nets' arithmetic resolved for the op table it runs on
+    /// ([`Precision::resolve`]); the checks stand.
+    pub fn with_precision(mut self, precision: Precision) -> CheckedJob {
+        self.0.precision = precision;
+        self
+    }
+}
 
 impl std::ops::Deref for CheckedJob {
     type Target = UpscaleJob;
