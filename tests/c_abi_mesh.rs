@@ -50,6 +50,23 @@ unsafe fn new_upscaler() -> *mut anisocb::pipeline::Upscaler {
     up
 }
 
+/// `anisocb_set_mesh` of `rest` and faces given as their sizes and concatenated indices, no UVs.
+unsafe fn set_mesh(up: *mut Upscaler, rest: &[[f32; 3]], sizes: &[u32], flat: &[u32]) -> std::ffi::c_int {
+    let rest_flat = rest.concat();
+    let (null_uv, null_idx) = (std::ptr::null(), std::ptr::null());
+    anisocb_set_mesh(
+        up,
+        rest.len() as u32,
+        rest_flat.as_ptr(),
+        sizes.len() as u32,
+        sizes.as_ptr(),
+        flat.as_ptr(),
+        0,
+        null_uv,
+        null_idx,
+    )
+}
+
 unsafe fn last_error() -> String {
     CStr::from_ptr(anisocb_last_error()).to_string_lossy().into_owned()
 }
@@ -72,18 +89,7 @@ fn a_mesh_through_the_c_abi_is_the_rust_apis_bit_for_bit() {
         let up = new_upscaler();
         let sizes: Vec<u32> = faces.iter().map(|f| f.len() as u32).collect();
         let flat: Vec<u32> = faces.concat();
-        let rest_flat: Vec<f32> = rest.concat();
-        let st = anisocb_set_mesh(
-            up,
-            rest.len() as u32,
-            rest_flat.as_ptr(),
-            sizes.len() as u32,
-            sizes.as_ptr(),
-            flat.as_ptr(),
-            0,
-            std::ptr::null(),
-            std::ptr::null(),
-        );
+        let st = set_mesh(up, &rest, &sizes, &flat);
         assert_eq!(st, ANISOCB_OK, "{}", last_error());
         let nh = anisocb_hr_vertex_count(up) as usize;
         assert_eq!(nh, want[0].len(), "HR vertex count");
@@ -114,17 +120,7 @@ fn a_mesh_through_the_c_abi_is_the_rust_apis_bit_for_bit() {
             // The mesh cannot change in the middle of a shot.
             if t == 1 {
                 let sizes: Vec<u32> = faces.iter().map(|f| f.len() as u32).collect();
-                let st = anisocb_set_mesh(
-                    up,
-                    rest.len() as u32,
-                    rest_flat.as_ptr(),
-                    sizes.len() as u32,
-                    sizes.as_ptr(),
-                    flat.as_ptr(),
-                    0,
-                    std::ptr::null(),
-                    std::ptr::null(),
-                );
+                let st = set_mesh(up, &rest, &sizes, &flat);
                 assert_eq!(st, ANISOCB_ERR_CONFIG);
                 assert!(last_error().contains("between shots"), "{}", last_error());
             }
@@ -150,17 +146,7 @@ fn a_mesh_through_the_c_abi_is_the_rust_apis_bit_for_bit() {
         // After the flush, the next shot may set another mesh.
         let (rest2, faces2) = tube(12, 5);
         let sizes2: Vec<u32> = faces2.iter().map(|f| f.len() as u32).collect();
-        let st = anisocb_set_mesh(
-            up,
-            rest2.len() as u32,
-            rest2.concat().as_ptr(),
-            sizes2.len() as u32,
-            sizes2.as_ptr(),
-            faces2.concat().as_ptr(),
-            0,
-            std::ptr::null(),
-            std::ptr::null(),
-        );
+        let st = set_mesh(up, &rest2, &sizes2, &faces2.concat());
         assert_eq!(st, ANISOCB_OK, "{}", last_error());
         anisocb_free(up);
     }
@@ -182,36 +168,13 @@ fn bad_meshes_and_misuse_through_the_c_abi_are_error_codes_with_messages() {
         assert_eq!(anisocb_hr_vertex_count(up), 0);
         // A pentagon.
         let (sizes, idx) = (vec![5u32], vec![0u32, 1, 2, 3, 4]);
-        assert_eq!(
-            anisocb_set_mesh(
-                up,
-                rest.len() as u32,
-                rest_flat.as_ptr(),
-                1,
-                sizes.as_ptr(),
-                idx.as_ptr(),
-                0,
-                std::ptr::null(),
-                std::ptr::null()
-            ),
-            ANISOCB_ERR_ARGUMENT
-        );
+        assert_eq!(set_mesh(up, &rest, &sizes, &idx), ANISOCB_ERR_ARGUMENT);
         assert!(last_error().contains("face 0 has 5 vertices"), "{}", last_error());
         // A vertex index past the mesh's vertices.
         let mut flat: Vec<u32> = faces.concat();
         flat[5] = rest.len() as u32 + 7;
         let sizes: Vec<u32> = faces.iter().map(|f| f.len() as u32).collect();
-        let st = anisocb_set_mesh(
-            up,
-            rest.len() as u32,
-            rest_flat.as_ptr(),
-            sizes.len() as u32,
-            sizes.as_ptr(),
-            flat.as_ptr(),
-            0,
-            std::ptr::null(),
-            std::ptr::null(),
-        );
+        let st = set_mesh(up, &rest, &sizes, &flat);
         assert!(st < 0, "an index out of range was accepted");
         let msg = last_error();
         assert!(msg.contains(&(rest.len() + 7).to_string()) || msg.contains("face"), "{msg}");
@@ -247,17 +210,7 @@ fn bad_meshes_and_misuse_through_the_c_abi_are_error_codes_with_messages() {
         // Still no mesh after the failures; a good one is then taken.
         assert_eq!(anisocb_hr_vertex_count(up), 0);
         let flat: Vec<u32> = faces.concat();
-        let st = anisocb_set_mesh(
-            up,
-            rest.len() as u32,
-            rest_flat.as_ptr(),
-            sizes.len() as u32,
-            sizes.as_ptr(),
-            flat.as_ptr(),
-            0,
-            std::ptr::null(),
-            std::ptr::null(),
-        );
+        let st = set_mesh(up, &rest, &sizes, &flat);
         assert_eq!(st, ANISOCB_OK, "{}", last_error());
         assert!(anisocb_hr_vertex_count(up) as usize > rest.len());
         // A frame holding a NaN.
