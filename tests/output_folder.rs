@@ -105,6 +105,30 @@ fn a_rerun_after_the_input_shrank_removes_the_frames_it_no_longer_writes() {
 }
 
 #[test]
+fn a_rerun_removes_the_temporaries_a_killed_run_left_beside_its_summary_and_files() {
+    let d = TempDir::new("folder-temps");
+    let a = shot(&d, "a", 2);
+    assert!(anisocb(&["upscale", &a, "--out", &d.arg("hr")]).status.success());
+    // What runs killed between creating a temp file and renaming it leave (pid 4194305 is
+    // above Linux's largest pid, so never a running process): beside a summary, a frame.
+    let frame = snapshot(&d.join("hr")).into_iter().map(|(n, _)| n).find(|n| n.ends_with(".obj")).unwrap();
+    let planted = [
+        d.join("a/.simulate.json.tmp.4194305.0"),
+        d.join("hr/.upscale.json.tmp.4194305.1"),
+        d.join("hr").join(format!(".{frame}.tmp.4194305.3")),
+    ];
+    for p in &planted {
+        std::fs::write(p, b"partial").unwrap();
+    }
+    shot(&d, "a", 2);
+    let o = anisocb(&["upscale", &a, "--out", &d.arg("hr")]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    for p in &planted {
+        assert!(!p.exists(), "{} was left after the rerun", p.display());
+    }
+}
+
+#[test]
 fn a_slice_with_other_settings_beside_a_full_run_is_refused_unless_overwrite() {
     let d = TempDir::new("folder-slice");
     let a = shot(&d, "a", 4);

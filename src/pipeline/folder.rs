@@ -18,7 +18,7 @@
 //! a subfolder is looked into where the job writes into it, and is otherwise foreign itself.
 
 use crate::error::{Error, Result};
-use crate::io::atomic::ensure_dir;
+use crate::io::atomic::{ensure_dir, remove_stale_temps};
 use crate::io::json::{read_json, write_json, Layout, Object, Value};
 use std::collections::{HashMap, HashSet};
 use std::fs::{self, File, TryLockError};
@@ -96,7 +96,14 @@ pub fn claim(dir: &Path, own: &Ownership, overwrite: bool) -> Result<Claim> {
     let created = !lock_path.exists();
     let lock = lock(&lock_path, dir, &own.summary)?;
     match check(dir, own, overwrite) {
-        Ok(removed) => Ok(Claim { lock, removed }),
+        Ok(removed) => {
+            // Temporaries of atomic writes that a killed run of this folder left behind (the
+            // summary's too); under the lock no other run is writing them.
+            for f in std::iter::once(&own.summary).chain(&own.files) {
+                remove_stale_temps(&dir.join(f))?;
+            }
+            Ok(Claim { lock, removed })
+        }
         Err(e) => {
             // A refused run leaves the folder as it found it.
             if created {
