@@ -212,3 +212,53 @@ fn simulate_a_garment_twice_into_its_folder_and_refuse_another_scenes() {
     );
     assert!(out.join("lr/cloth_0002.obj").is_file());
 }
+
+#[test]
+fn a_garment_run_becomes_sheet_sized_windows_of_a_dataset_and_is_held_out_by_its_name() {
+    let dir = TempDir::new("garment-dataset");
+    let sp = spec(Garment::Skirt, 3);
+    let run = garment_run(&sp, true, &mut |_| {}).unwrap();
+    let pair = dir.path().join("skirt-3");
+    write_garment_run(&pair, &sp, &run).unwrap();
+    let out = dir.path().join("data.npz");
+    let args = |extra: &[&str]| {
+        let mut a =
+            vec!["anisocb", "dataset", "--runs", pair.to_str().unwrap(), "--out", out.to_str().unwrap()];
+        a.extend_from_slice(extra);
+        a.into_iter().map(String::from).collect::<Vec<_>>()
+    };
+    assert_eq!(anisocb::app::main_with_args(args(&["--overwrite"])), 0);
+    let e = anisocb::io::read_npz(&out).unwrap();
+    let (lr, hr) = (e.array("lr").unwrap(), e.array("hr").unwrap());
+    // Without sheets the windows are the sheets' training size: 32² LR, 64² HR.
+    assert_eq!(&lr.shape[1..], &[3, 32, 32]);
+    assert_eq!(&hr.shape[1..], &[3, 64, 64]);
+    assert_eq!(lr.shape[0] % 3, 0, "3 frames per window");
+    assert!(lr.data.iter().chain(&hr.data).all(|v| v.is_finite()));
+    let frames = String::from_utf8(e.file("frames.json").unwrap().to_vec()).unwrap();
+    assert!(
+        frames.contains("\"run\": \"skirt-3@0\"") && frames.contains("\"scenario\": \"skirt\""),
+        "{frames}"
+    );
+    // The HR window shows the same cloth as the LR one at twice the pixels: each HR pixel within
+    // a tenth of the window's extent (the cloth frame's unit) of its nearest LR pixel. (The
+    // exact alignment is `geom::layout`'s test.)
+    let n = 32;
+    let mut diff = 0.0f32;
+    for c in 0..3 {
+        for yy in 0..2 * n {
+            for xx in 0..2 * n {
+                let s = (n - 1) as f32 / (2 * n - 1) as f32;
+                let (x, y) = ((xx as f32 * s).round() as usize, (yy as f32 * s).round() as usize);
+                let d = hr.data[(c * 2 * n + yy) * 2 * n + xx] - lr.data[(c * n + y) * n + x];
+                diff = diff.max(d.abs());
+            }
+        }
+    }
+    assert!(diff > 1e-4 && diff < 0.1, "largest HR − LR difference {diff} (cloth-frame units)");
+    // Held out by scenario or by its folder's name: no run left.
+    for name in ["skirt", "skirt-3"] {
+        let code = anisocb::app::main_with_args(args(&["--overwrite", "--holdout", name]));
+        assert_ne!(code, 0, "--holdout {name} kept the run");
+    }
+}

@@ -4,6 +4,7 @@
 
 use crate::cloth::run_io::{pair_dir, read_pair};
 use crate::error::{Error, Result};
+use crate::eval::mesh::MeshRun;
 use crate::geom::anisotropy::BoundaryParams;
 use crate::geom::cloth_frame::InputFrame;
 use crate::imgproc::CannyParams;
@@ -11,12 +12,16 @@ use crate::io::read_npz;
 use crate::pipeline::folder;
 use crate::pipeline::input::same_file;
 use crate::tensor::Tensor;
-use crate::train::dataset::{benefit_boundary, build, is_held_out, MapParams};
+use crate::train::dataset::{benefit_boundary, build, is_held_out, mesh_run_windows, MapParams};
 use std::path::{Path, PathBuf};
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// Run pairs from `anisocb simulate --pair --out DIR` (DIR, or its lr/ or hr/ subdirectory).
+    /// Run pairs from `anisocb simulate --pair --out DIR` (DIR, or its lr/ or hr/ subdirectory):
+    /// sheets, and garments (`--scenario skirt` …) or any pair of OBJ sequences whose HR mesh
+    /// is the LR mesh subdivided once. A mesh run's geometry images (laid out as `upscale`
+    /// lays them out) are cut into windows the size of the sheets' LR frames (32×32 without
+    /// sheets), each a run of its own named DIR@k.
     #[arg(long, num_args = 1.., required = true, value_name = "DIR")]
     pub runs: Vec<PathBuf>,
     /// Output .npz (arrays lr, hr, boundary, edges, domain; frames.json, params.json), written
@@ -69,6 +74,13 @@ pub struct Args {
     #[arg(long, default_value_t = 4)]
     pub sheet_frames: usize,
 }
+
+/// LR pixels of the square windows mesh runs are cut into when there is no grid run to match:
+/// the sheets' training size (`make weights`).
+const DEFAULT_WINDOW: usize = 32;
+
+/// The HR run of a mesh run is its LR mesh subdivided once.
+const UPSCALE: usize = 2;
 
 /// `dataset --edges wrinkle-energy`: the quantile of the truth's local wrinkle amplitude that
 /// maps to an edge target of 1 (the folds of the most folded tenth of the cloth count fully).
@@ -143,15 +155,39 @@ pub fn run(a: Args) -> Result<()> {
     let _out = folder::claim_file(&a.out, "a data set (.npz with frames.json)", is_data_set, a.overwrite)?;
     let is_png = |p: &Path| std::fs::read(p).is_ok_and(|b| b.starts_with(b"\x89PNG\r\n\x1a\n"));
     let _png = folder::claim_file(&png, "a PNG image", is_png, a.overwrite)?;
-    let mut runs = Vec::new();
+    // Grid runs as they are; mesh runs (OBJ sequences that are not a grid: garments) after
+    // them, in windows of the grid runs' LR size.
+    let (mut runs, mut meshes) = (Vec::new(), Vec::new());
     for pd in &seen {
-        let r = read_pair(pd)?;
-        if is_held_out(&r, &a.holdout) {
-            eprintln!("held out: {} ({})", r.name, r.scenario);
-            continue;
+        match read_pair(pd) {
+            Ok(r) => runs.push(r),
+            Err(grid) => match MeshRun::read(pd) {
+                Ok(m) => meshes.push((pd, m)),
+                // Neither: the grid reader's message, unless the run is plainly a mesh run.
+                Err(mesh) => return Err(if pd.join("scene.json").exists() { mesh } else { grid }),
+            },
         }
-        runs.push(r);
     }
+    let window = match runs.first().map(|r| r.lr.dims4()) {
+        Some((_, _, h, w)) if h == w => h,
+        Some((_, _, h, w)) => {
+            return Err(Error::config(format!(
+                "the grid runs are {w}×{h}: mesh runs are cut into square windows of the grid runs' \
+                 size; simulate square sheets (--res 32x32) or leave the mesh runs out"
+            )))
+        }
+        None => DEFAULT_WINDOW,
+    };
+    for (pd, m) in &meshes {
+        runs.extend(mesh_run_windows(pd, m, window, UPSCALE)?);
+    }
+    runs.retain(|r| {
+        let out = is_held_out(r, &a.holdout);
+        if out {
+            eprintln!("held out: {} ({})", r.name, r.scenario);
+        }
+        !out
+    });
     let total: u64 = runs.iter().map(|r| r.hr.shape[0] as u64).sum();
     let pb = super::ui::progress(total, "maps");
     let mut ds = build(&runs, &params, input_frame, &a.holdout, &|| pb.inc(1))?;

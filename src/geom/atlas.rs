@@ -181,6 +181,56 @@ impl Atlas {
         }
     }
 
+    /// The image of another mesh laid out in this atlas's charts: `faces` (of `rest`'s
+    /// vertices) with corner positions `corner_px` (LR pixels of this atlas, per face, per
+    /// corner), mapped by `to_px` into an `h` × `w` image, rasterised and filled as this atlas
+    /// is. A window of this atlas (a training tile: `faces` = its own, `to_px` a shift), or the
+    /// HR subdivision's faces at the charts' places on the HR grid (see
+    /// [`super::layout::MeshLayout::training_windows`]). Corners that share a mesh vertex and a
+    /// position are one chart vertex; the faces are triangulated as the atlas's are.
+    pub fn resampled(
+        &self,
+        faces: &[Vec<u32>],
+        rest: &[[f32; 3]],
+        corner_px: &[Vec<[f32; 2]>],
+        to_px: impl Fn([f32; 2]) -> [f64; 2],
+        (h, w): (usize, usize),
+    ) -> Atlas {
+        let key = |f: usize, k: usize| (faces[f][k], corner_px[f][k].map(f32::to_bits));
+        let mut c = charts::triangulate(faces, rest, key);
+        for (tri, o) in c.tris.iter().zip(&c.origin) {
+            for k in 0..3 {
+                c.pos[tri[k] as usize] = to_px(corner_px[o.face as usize][o.corner[k] as usize]);
+            }
+        }
+        let cover = rasterize(std::slice::from_ref(&c), h, w);
+        let mut covered = vec![false; h * w];
+        cover.iter().for_each(|c| covered[c.px as usize] = true);
+        let (fill_px, fill_start, fill_src, fill_coef) = extrapolation(h, w, &covered);
+        Atlas {
+            h,
+            w,
+            corner_px: corner_px
+                .iter()
+                .map(|f| f.iter().map(|&p| to_px(p).map(|x| x as f32)).collect())
+                .collect(),
+            texel: self.texel,
+            charts: self.charts,
+            source: self.source,
+            cover,
+            fill_px,
+            fill_start,
+            fill_src,
+            fill_coef,
+            // `faces` are this atlas's faces or their subdivision (four per face, in order).
+            face_chart: (0..faces.len())
+                .map(|f| self.face_chart[f * self.face_chart.len() / faces.len()])
+                .collect(),
+            uv_note: None,
+            vertices: rest.len(),
+        }
+    }
+
     /// Per pixel (row-major, h·w), whether it lies inside a chart.
     pub fn mask(&self) -> Vec<bool> {
         let mut m = vec![false; self.h * self.w];

@@ -164,7 +164,11 @@ pub(crate) fn face_triangles(face: &[u32], rest: &[[f32; 3]]) -> &'static [[u8; 
 
 /// Triangulates all `faces`; two corners become one chart vertex when `key(face, corner)` is
 /// equal (the mesh vertex, or the mesh vertex and its UV).
-fn triangulate<K: Ord>(faces: &[Vec<u32>], rest: &[[f32; 3]], key: impl Fn(usize, usize) -> K) -> Chart {
+pub(crate) fn triangulate<K: Ord>(
+    faces: &[Vec<u32>],
+    rest: &[[f32; 3]],
+    key: impl Fn(usize, usize) -> K,
+) -> Chart {
     let mut ids: BTreeMap<K, u32> = BTreeMap::new();
     let mut c = Chart { vert: Vec::new(), tris: Vec::new(), origin: Vec::new(), pos: Vec::new() };
     for (f, face) in faces.iter().enumerate() {

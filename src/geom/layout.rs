@@ -9,7 +9,7 @@
 //! the mesh's own linear subdivision plus the detail the nets composed (HR image − U) read at
 //! each vertex's chart position.
 
-use super::atlas::{Atlas, AtlasInput};
+use super::atlas::{Atlas, AtlasInput, MARGIN};
 use super::geometry_image::{grid_to_image, image_to_grid, Domain};
 use super::surface::{FaceUvs, Subdivision, Surface};
 use crate::error::{Error, Result};
@@ -213,6 +213,113 @@ impl MeshLayout {
     }
 }
 
+/// Training windows of a mesh's geometry images (issue 45, step 5): the LR atlas over an
+/// `n` × `n` window of its image and the HR subdivision's atlas over the matching `r·n` × `r·n`
+/// window, so that a garment's frames become (LR, HR) image pairs of the sheets' size.
+pub struct TrainingWindow {
+    /// Top-left LR pixel of the window (negative, or past the image: filled as the image is).
+    pub origin: [i64; 2],
+    /// (3, n, n) images of an LR frame.
+    pub lr: Atlas,
+    /// (3, r·n, r·n) images of the HR frame (the LR mesh subdivided once, in
+    /// [`Subdivision`]'s numbering), aligned with `lr` by align-corners as the nets' U is: HR
+    /// pixel X is LR pixel x = X·(n − 1)/(r·n − 1) of the window.
+    pub hr: Atlas,
+    /// Per HR pixel, whether it lies inside a chart.
+    hr_mask: Vec<bool>,
+}
+
+impl TrainingWindow {
+    /// The window's images of one frame: `lr` (3·n·n) of the LR frame, `hr` (3·rn·rn) of the
+    /// HR frame inside the charts and, outside them, the LR window's bilinear upsampling on the
+    /// same align-corners grid. So the detail the nets learn there is none: the HR run's own
+    /// extrapolation would diverge from the LR one's a few rings out (by a quarter of the
+    /// window on a skirt) and teach large residuals where `hr_frame` never reads.
+    pub fn images(&self, lr_frame: &[[f32; 3]], hr_frame: &[[f32; 3]], lr: &mut [f32], hr: &mut [f32]) {
+        let (n, m) = (self.lr.w, self.hr.w);
+        self.lr.image_into(lr_frame, lr);
+        self.hr.image_into(hr_frame, hr);
+        let s = (n - 1) as f32 / (m - 1).max(1) as f32;
+        for c in 0..3 {
+            let plane = &lr[c * n * n..(c + 1) * n * n];
+            for (p, _) in self.hr_mask.iter().enumerate().filter(|(_, inside)| !**inside) {
+                let (x, y) = ((p % m) as f32 * s, (p / m) as f32 * s);
+                hr[c * m * m + p] = bilinear(plane, n, n, x, y);
+            }
+        }
+    }
+}
+
+impl MeshLayout {
+    /// The windows of `n` LR pixels that cover the image (one, centred, where the image is
+    /// smaller; overlapping ones where it is larger), for the HR scale `r`. `rest`: the
+    /// positions the layout was made from.
+    pub fn training_windows(&self, rest: &[[f32; 3]], n: usize, r: usize) -> Vec<TrainingWindow> {
+        let faces = &self.surface.faces;
+        let hr_rest = self.sub.apply(rest);
+        // Each HR face's corners at their places in the LR charts (the HR faces of LR face f are
+        // 4f..4f + 4; a corner is the mean of the LR corners it is made from).
+        let sources = self.sub.sources(faces);
+        let hr_corners: Vec<Vec<[f32; 2]>> = self
+            .sub
+            .faces
+            .iter()
+            .enumerate()
+            .map(|(j, hf)| {
+                let f = j / 4;
+                let c = &self.atlas.corner_px[f];
+                hf.iter()
+                    .map(|&v| {
+                        let (_, ks) = sources[v as usize]
+                            .iter()
+                            .find(|(g, _)| *g as usize == f)
+                            .expect("a corner of f");
+                        let m = ks.len() as f32;
+                        std::array::from_fn(|k| ks.iter().map(|&i| c[i as usize][k]).sum::<f32>() / m)
+                    })
+                    .collect()
+            })
+            .collect();
+        let (h, w) = self.image_size();
+        let mut out = Vec::new();
+        for oy in window_origins(h, n) {
+            for ox in window_origins(w, n) {
+                let o = [ox as f32, oy as f32];
+                let s = (r * n - 1) as f64 / (n - 1).max(1) as f64;
+                let lr = self.atlas.resampled(
+                    faces,
+                    rest,
+                    &self.atlas.corner_px,
+                    |p| [(p[0] - o[0]) as f64, (p[1] - o[1]) as f64],
+                    (n, n),
+                );
+                let hr = self.atlas.resampled(
+                    &self.sub.faces,
+                    &hr_rest,
+                    &hr_corners,
+                    |p| [(p[0] - o[0]) as f64 * s, (p[1] - o[1]) as f64 * s],
+                    (r * n, r * n),
+                );
+                let hr_mask = hr.mask();
+                out.push(TrainingWindow { origin: [ox, oy], lr, hr, hr_mask });
+            }
+        }
+        out
+    }
+}
+
+/// Origins of windows of `n` pixels over `d` pixels: one centred window where the charts fit
+/// (the image less its [`MARGIN`] of fill on each side), else the fewest that cover `d` with
+/// each overlapping the next by at least a quarter window.
+fn window_origins(d: usize, n: usize) -> Vec<i64> {
+    if d <= n + 2 * MARGIN {
+        return vec![(d as i64 - n as i64).div_euclid(2)];
+    }
+    let step = (3 * n / 4).max(1);
+    let count = (d - n).div_ceil(step) + 1;
+    (0..count).map(|i| ((i * (d - n)) as f64 / (count - 1) as f64).round() as i64).collect()
+}
+
 /// `faces` with every vertex replaced by the first vertex at exactly the same place in `rest`;
 /// `None` when no two vertices share a place.
 fn weld(faces: &[Vec<u32>], rest: &[[f32; 3]]) -> Option<Vec<Vec<u32>>> {
@@ -244,6 +351,98 @@ fn bilinear(img: &[f32], h: usize, w: usize, x: f32, y: f32) -> f32 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A flat, tilted 11×8 sheet of triangles (any-mesh path): positions are an affine
+    /// function of the chart coordinates, so every image of it is one too.
+    fn tilted_triangles() -> (MeshLayout, Vec<[f32; 3]>) {
+        let (nx, ny) = (11usize, 8usize);
+        let rest: Vec<[f32; 3]> = (0..nx * ny)
+            .map(|v| {
+                let (i, j) = ((v % nx) as f32, (v / nx) as f32);
+                [0.03 * i, 0.02 * j, 0.5 + 0.012 * i - 0.006 * j]
+            })
+            .collect();
+        let mut faces = Vec::new();
+        for j in 0..ny - 1 {
+            for i in 0..nx - 1 {
+                let a = (j * nx + i) as u32;
+                let (b, c, d) = (a + 1, a + 1 + nx as u32, a + nx as u32);
+                faces.extend([vec![a, b, c], vec![a, c, d]]);
+            }
+        }
+        let surface = Surface::new(rest.len(), faces, std::path::Path::new("t.obj")).unwrap();
+        (MeshLayout::new(surface, &rest, None).unwrap(), rest)
+    }
+
+    #[test]
+    fn training_windows_cover_the_lr_image_and_align_the_hr_window_by_align_corners() {
+        let (layout, rest) = tilted_triangles();
+        let (h, w) = layout.image_size();
+        let n = 8;
+        let windows = layout.training_windows(&rest, n, 2);
+        assert!(windows.len() >= 2, "an image of {h}×{w} in windows of {n}: {}", windows.len());
+        let mut full = vec![0.0f32; 3 * h * w];
+        layout.atlas.image_into(&rest, &mut full);
+        let hr_frame = layout.sub.apply(&rest);
+        let mask = layout.atlas.mask();
+        let mut seen = vec![false; h * w];
+        for win in &windows {
+            let (mut lr, mut hr) = (vec![0.0f32; 3 * n * n], vec![0.0f32; 3 * 4 * n * n]);
+            win.images(&rest, &hr_frame, &mut lr, &mut hr);
+            // The LR window is the image itself where the image has charts.
+            for y in 0..n {
+                for x in 0..n {
+                    let (fy, fx) = (y as i64 + win.origin[1], x as i64 + win.origin[0]);
+                    if fy < 0 || fx < 0 || fy >= h as i64 || fx >= w as i64 {
+                        continue;
+                    }
+                    let p = fy as usize * w + fx as usize;
+                    if !mask[p] {
+                        continue;
+                    }
+                    seen[p] = true;
+                    for c in 0..3 {
+                        let (a, b) = (lr[c * n * n + y * n + x], full[c * h * w + p]);
+                        assert!(
+                            (a - b).abs() < 1e-5,
+                            "window {:?} px ({x},{y}) ch {c}: {a} vs {b}",
+                            win.origin
+                        );
+                    }
+                }
+            }
+            // HR pixel X is LR pixel X·(n − 1)/(2n − 1): on a flat cloth the HR image there is
+            // the LR image's bilinear sample (a window off by half a pixel is off by 15 mm).
+            let lr_mask = win.lr.mask();
+            let hr_mask = win.hr.mask();
+            let s = (n - 1) as f32 / (2 * n - 1) as f32;
+            let mut checked = 0;
+            for yy in 0..2 * n {
+                for xx in 0..2 * n {
+                    let (x, y) = (xx as f32 * s, yy as f32 * s);
+                    let (x0, y0) = ((x as usize).min(n - 2), (y as usize).min(n - 2));
+                    let around = [(y0, x0), (y0, x0 + 1), (y0 + 1, x0), (y0 + 1, x0 + 1)];
+                    if !hr_mask[yy * 2 * n + xx] || !around.iter().all(|&(r, c)| lr_mask[r * n + c]) {
+                        continue;
+                    }
+                    checked += 1;
+                    for c in 0..3 {
+                        let want = bilinear(&lr[c * n * n..(c + 1) * n * n], n, n, x, y);
+                        let got = hr[c * 4 * n * n + yy * 2 * n + xx];
+                        assert!((got - want).abs() < 1e-5, "HR px ({xx},{yy}) ch {c}: {got} vs {want}");
+                    }
+                }
+            }
+            assert!(checked > n * n / 2, "window {:?}: only {checked} HR pixels checked", win.origin);
+        }
+        assert!(mask.iter().zip(&seen).all(|(m, s)| !m || *s), "a chart pixel in no window");
+        assert_eq!(window_origins(5, 8), vec![-2]);
+        assert_eq!(window_origins(8, 8), vec![0]);
+        assert_eq!(window_origins(33, 32), vec![0]);
+        assert_eq!(window_origins(38, 32), vec![3]);
+        assert_eq!(window_origins(39, 32), vec![0, 7]);
+        assert_eq!(window_origins(80, 32), vec![0, 24, 48]);
+    }
 
     #[test]
     fn grid_layout_round_trips_a_frame_through_its_image() {

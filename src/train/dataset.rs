@@ -29,9 +29,12 @@
 
 use crate::cloth::run_io::RunPair;
 use crate::error::{Error, Result};
+use crate::eval::mesh::MeshRun;
 use crate::geom::anisotropy::{boundary_map, BoundaryParams};
 use crate::geom::cloth_frame::{map_frames, to_cloth_frames, InputFrame};
 use crate::geom::geometry_image::image_to_mesh;
+use crate::geom::layout::MeshLayout;
+use crate::geom::surface::Surface;
 use crate::geom::Domain;
 use crate::imgproc::{enhance_map, CannyParams};
 use crate::io::json::{Layout, Object, Value};
@@ -50,15 +53,59 @@ pub struct MapParams {
 }
 
 /// True if `run` matches one of the held-out names: its scenario, its directory name, its
-/// path as given, or `seed=N`.
+/// path as given, or `seed=N`. A window of a mesh run (`DIR@k`, [`mesh_run_windows`]) goes
+/// with its run.
 pub fn is_held_out(run: &RunPair, holdout: &[String]) -> bool {
     let leaf = run.label();
+    let (leaf, name) = (window_of(&leaf), window_of(&run.name));
     holdout.iter().any(|h| {
-        *h == run.scenario
-            || *h == leaf
-            || *h == run.name
-            || run.seed.is_some_and(|s| *h == format!("seed={s}"))
+        *h == run.scenario || h == leaf || h == name || run.seed.is_some_and(|s| *h == format!("seed={s}"))
     })
+}
+
+/// The run a window's name (`DIR@k`) belongs to.
+fn window_of(name: &str) -> &str {
+    name.rsplit_once('@').filter(|(_, k)| k.parse::<usize>().is_ok()).map_or(name, |(run, _)| run)
+}
+
+/// A mesh run (a garment pair from `simulate --scenario skirt --pair`, or any LR/HR pair of OBJ
+/// sequences where HR is the LR mesh subdivided once) as run pairs of images the size of the
+/// sheets' (issue 45, step 5): its geometry images laid out as `upscale` lays them out (the
+/// first LR frame and the file's UVs), cut into windows of `n` × `n` LR pixels
+/// ([`MeshLayout::training_windows`]), each with the HR run's images over the aligned `r·n` ×
+/// `r·n` window. Images in metres ([`Domain::UNIT`]); one pair per window, named `DIR@k`.
+pub fn mesh_run_windows(dir: &std::path::Path, run: &MeshRun, n: usize, r: usize) -> Result<Vec<RunPair>> {
+    let rest = &run.lr.frames[0];
+    let surface = Surface::new(rest.len(), run.lr.faces.clone(), &dir.join("lr"))?;
+    let uv = (!run.first.uv.is_empty() && run.first.face_uv.iter().all(|t| !t.is_empty()))
+        .then_some((run.first.uv.as_slice(), run.first.face_uv.as_slice()));
+    let layout = MeshLayout::new(surface, rest, uv).map_err(|e| e.in_file(dir.join("lr")))?;
+    let meta = crate::io::json::read_json(&dir.join("scene.json")).unwrap_or(Value::Null);
+    let scenario = meta.get("garment").and_then(|g| g.as_str()).unwrap_or("mesh").to_string();
+    let seed = meta.get("seed").and_then(|s| s.as_f64()).map(|s| s as u64);
+    let t = run.lr.frames.len();
+    let windows = layout.training_windows(rest, n, r);
+    Ok(windows
+        .iter()
+        .enumerate()
+        .map(|(k, win)| {
+            let (mut lr, mut hr) = (Tensor::zeros(&[t, 3, n, n]), Tensor::zeros(&[t, 3, r * n, r * n]));
+            let (a, b) = (3 * n * n, 3 * r * r * n * n);
+            for f in 0..t {
+                let (l, h) = (&mut lr.data[f * a..(f + 1) * a], &mut hr.data[f * b..(f + 1) * b]);
+                win.images(&run.lr.frames[f], &run.hr[f], l, h);
+            }
+            RunPair {
+                name: format!("{}@{k}", dir.display()),
+                scenario: scenario.clone(),
+                seed,
+                lr,
+                hr,
+                domain: Domain::UNIT,
+                meta: meta.clone(),
+            }
+        })
+        .collect())
 }
 
 /// Per-frame ground truth of one HR frame.
