@@ -67,6 +67,10 @@ pub struct Args {
     /// deepens the predicted folds where EnhanceNet expects the cloth to fold.
     #[arg(long, default_value = "canny", value_parser = ["canny", "wrinkle-energy"])]
     pub edges: String,
+    /// Mesh runs only: the interpolation U their HR windows are built on (`U + detail`, what
+    /// `upscale` composes on a mesh); give `train` the same --upsample.
+    #[arg(long, default_value = "catmull-rom", value_name = "INTERP")]
+    pub upsample: String,
     /// Contact sheet PNG [default: --out with extension .png].
     #[arg(long, value_name = "FILE")]
     pub png: Option<PathBuf>,
@@ -126,6 +130,7 @@ pub fn run(a: Args) -> Result<()> {
     params.boundary.validate()?;
     params.canny.validate()?;
     let input_frame = InputFrame::parse(&a.input_frame)?;
+    let upsample = crate::nn::config::parse_upsample(&a.upsample)?;
     let png = a.png.clone().unwrap_or_else(|| a.out.with_extension("png"));
     for (path, ext, what) in [(&a.out, "npz", "--out"), (&png, "png", "--png")] {
         if !path.extension().is_some_and(|e| e.eq_ignore_ascii_case(ext)) {
@@ -179,7 +184,7 @@ pub fn run(a: Args) -> Result<()> {
         None => DEFAULT_WINDOW,
     };
     for (pd, m) in &meshes {
-        runs.extend(mesh_run_windows(pd, m, window, UPSCALE)?);
+        runs.extend(mesh_run_windows(pd, m, window, UPSCALE, upsample)?);
     }
     runs.retain(|r| {
         let out = is_held_out(r, &a.holdout);

@@ -230,22 +230,21 @@ pub struct TrainingWindow {
 }
 
 impl TrainingWindow {
-    /// The window's images of one frame: `lr` (3·n·n) of the LR frame, `hr` (3·rn·rn) of the
-    /// HR frame inside the charts and, outside them, the LR window's bilinear upsampling on the
-    /// same align-corners grid. So the detail the nets learn there is none: the HR run's own
-    /// extrapolation would diverge from the LR one's a few rings out (by a quarter of the
-    /// window on a skirt) and teach large residuals where `hr_frame` never reads.
-    pub fn images(&self, lr_frame: &[[f32; 3]], hr_frame: &[[f32; 3]], lr: &mut [f32], hr: &mut [f32]) {
-        let (n, m) = (self.lr.w, self.hr.w);
-        self.lr.image_into(lr_frame, lr);
-        self.hr.image_into(hr_frame, hr);
-        let s = (n - 1) as f32 / (m - 1).max(1) as f32;
-        for c in 0..3 {
-            let plane = &lr[c * n * n..(c + 1) * n * n];
-            for (p, _) in self.hr_mask.iter().enumerate().filter(|(_, inside)| !**inside) {
-                let (x, y) = ((p % m) as f32 * s, (p / m) as f32 * s);
-                hr[c * m * m + p] = bilinear(plane, n, n, x, y);
-            }
+    /// (3, n, n) image of the LR frame `pos` in the window.
+    pub fn lr_image(&self, pos: &[[f32; 3]], out: &mut [f32]) {
+        self.lr.image_into(pos, out);
+    }
+
+    /// (3, rn, rn) image of a per-HR-vertex field (the HR run's detail: its frame minus the LR
+    /// frame's linear subdivision) in the window: rasterised inside the charts, 0 outside them.
+    /// `upscale` adds the nets' `Γfinal − U` at each HR vertex's chart position to the linear
+    /// subdivision ([`MeshLayout::hr_frame`]), so a garment's HR target is `U + this`: the
+    /// residual the nets learn is the detail `hr_frame` adds, and none where it never reads.
+    pub fn hr_detail(&self, detail: &[[f32; 3]], out: &mut [f32]) {
+        self.hr.image_into(detail, out);
+        let m = self.hr_mask.len();
+        for plane in out.chunks_exact_mut(m).take(3) {
+            plane.iter_mut().zip(&self.hr_mask).filter(|(_, inside)| !**inside).for_each(|(v, _)| *v = 0.0);
         }
     }
 }
@@ -388,7 +387,14 @@ mod tests {
         let mut seen = vec![false; h * w];
         for win in &windows {
             let (mut lr, mut hr) = (vec![0.0f32; 3 * n * n], vec![0.0f32; 3 * 4 * n * n]);
-            win.images(&rest, &hr_frame, &mut lr, &mut hr);
+            win.lr_image(&rest, &mut lr);
+            win.hr.image_into(&hr_frame, &mut hr);
+            // The detail image is 0 outside the charts and the field inside.
+            let mut d = vec![0.0f32; 3 * 4 * n * n];
+            win.hr_detail(&hr_frame, &mut d);
+            for (p, inside) in win.hr_mask.iter().enumerate() {
+                assert_eq!(d[p], if *inside { hr[p] } else { 0.0 });
+            }
             // The LR window is the image itself where the image has charts.
             for y in 0..n {
                 for x in 0..n {

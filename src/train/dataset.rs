@@ -41,7 +41,8 @@ use crate::io::json::{Layout, Object, Value};
 use crate::io::NpzEntries;
 use crate::nn::geometry_net::GeometryNet;
 use crate::ops::loss::{detail_amplitude, DetailEnergy};
-use crate::ops::Ops;
+use crate::ops::resample::resize;
+use crate::ops::{Interp, Ops};
 use crate::tensor::Tensor;
 use rayon::prelude::*;
 
@@ -72,9 +73,18 @@ fn window_of(name: &str) -> &str {
 /// sequences where HR is the LR mesh subdivided once) as run pairs of images the size of the
 /// sheets' (issue 45, step 5): its geometry images laid out as `upscale` lays them out (the
 /// first LR frame and the file's UVs), cut into windows of `n` × `n` LR pixels
-/// ([`MeshLayout::training_windows`]), each with the HR run's images over the aligned `r·n` ×
-/// `r·n` window. Images in metres ([`Domain::UNIT`]); one pair per window, named `DIR@k`.
-pub fn mesh_run_windows(dir: &std::path::Path, run: &MeshRun, n: usize, r: usize) -> Result<Vec<RunPair>> {
+/// ([`MeshLayout::training_windows`]). The HR image of a window is `U + D`: `U` the LR window
+/// upsampled by `upsample` (the interpolation the nets will refine), `D` the HR run's detail
+/// (its frame minus the LR frame's linear subdivision) rasterised in the charts, 0 outside
+/// ([`crate::geom::layout::TrainingWindow::hr_detail`]): what `upscale` composes on a mesh.
+/// Images in metres ([`Domain::UNIT`]); one pair per window, named `DIR@k`.
+pub fn mesh_run_windows(
+    dir: &std::path::Path,
+    run: &MeshRun,
+    n: usize,
+    r: usize,
+    upsample: Interp,
+) -> Result<Vec<RunPair>> {
     let rest = &run.lr.frames[0];
     let surface = Surface::new(rest.len(), run.lr.faces.clone(), &dir.join("lr"))?;
     let uv = (!run.first.uv.is_empty() && run.first.face_uv.iter().all(|t| !t.is_empty()))
@@ -84,16 +94,27 @@ pub fn mesh_run_windows(dir: &std::path::Path, run: &MeshRun, n: usize, r: usize
     let scenario = meta.get("garment").and_then(|g| g.as_str()).unwrap_or("mesh").to_string();
     let seed = meta.get("seed").and_then(|s| s.as_f64()).map(|s| s as u64);
     let t = run.lr.frames.len();
+    let detail: Vec<Vec<[f32; 3]>> = (0..t)
+        .map(|f| {
+            let s = layout.sub.apply(&run.lr.frames[f]);
+            run.hr[f].iter().zip(&s).map(|(h, s)| [h[0] - s[0], h[1] - s[1], h[2] - s[2]]).collect()
+        })
+        .collect();
     let windows = layout.training_windows(rest, n, r);
     Ok(windows
         .iter()
         .enumerate()
         .map(|(k, win)| {
-            let (mut lr, mut hr) = (Tensor::zeros(&[t, 3, n, n]), Tensor::zeros(&[t, 3, r * n, r * n]));
+            let mut lr = Tensor::zeros(&[t, 3, n, n]);
             let (a, b) = (3 * n * n, 3 * r * r * n * n);
             for f in 0..t {
-                let (l, h) = (&mut lr.data[f * a..(f + 1) * a], &mut hr.data[f * b..(f + 1) * b]);
-                win.images(&run.lr.frames[f], &run.hr[f], l, h);
+                win.lr_image(&run.lr.frames[f], &mut lr.data[f * a..(f + 1) * a]);
+            }
+            let mut hr = resize(&lr, r * n, r * n, upsample);
+            let mut d = vec![0.0f32; b];
+            for f in 0..t {
+                win.hr_detail(&detail[f], &mut d);
+                hr.data[f * b..(f + 1) * b].iter_mut().zip(&d).for_each(|(u, d)| *u += d);
             }
             RunPair {
                 name: format!("{}@{k}", dir.display()),
