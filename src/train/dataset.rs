@@ -112,9 +112,9 @@ pub fn mesh_run_windows(
             }
             let mut hr = resize(&lr, r * n, r * n, upsample);
             let mut d = vec![0.0f32; b];
-            for f in 0..t {
-                win.hr_detail(&detail[f], &mut d);
-                hr.data[f * b..(f + 1) * b].iter_mut().zip(&d).for_each(|(u, d)| *u += d);
+            for (frame, hr) in detail.iter().zip(hr.data.chunks_exact_mut(b)) {
+                win.hr_detail(frame, &mut d);
+                hr.iter_mut().zip(&d).for_each(|(u, d)| *u += d);
             }
             RunPair {
                 name: format!("{}@{k}", dir.display()),
