@@ -68,19 +68,22 @@ simulate_runs() {
 simulate_runs "$WORK/runs" vertex
 "$BIN" dataset --runs "$WORK"/runs/* --out "$WORK/data.npz" "${MAPS[@]}" --input-frame cloth-frame
 "$BIN" dataset --runs "$WORK"/runs/* --out "$WORK/data-domain.npz" "${MAPS[@]}" --input-frame domain
-# Garments in the mix (issue 45): --vary 1-5 of every garment but the held-out tshirt, each a
-# pair whose HR run is the LR mesh subdivided once (coarse tracking: the only kind a garment
-# has). `dataset` lays each out as `upscale` does and cuts its geometry images into 32×32
-# windows with the aligned 64×64 HR windows. The shipped bundle's nets train on sheets and
-# garments; the yardsticks (linear, domain) and the wrinkle model stay sheet-only.
-GARMENTS=${GARMENTS:-"skirt sleeve cape tablecloth holed-sheet"}
+# Garments in the mix (issue 45, step 5), opt-in: GARMENTS="skirt sleeve cape tablecloth
+# holed-sheet" adds --vary 1-5 of those garments (the tshirt is held out) to the data of the
+# shipped bundle's nets (`dataset` cuts each garment's geometry images into 32×32 windows whose HR
+# image is U + the HR run's detail, what `upscale` composes on a mesh). Not adopted: the nets
+# learned no detail on garments (their coarse-tracked folds are their own; vertex RMSE 1.00× the
+# linear subdivision's) and lost 2-6 % on the sheets (docs/research/model-history.md, 2026-11-27).
+# Empty (the default), the mix is the sheets alone: the shipped bundle as before.
+GARMENTS=${GARMENTS:-}
 GARMENT_FRAMES=${GARMENT_FRAMES:-120}
+MIX=("$WORK"/runs/*)
 for g in $GARMENTS; do
   for seed in $SEEDS; do
     "$BIN" simulate --scenario "$g" --pair --frames "$GARMENT_FRAMES" --seed "$seed" --vary "$seed" --out "$WORK/garments/$g-$seed"
+    MIX+=("$WORK/garments/$g-$seed")
   done
 done
-MIX=("$WORK"/runs/* "$WORK"/garments/*)
 "$BIN" dataset --runs "${MIX[@]}" --out "$WORK/data-mix.npz" "${MAPS[@]}" --input-frame cloth-frame
 # GeometryNet first. BoundaryNet then learns where interpolation is safer than that
 # GeometryNet's residual (`--boundary-benefit`: soft targets 1 − clamp(⟨HR − U, R⟩/|R|², 0, 1)),
