@@ -174,6 +174,7 @@ pub fn run(a: Args) -> Result<()> {
         }
     }
     let window = match runs.first().map(|r| r.lr.dims4()) {
+        _ if meshes.is_empty() => DEFAULT_WINDOW,
         Some((_, _, h, w)) if h == w => h,
         Some((_, _, h, w)) => {
             return Err(Error::config(format!(

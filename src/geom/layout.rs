@@ -103,6 +103,10 @@ pub struct MeshLayout {
     /// detail is their mean, so it gets one position), none for a vertex in no face.
     at: Vec<[f32; 2]>,
     start: Vec<u32>,
+    /// The HR mesh's border: its edges in one face only.
+    border: Vec<(u32, u32)>,
+    /// The HR vertices on the border and one edge in from it: what the outline floor blends.
+    outer: Vec<u32>,
 }
 
 impl MeshLayout {
@@ -141,7 +145,21 @@ impl MeshLayout {
             }
             start.push(at.len() as u32);
         }
-        Ok(MeshLayout { surface, sub, atlas, at, start })
+        // The border on the welded cloth: the seams of an unwelded export are no border.
+        let rep: Vec<u32> = match &welded {
+            Some(_) => {
+                let mut first = std::collections::HashMap::new();
+                let hr_rest = sub.apply(rest);
+                hr_rest
+                    .iter()
+                    .enumerate()
+                    .map(|(v, p)| *first.entry(p.map(|x| (x + 0.0).to_bits())).or_insert(v as u32))
+                    .collect()
+            }
+            None => (0..sub.hr_vertices() as u32).collect(),
+        };
+        let (border, outer) = border_and_outer(&sub.faces, &rep);
+        Ok(MeshLayout { surface, sub, atlas, at, start, border, outer })
     }
 
     pub fn lr_vertices(&self) -> usize {
@@ -175,7 +193,9 @@ impl MeshLayout {
 
     /// The HR frame: the LR frame `lr`'s subdivision plus, at each HR vertex's chart position,
     /// the detail `hr − base` of frame `frame` of the HR images (both (T, 3, rH, rW) in
-    /// `domain`; `base` is the interpolation U the nets refined), bilinearly sampled.
+    /// `domain`; `base` is the interpolation U the nets refined), bilinearly sampled. With
+    /// `keep_outline` ([`crate::sr::params::UpscaleParams::keep_outline`]), the outline floor
+    /// of a mesh ([`MeshLayout::floor_outline`]).
     pub fn hr_frame(
         &self,
         hr: &Tensor,
@@ -183,6 +203,7 @@ impl MeshLayout {
         frame: usize,
         domain: &Domain,
         lr: &[[f32; 3]],
+        keep_outline: bool,
     ) -> Vec<[f32; 3]> {
         let (_, _, hh, hw) = hr.dims4();
         let (h, w) = self.image_size();
@@ -209,7 +230,50 @@ impl MeshLayout {
                 *pc += d * (domain.bmax[c] - domain.bmin[c]);
             }
         }
+        if keep_outline {
+            self.floor_outline(&self.sub.apply(lr), &mut out);
+        }
         out
+    }
+
+    /// The outline floor on a mesh: the HR border never shorter than the linear subdivision's
+    /// `s` (which is the LR border polyline's length). Where the detail added to `s` in `out`
+    /// shortens it (the nets pulling a hem in), the detail of the border vertices and of those
+    /// one edge in is scaled by the largest α ∈ [0, 1] (to 2⁻²⁰, by bisection) that keeps the
+    /// border at least that long; α = 0 is `s` itself. The rest of the cloth is left as it is.
+    pub fn floor_outline(&self, s: &[[f32; 3]], out: &mut [[f32; 3]]) {
+        let length = |a: f64| -> f64 {
+            let at = |v: u32| -> [f64; 3] {
+                let (p, q) = (s[v as usize], out[v as usize]);
+                std::array::from_fn(|c| p[c] as f64 + a * (q[c] as f64 - p[c] as f64))
+            };
+            self.border
+                .iter()
+                .map(|&(u, v)| {
+                    let (p, q) = (at(u), at(v));
+                    ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2)).sqrt()
+                })
+                .sum()
+        };
+        let floor = length(0.0);
+        if length(1.0) >= floor {
+            return;
+        }
+        let (mut lo, mut hi) = (0.0f64, 1.0f64);
+        for _ in 0..20 {
+            let mid = 0.5 * (lo + hi);
+            if length(mid) >= floor {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        for &v in &self.outer {
+            let (p, q) = (s[v as usize], &mut out[v as usize]);
+            for c in 0..3 {
+                q[c] = p[c] + (lo as f32) * (q[c] - p[c]);
+            }
+        }
     }
 }
 
@@ -317,6 +381,40 @@ fn window_origins(d: usize, n: usize) -> Vec<i64> {
     let step = (3 * n / 4).max(1);
     let count = (d - n).div_ceil(step) + 1;
     (0..count).map(|i| ((i * (d - n)) as f64 / (count - 1) as f64).round() as i64).collect()
+}
+
+/// The border of a mesh (its edges in one face only) and the vertices on it or one edge in,
+/// with the vertices of `faces` taken as their representatives `rep` (one per place: copies of
+/// a vertex are one vertex of the cloth). Border edges are given by representatives; the outer
+/// vertices are every copy.
+fn border_and_outer(faces: &[Vec<u32>], rep: &[u32]) -> (Vec<(u32, u32)>, Vec<u32>) {
+    let mut edges: Vec<(u32, u32)> = faces
+        .iter()
+        .flat_map(|f| {
+            (0..f.len()).map(move |k| {
+                super::surface::edge_key(rep[f[k] as usize], rep[f[(k + 1) % f.len()] as usize])
+            })
+        })
+        .collect();
+    edges.sort_unstable();
+    let mut border = Vec::new();
+    let mut i = 0;
+    while i < edges.len() {
+        let j = edges[i..].iter().take_while(|e| **e == edges[i]).count();
+        if j == 1 {
+            border.push(edges[i]);
+        }
+        i += j;
+    }
+    let mut on = vec![false; rep.len()];
+    border.iter().for_each(|&(a, b)| (on[a as usize], on[b as usize]) = (true, true));
+    let mut near = on.clone();
+    for &(a, b) in &edges {
+        if on[a as usize] || on[b as usize] {
+            (near[a as usize], near[b as usize]) = (true, true);
+        }
+    }
+    (border, (0..rep.len() as u32).filter(|&v| near[rep[v as usize] as usize]).collect())
 }
 
 /// `faces` with every vertex replaced by the first vertex at exactly the same place in `rest`;
@@ -448,6 +546,47 @@ mod tests {
         assert_eq!(window_origins(38, 32), vec![3]);
         assert_eq!(window_origins(39, 32), vec![0, 7]);
         assert_eq!(window_origins(80, 32), vec![0, 24, 48]);
+    }
+
+    #[test]
+    fn the_mesh_outline_floor_keeps_the_border_as_long_as_the_subdivisions_and_only_there() {
+        let (layout, rest) = tilted_triangles();
+        let s = layout.sub.apply(&rest);
+        let border = |p: &[[f32; 3]]| -> f64 {
+            layout
+                .border
+                .iter()
+                .map(|&(a, b)| {
+                    crate::geom::vec3::norm(crate::geom::vec3::sub(p[a as usize], p[b as usize])) as f64
+                })
+                .sum()
+        };
+        // An 11×8 sheet has 2·(10 + 7) = 34 border edges, each split in two.
+        assert_eq!(layout.border.len(), 68);
+        // Detail that pulls every vertex toward the centre (a hem drawn in) and lifts it.
+        let c = [0.15f32, 0.07, 0.5];
+        let pulled: Vec<[f32; 3]> = s
+            .iter()
+            .map(|p| [p[0] + 0.1 * (c[0] - p[0]), p[1] + 0.1 * (c[1] - p[1]), p[2] + 0.003])
+            .collect();
+        assert!(border(&pulled) < 0.95 * border(&s));
+        let mut out = pulled.clone();
+        layout.floor_outline(&s, &mut out);
+        let (got, floor) = (border(&out), border(&s));
+        assert!(
+            got >= floor * (1.0 - 1e-6) && got <= floor * (1.0 + 1e-4),
+            "border {got} for a floor of {floor}"
+        );
+        for v in 0..s.len() {
+            if layout.outer.binary_search(&(v as u32)).is_err() {
+                assert_eq!(out[v], pulled[v], "vertex {v} away from the border moved");
+            }
+        }
+        // Detail that lengthens the border is left alone.
+        let pushed: Vec<[f32; 3]> = s.iter().map(|p| [p[0] - 0.1 * (c[0] - p[0]), p[1], p[2]]).collect();
+        let mut out = pushed.clone();
+        layout.floor_outline(&s, &mut out);
+        assert_eq!(out, pushed);
     }
 
     #[test]

@@ -676,7 +676,7 @@ fn write_hr_rest_mesh(
     if let Shot::MeshCache { layout, rest, .. } = shot {
         let img = layout.to_image(rest, domain)?;
         let up = crate::sr::upscale::upscale_images(ops, model, &img, domain, &job.params, &mut |_| {})?;
-        let hr = layout.hr_frame(&up.hr, &up.interpolated(), 0, domain, rest);
+        let hr = layout.hr_frame(&up.hr, &up.interpolated(), 0, domain, rest, up.keeps_outline());
         return write_atomic_bytes(&job.out.join(name), mesh_out.mesh_text(&hr, &mesh_out.attrs).as_bytes());
     }
     let Some(g) = &c.rest_grid else { unreachable!("a grid cache has its rest grid") };

@@ -48,7 +48,7 @@ impl Decode {
                         let pos = lr.borrow_mut().remove(&(first + k)).ok_or_else(|| {
                             Error::shape(format!("frame {}: its LR positions were not kept", first + k))
                         })?;
-                        let hr = layout.hr_frame(&up.hr, &base, f, domain, &pos);
+                        let hr = layout.hr_frame(&up.hr, &base, f, domain, &pos, up.keeps_outline());
                         match physics {
                             Some(p) => p.borrow_mut().apply(hr, first + k),
                             None => Ok(hr),

@@ -443,7 +443,7 @@ impl Upscaler {
         };
         let done = physics.map(|()| match (&self.mesh, self.lr_held.pop_front()) {
             (Some(m), Some(lr)) => {
-                let hr = m.hr_frame(&up.hr, &up.interpolated(), f, &self.domain, &lr);
+                let hr = m.hr_frame(&up.hr, &up.interpolated(), f, &self.domain, &lr, up.keeps_outline());
                 out.copy_from_slice(&hr);
             }
             _ => g.to_vertices(&up.hr, f, &self.domain, out),

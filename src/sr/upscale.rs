@@ -552,5 +552,9 @@ pub fn upscale_mesh_frames(
     }
     let up = upscale_images(ops, model, &lr, &domain, params, &mut |_| {})?;
     let base = up.interpolated();
-    Ok(frames.iter().enumerate().map(|(k, f)| layout.hr_frame(&up.hr, &base, k, &domain, f)).collect())
+    Ok(frames
+        .iter()
+        .enumerate()
+        .map(|(k, f)| layout.hr_frame(&up.hr, &base, k, &domain, f, up.keeps_outline()))
+        .collect())
 }
