@@ -130,9 +130,10 @@ pub struct Args {
     /// Compute device: cpu or cuda.
     #[arg(help_heading = "Model and engine", long, default_value = "cpu")]
     pub device: String,
-    /// The nets' arithmetic: auto (fp16 on a GPU with tensor cores, else fp32), fp32 (the
-    /// audited path; on a GPU the op-by-op kernels) or fp16 (--device cuda only).
-    #[arg(help_heading = "Model and engine", long, default_value = "auto", value_parser = ["auto", "fp32", "fp16"])]
+    /// The nets' arithmetic: auto (fp16 on a GPU with tensor cores, else fp32), fp32 (the audited path; on a GPU the op-by-op kernels), bf16 (the
+    /// CPU's AMX tiles: bf16 products summed in f32, the nets' first and last convs in fp32)
+    /// or fp16 (--device cuda only).
+    #[arg(help_heading = "Model and engine", long, default_value = "auto", value_parser = ["auto", "fp32", "bf16", "fp16"])]
     pub precision: String,
     /// Output format: auto (same as input), obj or npy.
     #[arg(help_heading = "Input and output", long, default_value = "auto", value_parser = ["auto", "obj", "npy"])]
@@ -382,9 +383,10 @@ fn job(a: &Args) -> Result<CheckedJob> {
             mirrors: a.mirrors,
             keep_outline: a.keep_outline,
             gate_coarse_only: a.gate_coarse_only,
+            // Resolved for the device once it is open (`CheckedJob::with_precision`).
+            precision: Precision::Fp32,
         },
         physics,
-        precision: Precision::Fp32,
         overwrite: a.overwrite,
     }
     .check()

@@ -8,6 +8,7 @@ use crate::error::{Error, Result};
 use crate::geom::cloth_frame::InputFrame;
 use crate::ops::conv2d::PackedConv;
 use crate::ops::Ops;
+use crate::ops::Precision;
 use crate::tensor::Tensor;
 use std::sync::OnceLock;
 
@@ -143,17 +144,23 @@ impl AnisoCb {
 
     /// The bundle with every conv's weights packed once, for inference on many frames.
     pub fn packed(&self) -> PackedAnisoCb<'_> {
+        self.packed_as(Precision::Fp32)
+    }
+
+    /// [`AnisoCb::packed`] for the kernels of `precision` ([`Precision::Bf16`]: the CPU's AMX
+    /// tiles where it has them).
+    pub fn packed_as(&self, precision: Precision) -> PackedAnisoCb<'_> {
         PackedAnisoCb {
             model: self,
-            packed: Packing::Own(self.pack_all()),
+            packed: Packing::Own(self.pack_all(precision)),
             checksum: Checksum::Own(OnceLock::new()),
         }
     }
 
     /// [`Trunk::pack`] of every net, in [`AnisoCb::named_trunks`] order: for an owner that
     /// keeps the bundle unchanged and runs it with [`AnisoCb::packed_with`] on every frame.
-    pub(crate) fn pack_all(&self) -> Vec<Vec<PackedConv>> {
-        self.named_trunks().into_iter().map(|(_, t)| t.pack()).collect()
+    pub(crate) fn pack_all(&self, precision: Precision) -> Vec<Vec<PackedConv>> {
+        self.named_trunks().into_iter().map(|(_, t)| t.pack(precision)).collect()
     }
 
     /// The bundle with `packed` = [`AnisoCb::pack_all`] of this very bundle, weights unchanged

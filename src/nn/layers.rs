@@ -11,6 +11,7 @@
 
 use super::config::{NetConfig, NetKind, IN_CHANNELS, KERNEL, TAIL_CONVS};
 use crate::ops::conv2d::{Epilogue, PackedConv};
+use crate::ops::Precision;
 use crate::ops::{Ops, Padding};
 use crate::rng::{mix_seed, Rng};
 use crate::tensor::Tensor;
@@ -264,9 +265,10 @@ impl Trunk {
         }
     }
 
-    /// Every conv's weights packed for [`Trunk::forward_packed`], in [`Trunk::convs`] order.
-    pub fn pack(&self) -> Vec<PackedConv> {
-        self.convs().into_iter().map(|(_, c)| PackedConv::new(&c.weight)).collect()
+    /// Every conv's weights packed for [`Trunk::forward_packed`] in `precision`
+    /// ([`PackedConv::with_precision`]), in [`Trunk::convs`] order.
+    pub fn pack(&self, precision: Precision) -> Vec<PackedConv> {
+        self.convs().into_iter().map(|(_, c)| PackedConv::with_precision(&c.weight, precision)).collect()
     }
 
     /// Inference forward: x (N, 3, H, W) → (N, out, rH, rW). Keeps no activations beyond the

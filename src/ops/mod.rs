@@ -12,10 +12,12 @@ pub mod conv2d;
 pub mod cpu;
 pub mod loss;
 pub mod pixel_shuffle;
+pub mod precision;
 pub mod reference;
 pub mod resample;
 
 pub use conv2d::Padding;
+pub use precision::Precision;
 pub use reference::RefOps;
 
 use crate::tensor::Tensor;

@@ -19,6 +19,7 @@ use crate::io::point_cache::{write_header, CacheHeader};
 use crate::io::write_npy;
 use crate::nn::bundle::AnisoCb;
 use crate::ops::Ops;
+pub use crate::ops::Precision;
 use crate::pipeline::stream::{upscale_stream, DEFAULT_CHUNK};
 use crate::sr::params::UpscaleParams;
 use crate::sr::upscale::upscale_meshes;
@@ -38,52 +39,6 @@ pub enum OutputFormat {
     Obj,
     /// geometry.npy (T, 3, 2H, 2W) + domain.npy.
     Npy,
-}
-
-/// The arithmetic the nets run in.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub enum Precision {
-    /// f32 throughout: the audited path, and the CPU's.
-    #[default]
-    Fp32,
-    /// fp16 operands with f32 accumulation: the CUDA tensor-core path (`cuda::nets_views`).
-    Fp16,
-}
-
-impl Precision {
-    /// Its name on the command line and in reports.
-    pub fn name(self) -> &'static str {
-        match self {
-            Precision::Fp32 => "fp32",
-            Precision::Fp16 => "fp16",
-        }
-    }
-
-    /// The precision `request` (`auto`, `fp32` or `fp16`) resolved for `ops`: `auto` is fp16
-    /// where `ops` is a GPU with tensor cores, else fp32. `fp32` on such a GPU turns its
-    /// tensor-core path off (the op-by-op fp32 kernels run). Errors: fp16 where it cannot run.
-    pub fn resolve(request: &str, ops: &dyn crate::ops::Ops) -> Result<Precision> {
-        let tc = ops.as_cuda().map(|c| c.tensor_cores());
-        match (request, tc) {
-            ("fp32", Some(_)) => {
-                ops.as_cuda().expect("a CUDA table").use_tensor_cores(false);
-                Ok(Precision::Fp32)
-            }
-            ("fp32", None) | ("auto", None) | ("auto", Some(Err(_))) => Ok(Precision::Fp32),
-            ("auto", Some(Ok(()))) | ("fp16", Some(Ok(()))) => Ok(Precision::Fp16),
-            ("fp16", Some(Err(why))) => {
-                Err(Error::invalid("precision", format!("fp16 cannot run here: {why}")))
-            }
-            ("fp16", None) => Err(Error::invalid(
-                "precision",
-                "fp16 runs on --device cuda (a GPU with tensor cores); the CPU runs fp32",
-            )),
-            (other, _) => Err(Error::invalid(
-                "precision",
-                format!("unknown precision `{other}`: expected auto, fp32 or fp16"),
-            )),
-        }
-    }
 }
 
 /// Frames `start..end` of a shot (0-based, `end` exclusive; `None`: to the shot's end).
@@ -156,8 +111,6 @@ pub struct UpscaleJob {
     /// The physics pass: the nets' frames pass through an HR cloth coarse-tracked to them
     /// ([`crate::cloth::follow`]); `None` = off (the default). Needs the shot from frame 0.
     pub physics: Option<FollowParams>,
-    /// The nets' arithmetic.
-    pub precision: Precision,
     /// Write into a folder that holds files no earlier run of this shot wrote (replacing those
     /// this run writes), and remove another slice's files made with other settings, instead of
     /// refusing ([`super::folder`]).
@@ -178,7 +131,6 @@ impl UpscaleJob {
             maps: false,
             params: UpscaleParams::default(),
             physics: None,
-            precision: Precision::Fp32,
             overwrite: false,
         }
     }
@@ -223,7 +175,7 @@ impl CheckedJob {
     /// The job with the nets' arithmetic resolved for the op table it runs on
     /// ([`Precision::resolve`]); the checks stand.
     pub fn with_precision(mut self, precision: Precision) -> CheckedJob {
-        self.0.precision = precision;
+        self.0.params.precision = precision;
         self
     }
 }
@@ -523,7 +475,7 @@ fn ownership(ops: &dyn Ops, model: &AnisoCb, job: &UpscaleJob, plan: &Plan) -> R
         .str("format", &plan.fmt)
         .num("margin", job.margin)
         .str("device", ops.name())
-        .str("precision", job.precision.name())
+        .str("precision", p.precision.name())
         .str("weights", &format!("{:016x}", model.checksum()))
         .val("physics", job.physics.as_ref().map_or(Value::Null, |f| physics_json(f).into()));
     let name = |p: &PathBuf| p.file_name().unwrap_or_default().to_string_lossy().into_owned();

@@ -78,7 +78,7 @@ impl Upscaler {
         params.validate()?;
         Ok(Upscaler {
             window: FrameWindow::new(temporal_radius(&model, &params)),
-            packed: model.pack_all(),
+            packed: model.pack_all(params.precision),
             checksum: std::sync::OnceLock::new(),
             model,
             params,

@@ -2,6 +2,7 @@
 //! chose it.
 
 use crate::error::{Error, Result};
+use crate::ops::Precision;
 
 /// Default [`UpscaleParams::strain_iters`]: off. Measured on validation runs (seed 6), 10
 /// iterations lower vertex RMSE by 6 % on a drape and a flag and put their temporal
@@ -132,6 +133,10 @@ pub struct UpscaleParams {
     /// BoundaryNet says "interpolate", only their coarse shift; η's gain `1 + ηΓe` applies to
     /// the fine part: Γ = U + (1 − Γb)·S(R) + (1 + ηΓe)·(R − S(R)). Off by default.
     pub gate_coarse_only: bool,
+    /// The nets' arithmetic ([`Precision`]): fp32 by default (the audited path, the same bits
+    /// on every machine with the same kernels); `anisocb upscale` picks the fastest the CPU
+    /// has (`--precision auto`).
+    pub precision: Precision,
 }
 
 impl UpscaleParams {
@@ -149,6 +154,9 @@ impl UpscaleParams {
                     self.eta
                 ),
             ));
+        }
+        if self.precision == Precision::Bf16 && !self.precision.runs_on_cpu() {
+            return Err(Error::invalid("precision", crate::ops::precision::BF16_NEEDS_AMX));
         }
         if self.temporal > MAX_TEMPORAL {
             return Err(Error::invalid(
@@ -192,6 +200,7 @@ impl Default for UpscaleParams {
             mirrors: DEFAULT_MIRRORS,
             keep_outline: DEFAULT_KEEP_OUTLINE,
             gate_coarse_only: false,
+            precision: Precision::Fp32,
         }
     }
 }

@@ -69,6 +69,7 @@ macro_rules! dispatch_px {
     };
 }
 
+pub mod amx;
 mod direct;
 mod grad;
 mod layout;
@@ -76,6 +77,7 @@ mod reference;
 mod small_out;
 mod winograd;
 
+pub use crate::ops::Precision;
 use crate::tensor::Tensor;
 pub use direct::Epilogue;
 use direct::*;
@@ -103,15 +105,25 @@ enum PackedKind {
     Winograd(Packed),
     /// Everything else: [`pack_weights`].
     Direct(Packed),
+    /// bf16 on AMX tiles ([`Precision::Bf16`], C a multiple of 32): [`amx::pack`].
+    Amx(amx::AmxPacked),
 }
 
 impl PackedConv {
     /// Pack weights (O, C, KH, KW), odd kernels, for the kernel [`conv2d`] would pick.
     pub fn new(w: &Tensor) -> PackedConv {
+        PackedConv::with_precision(w, Precision::Fp32)
+    }
+
+    /// [`PackedConv::new`] for the kernels of `precision` ([`Precision::Bf16`]: the AMX kernel
+    /// where the conv and the CPU take it, else the fp32 one).
+    pub fn with_precision(w: &Tensor, precision: Precision) -> PackedConv {
         let (o, c, kh, kw) = w.dims4();
         assert!(kh % 2 == 1 && kw % 2 == 1, "conv2d: odd kernels only, got {kh}x{kw}");
         let get = |oi: usize, ci: usize, ky: usize, kx: usize| w.data[((oi * c + ci) * kh + ky) * kw + kx];
-        let kind = if o <= SMALL_OUT_MAX {
+        let kind = if precision == Precision::Bf16 && amx::eligible(c, o) && amx::available() {
+            PackedKind::Amx(amx::pack(o, c, kh, kw, get))
+        } else if o <= SMALL_OUT_MAX {
             PackedKind::SmallOut(pack_small_out(w))
         } else if winograd::eligible(c, o, kh, kw) {
             PackedKind::Winograd(winograd::pack(o, c, get))
@@ -124,6 +136,11 @@ impl PackedConv {
     /// (O, C, KH, KW) of the weights packed.
     pub fn shape(&self) -> [usize; 4] {
         self.shape
+    }
+
+    /// Whether these weights run on the bf16 tiles.
+    pub fn is_bf16(&self) -> bool {
+        matches!(self.kind, PackedKind::Amx(_))
     }
 }
 
@@ -153,12 +170,20 @@ pub fn conv2d_packed(
             epi.apply(&mut y);
             return y;
         }
-        PackedKind::Winograd(pk) => (pk, true),
-        PackedKind::Direct(pk) => (pk, false),
+        PackedKind::Winograd(pk) => (Some(pk), true),
+        PackedKind::Direct(pk) => (Some(pk), false),
+        PackedKind::Amx(_) => (None, false),
+    };
+    let opad = match &packed.kind {
+        PackedKind::Amx(ak) => ak.opad,
+        _ => pk.map_or(0, |p| p.opad),
     };
     let (ph, pw) = (kh / 2, kw / 2);
-    // The padded channels-last input, except for small Winograd convs, whose tasks pad their own rows.
-    let padded = if !wino {
+    // The padded channels-last input, except for small Winograd convs, whose tasks pad their own
+    // rows, and the bf16 tiles, which pad to bf16.
+    let padded = if pk.is_none() {
+        None
+    } else if !wino {
         Some(pad_nhwc(x, ph, pw, pad, 0))
     } else if x.len() > winograd::FUSE_PAD_MAX {
         Some(winograd::pad_input(x, pad))
@@ -167,14 +192,13 @@ pub fn conv2d_packed(
     };
     // The bias padded to opad channels (a pooled buffer: this runs for every conv of a frame).
     let bias = b.map(|b| {
-        let mut v = Tensor::zeros(&[pk.opad]);
+        let mut v = Tensor::zeros(&[opad]);
         v.data[..o].copy_from_slice(&b.data[..o]);
         v
     });
     let bias = bias.as_ref().map(|v| v.data.as_slice());
     let mut y = Tensor::for_overwrite(&[n, o, h, wd]);
     let yp = SyncPtr(y.data.as_mut_ptr());
-    let opad = pk.opad;
     let skip = epi.skip.map(|s| s.data.as_ptr() as usize);
     let relu = epi.relu;
     let sink = move |ni: usize, yy: usize, row: &[f32]| {
@@ -205,6 +229,12 @@ pub fn conv2d_packed(
             };
             transpose_map(row.as_ptr(), opad, wd, o, yp.get().add(base), h * wd, f, g)
         };
+    };
+    let Some(pk) = pk else {
+        let PackedKind::Amx(ak) = &packed.kind else { unreachable!() };
+        let (xp, hp, wp) = amx::pad_input(x, ph, pw, pad);
+        amx::correlate(&xp, n, hp, wp, ak, bias, h, wd, &sink);
+        return y;
     };
     match (&padded, wino) {
         (Some((xp, hp, wp)), false) => {

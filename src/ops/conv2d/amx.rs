@@ -1,0 +1,328 @@
+//! The bf16 forward on AMX tiles (`--precision bf16`): inference only; training, `audit` and
+//! the fp32 path never come here.
+//!
+//! Inputs and weights are rounded to bf16 (round to nearest even, [`bf16`]), products are
+//! summed in f32 by `tdpbf16ps`. A tile holds 16 rows of 64 bytes: an input tile (A) is 16
+//! consecutive output pixels × 32 input channels of one tap, read straight from the padded
+//! channels-last bf16 input (row stride: one pixel), so no im2col copy is made; a weight tile
+//! (B) is 16 pairs of input channels × 16 output channels × 2 (the pair interleaved, AMX's
+//! "VNNI" layout), packed once ([`pack`]); an accumulator tile (C) is 16 pixels × 16 output
+//! channels in f32. Eight tile registers: up to 2 × 2 accumulators, 2 input and 2 weight
+//! tiles, so each tile loaded feeds two products. The row scratch starts at the bias, the tiles
+//! accumulate on it, and the same store as the fp32 kernels ([`super::conv2d_packed`]'s sink)
+//! moves it to NCHW with the skip and ReLU.
+//!
+//! Output rows are padded to whole 16-pixel tiles: the lanes past the row's end read the next
+//! padded row (or the zero slack after the last) and are never stored. Same input, same bits:
+//! the tile arithmetic has one order, and tasks are whole rows.
+//!
+//! The twin this is tested against is [`conv2d_bf16_ref`]: the scalar reference on the
+//! bf16-rounded input and weights (tests/conv_fast_vs_ref.rs).
+
+use super::*;
+use std::arch::asm;
+use std::sync::OnceLock;
+
+/// Input channels per tile (32 bf16 = 64 bytes) and pixels / output channels per tile.
+const KT: usize = 32;
+const T: usize = 16;
+/// bf16 values per tile (16 rows × 32).
+const TILE: usize = T * KT;
+
+/// f32 → bf16, round to nearest even; NaN stays a (quiet) NaN.
+#[inline(always)]
+pub fn bf16(v: f32) -> u16 {
+    let u = v.to_bits();
+    if v.is_nan() {
+        return ((u >> 16) | 0x40) as u16;
+    }
+    ((u + 0x7fff + ((u >> 16) & 1)) >> 16) as u16
+}
+
+/// bf16 → f32 (exact).
+#[inline(always)]
+pub fn f32_of_bf16(b: u16) -> f32 {
+    f32::from_bits((b as u32) << 16)
+}
+
+/// Whether this CPU runs AMX-BF16 tiles and the OS lets this process use them (on Linux the
+/// tile data state must be asked for once per process: `arch_prctl(ARCH_REQ_XCOMP_PERM)`).
+/// Checked once; `ANISOCB_NO_AMX=1` says no (to run the fallback on a machine that has it).
+pub fn available() -> bool {
+    static AVAILABLE: OnceLock<bool> = OnceLock::new();
+    *AVAILABLE.get_or_init(|| std::env::var_os("ANISOCB_NO_AMX").is_none() && detect())
+}
+
+#[cfg(all(target_arch = "x86_64", target_os = "linux"))]
+fn detect() -> bool {
+    use std::arch::x86_64::{__cpuid, __cpuid_count};
+    // CPUID.(EAX=7,ECX=0):EDX bit 22 AMX-BF16, bit 24 AMX-TILE.
+    let has = __cpuid(0).eax >= 7 && (__cpuid_count(7, 0).edx >> 22) & 0b101 == 0b101;
+    if !has {
+        return false;
+    }
+    const SYS_ARCH_PRCTL: i64 = 158;
+    const ARCH_REQ_XCOMP_PERM: i64 = 0x1023;
+    const XFEATURE_XTILEDATA: i64 = 18;
+    let ret: i64;
+    // SAFETY: arch_prctl(ARCH_REQ_XCOMP_PERM, XTILEDATA) only grants this process the tile
+    // state (or fails with -errno on a kernel without it); the syscall clobbers rcx and r11.
+    unsafe {
+        asm!("syscall", inlateout("rax") SYS_ARCH_PRCTL => ret, in("rdi") ARCH_REQ_XCOMP_PERM,
+            in("rsi") XFEATURE_XTILEDATA, lateout("rcx") _, lateout("r11") _, options(nostack));
+    }
+    ret == 0
+}
+
+#[cfg(not(all(target_arch = "x86_64", target_os = "linux")))]
+fn detect() -> bool {
+    false
+}
+
+/// Whether [`pack`] takes a conv of `c` input and `o` output channels (the rest stay fp32:
+/// the 3-channel first conv and the small last convs, which also keep the geometry's own
+/// precision at both ends of a net).
+pub(super) fn eligible(c: usize, o: usize) -> bool {
+    c.is_multiple_of(KT) && o > SMALL_OUT_MAX
+}
+
+/// Weights packed into B tiles, [tap][c block of 32][o block of 16][16 pairs][16 × 2].
+pub(super) struct AmxPacked {
+    data: Vec<u16>,
+    /// (O, C, KH, KW).
+    shape: [usize; 4],
+    /// Output channels rounded up to a multiple of 16.
+    pub(super) opad: usize,
+}
+
+pub(super) fn pack(
+    o: usize,
+    c: usize,
+    kh: usize,
+    kw: usize,
+    get: impl Fn(usize, usize, usize, usize) -> f32,
+) -> AmxPacked {
+    assert!(c.is_multiple_of(KT), "amx: {c} input channels is not a multiple of {KT}");
+    let (nkb, nob) = (c / KT, o.div_ceil(T));
+    let mut data = vec![0u16; kh * kw * nkb * nob * TILE];
+    for (i, tile) in data.chunks_exact_mut(TILE).enumerate() {
+        let (tap, kb, ob) = (i / (nkb * nob), i / nob % nkb, i % nob);
+        let (ky, kx) = (tap / kw, tap % kw);
+        for (r, row) in tile.chunks_exact_mut(2 * T).enumerate() {
+            for j in 0..T {
+                let oi = ob * T + j;
+                if oi < o {
+                    for e in 0..2 {
+                        row[2 * j + e] = bf16(get(oi, kb * KT + 2 * r + e, ky, kx));
+                    }
+                }
+            }
+        }
+    }
+    AmxPacked { data, shape: [o, c, kh, kw], opad: nob * T }
+}
+
+/// `x` (N, C, H, W) padded by (ph, pw) as bf16 channels-last: pixel (n, Y, X) at
+/// ((n·Hp + Y)·Wp + X)·C, with 16 zero pixels of slack after the last (the tiles' spill).
+/// Returned as f32 scratch (pooled) holding the bf16 pairs, and Hp, Wp.
+pub(super) fn pad_input(x: &Tensor, ph: usize, pw: usize, pad: Padding) -> (Scratch, usize, usize) {
+    let (n, c, h, w) = x.dims4();
+    let (hp, wp) = (h + 2 * ph, w + 2 * pw);
+    let row_len = wp * c;
+    let mut out = Scratch::overwritten(((n * hp * wp + T) * c).div_ceil(2));
+    let bf: &mut [u16] = bytemuck::cast_slice_mut(&mut out[..]);
+    let (body, slack) = bf.split_at_mut(n * hp * row_len);
+    slack.fill(0);
+    // Rows per rayon task: ≥ 2¹⁴ values, so small images are converted on one thread.
+    let min_rows = ((1 << 14) / row_len.max(1)).max(1);
+    let fresh = || Scratch::overwritten(row_len);
+    body.par_chunks_mut(row_len).with_min_len(min_rows).enumerate().for_each_init(fresh, |f, (r, dst)| {
+        pad_row_nhwc(x, r / hp, r % hp, ph, pw, pad, f);
+        dst.iter_mut().zip(f.iter()).for_each(|(d, &v)| *d = bf16(v));
+    });
+    (out, hp, wp)
+}
+
+/// The tile configuration: palette 1, all eight tiles 16 rows × 64 bytes.
+#[repr(C, align(64))]
+struct TileConfig([u8; 64]);
+
+const CONFIG: TileConfig = {
+    let mut b = [0u8; 64];
+    b[0] = 1;
+    let mut t = 0;
+    while t < 8 {
+        b[16 + 2 * t] = 64;
+        b[48 + t] = T as u8;
+        t += 1;
+    }
+    TileConfig(b)
+};
+
+macro_rules! tile_load {
+    ($t:literal, $p:expr, $stride:expr) => {
+        asm!(concat!("tileloadd tmm", $t, ", [{p} + {s}*1]"), p = in(reg) $p, s = in(reg) $stride,
+            options(nostack, readonly))
+    };
+}
+macro_rules! tile_store {
+    ($t:literal, $p:expr, $stride:expr) => {
+        asm!(concat!("tilestored [{p} + {s}*1], tmm", $t), p = in(reg) $p, s = in(reg) $stride,
+            options(nostack))
+    };
+}
+macro_rules! tile_dot {
+    ($c:literal, $a:literal, $b:literal) => {
+        asm!(concat!("tdpbf16ps tmm", $c, ", tmm", $a, ", tmm", $b), options(nostack, nomem))
+    };
+}
+
+/// One block of MT ≤ 2 pixel tiles × NT ≤ 2 output-channel tiles of one output row: C tiles
+/// loaded from `acc` (f32, pixel stride `opad`), += Σ over taps and channel blocks, stored back.
+/// `x` points at the block's first input pixel (tap 0, channel 0) of the padded bf16 input
+/// (row stride `wp` pixels, `c` channels); `w` at the packed tile of (tap 0, block 0, this
+/// o block).
+///
+/// # Safety
+/// The tile configuration is loaded on this thread; every tile read and written is in bounds.
+#[allow(clippy::too_many_arguments)]
+unsafe fn block<const MT: usize, const NT: usize>(
+    x: *const u16,
+    wp: usize,
+    c: usize,
+    kh: usize,
+    kw: usize,
+    w: *const u16,
+    nob: usize,
+    acc: *mut f32,
+    opad: usize,
+) {
+    let (xs, cs, ws) = (c * 2, opad * 4, 2 * T * 2);
+    let c01 = acc.add(T);
+    let (c10, c11) = (acc.add(T * opad), acc.add(T * opad + T));
+    tile_load!("0", acc, cs);
+    if NT == 2 {
+        tile_load!("1", c01, cs);
+    }
+    if MT == 2 {
+        tile_load!("2", c10, cs);
+        if NT == 2 {
+            tile_load!("3", c11, cs);
+        }
+    }
+    let nkb = c / KT;
+    for ky in 0..kh {
+        for kx in 0..kw {
+            let xt = x.add((ky * wp + kx) * c);
+            let wt = w.add((ky * kw + kx) * nkb * nob * TILE);
+            for kb in 0..nkb {
+                let a0 = xt.add(kb * KT);
+                let b0 = wt.add(kb * nob * TILE);
+                tile_load!("4", a0, xs);
+                tile_load!("6", b0, ws);
+                tile_dot!("0", "4", "6");
+                if NT == 2 {
+                    tile_load!("7", b0.add(TILE), ws);
+                    tile_dot!("1", "4", "7");
+                }
+                if MT == 2 {
+                    tile_load!("5", a0.add(T * c), xs);
+                    tile_dot!("2", "5", "6");
+                    if NT == 2 {
+                        tile_dot!("3", "5", "7");
+                    }
+                }
+            }
+        }
+    }
+    tile_store!("0", acc, cs);
+    if NT == 2 {
+        tile_store!("1", c01, cs);
+    }
+    if MT == 2 {
+        tile_store!("2", c10, cs);
+        if NT == 2 {
+            tile_store!("3", c11, cs);
+        }
+    }
+}
+
+/// Correlate the padded bf16 input ([`pad_input`]: n images of hp × wp pixels, c channels)
+/// with `pk` into out_h × out_w outputs per image, starting from `init` (the bias, opad
+/// floats) or 0; `sink(n, y, row)` gets each output row as NHWC scratch (≥ out_w × opad
+/// floats). Tasks are runs of whole rows.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn correlate(
+    xp: &[f32],
+    n: usize,
+    hp: usize,
+    wp: usize,
+    pk: &AmxPacked,
+    init: Option<&[f32]>,
+    out_h: usize,
+    out_w: usize,
+    sink: &(dyn Fn(usize, usize, &[f32]) + Sync),
+) {
+    assert!(available(), "amx: tiles used on a CPU or OS without them");
+    let [_, c, kh, kw] = pk.shape;
+    let (opad, nob) = (pk.opad, pk.opad / T);
+    let mt = out_w.div_ceil(T);
+    assert!(out_h + kh - 1 <= hp && out_w + kw - 1 <= wp);
+    // The last tile's reads end (mt·16 − out_w) pixels past the last padded row: the slack.
+    assert!(xp.len() * 2 >= (n * hp * wp + T) * c, "amx: the padded input has no slack");
+    let row_len = mt * T * opad;
+    let rows = n * out_h;
+    // Runs of rows per task: a row of a 32-channel 64-wide conv is about a microsecond of
+    // tile work, as much as handing a task to a thread, so several rows go to each task.
+    let per_task = rows.div_ceil(8 * rayon::current_num_threads()).max(1);
+    let xb = xp.as_ptr() as *const u16 as usize;
+    let fresh = || Scratch::overwritten(row_len);
+    (0..rows.div_ceil(per_task)).into_par_iter().for_each_init(fresh, |row: &mut Scratch, task| {
+        // SAFETY: the configuration is a valid palette-1 layout; tiles are released below.
+        unsafe { asm!("ldtilecfg [{0}]", in(reg) &CONFIG as *const TileConfig, options(nostack, readonly)) };
+        for r in task * per_task..((task + 1) * per_task).min(rows) {
+            let (ni, y) = (r / out_h, r % out_h);
+            for px in row.chunks_exact_mut(opad) {
+                match init {
+                    Some(b) => px.copy_from_slice(&b[..opad]),
+                    None => px.fill(0.0),
+                }
+            }
+            let x_row = ((ni * hp + y) * wp) * c;
+            for m in (0..mt).step_by(2) {
+                let two_m = m + 1 < mt;
+                for ob in (0..nob).step_by(2) {
+                    let two_o = ob + 1 < nob;
+                    // SAFETY: rows y..y+kh of image ni and pixels m·16 .. m·16+32+kw−1 of them
+                    // (past the row's end into the next row or the slack, asserted above); the
+                    // packed tiles of o blocks ob, ob+1 < nob; the scratch holds mt·16 pixels.
+                    unsafe {
+                        let x = (xb as *const u16).add(x_row + m * T * c);
+                        let w = pk.data.as_ptr().add(ob * TILE);
+                        let acc = row.as_mut_ptr().add(m * T * opad + ob * T);
+                        match (two_m, two_o) {
+                            (true, true) => block::<2, 2>(x, wp, c, kh, kw, w, nob, acc, opad),
+                            (true, false) => block::<2, 1>(x, wp, c, kh, kw, w, nob, acc, opad),
+                            (false, true) => block::<1, 2>(x, wp, c, kh, kw, w, nob, acc, opad),
+                            (false, false) => block::<1, 1>(x, wp, c, kh, kw, w, nob, acc, opad),
+                        }
+                    }
+                }
+            }
+            sink(ni, y, row);
+        }
+        // SAFETY: ends this thread's use of the tiles (their state is not kept across tasks).
+        unsafe { asm!("tilerelease", options(nostack, nomem)) };
+    });
+}
+
+/// The scalar twin: [`conv2d_ref`] on `x` and `w` rounded to bf16 (sums in f64, so the only
+/// difference from the tiles is their f32 summation order).
+pub fn conv2d_bf16_ref(x: &Tensor, w: &Tensor, b: Option<&Tensor>, pad: Padding) -> Tensor {
+    let round = |t: &Tensor| {
+        let mut r = t.clone();
+        r.data.iter_mut().for_each(|v| *v = f32_of_bf16(bf16(*v)));
+        r
+    };
+    conv2d_ref(&round(x), &round(w), b, pad)
+}

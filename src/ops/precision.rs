@@ -1,0 +1,86 @@
+//! [`Precision`]: the arithmetic the nets run in at inference. Training, `audit` and every
+//! reference run in fp32.
+
+use crate::error::{Error, Result};
+use crate::ops::conv2d::amx;
+use crate::ops::Ops;
+
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Precision {
+    /// f32 throughout: the audited path.
+    #[default]
+    Fp32,
+    /// bf16 operands with f32 sums on the CPU's AMX tiles ([`amx`]): the convs with 32·k
+    /// input channels; the first conv (3 channels) and the last (≤ 4 outputs) stay fp32, so
+    /// the geometry enters and leaves each net in f32. Only where [`amx::available`].
+    Bf16,
+    /// fp16 operands with f32 accumulation: the CUDA tensor-core path (`cuda::nets_views`).
+    Fp16,
+}
+
+impl Precision {
+    /// Its name on the command line and in reports.
+    pub fn name(self) -> &'static str {
+        match self {
+            Precision::Fp32 => "fp32",
+            Precision::Bf16 => "bf16",
+            Precision::Fp16 => "fp16",
+        }
+    }
+
+    /// The fastest the CPU has: bf16 where it has AMX tiles, else fp32.
+    pub fn fastest_cpu() -> Precision {
+        if amx::available() {
+            Precision::Bf16
+        } else {
+            Precision::Fp32
+        }
+    }
+
+    /// Whether it runs on the CPU here (bf16 needs [`amx::available`]; fp16 is a GPU's).
+    pub fn runs_on_cpu(self) -> bool {
+        match self {
+            Precision::Fp32 => true,
+            Precision::Bf16 => amx::available(),
+            Precision::Fp16 => false,
+        }
+    }
+
+    /// The precision `request` (`auto`, `fp32`, `bf16` or `fp16`) resolved for `ops`: `auto`
+    /// is fp16 where `ops` is a GPU with tensor cores, else fp32. `fp32` on such a GPU turns its tensor-core path off (the op-by-op fp32 kernels
+    /// run). Errors: a precision that cannot run here, saying which can.
+    pub fn resolve(request: &str, ops: &dyn Ops) -> Result<Precision> {
+        let tc = ops.as_cuda().map(|c| c.tensor_cores());
+        match (request, tc) {
+            ("fp32", Some(_)) => {
+                ops.as_cuda().expect("a CUDA table").use_tensor_cores(false);
+                Ok(Precision::Fp32)
+            }
+            ("fp32", None) => Ok(Precision::Fp32),
+            ("auto", None) => Ok(Precision::Fp32),
+            ("auto", Some(Err(_))) => Ok(Precision::Fp32),
+            ("auto", Some(Ok(()))) | ("fp16", Some(Ok(()))) => Ok(Precision::Fp16),
+            ("fp16", Some(Err(why))) => {
+                Err(Error::invalid("precision", format!("fp16 cannot run here: {why}")))
+            }
+            ("fp16", None) => Err(Error::invalid(
+                "precision",
+                "fp16 runs on --device cuda (a GPU with tensor cores); on the CPU use bf16 (with AMX tiles), fp32 or auto",
+            )),
+            ("bf16", None) if amx::available() => Ok(Precision::Bf16),
+            ("bf16", None) => Err(Error::invalid("precision", BF16_NEEDS_AMX)),
+            ("bf16", Some(_)) => Err(Error::invalid(
+                "precision",
+                "bf16 runs on the CPU's AMX tiles; on --device cuda use fp16, fp32 or auto",
+            )),
+            (other, _) => Err(Error::invalid(
+                "precision",
+                format!("unknown precision `{other}`: expected auto, fp32, bf16 or fp16"),
+            )),
+        }
+    }
+}
+
+/// Why bf16 is refused on a CPU without tiles.
+pub(crate) const BF16_NEEDS_AMX: &str = "bf16 needs a CPU with AMX-BF16 tiles (Intel Xeon Sapphire Rapids \
+     or later) and an OS that grants them (Linux 5.16+); this one has none: use fp32 or auto";

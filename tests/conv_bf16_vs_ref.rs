@@ -1,0 +1,155 @@
+//! The bf16 AMX convolution (`--precision bf16`) against its scalar twin `conv2d_bf16_ref` (the
+//! fp32 reference on bf16-rounded inputs and weights) on random shapes: widths that are not a
+//! multiple of the 16-pixel tile (the lanes past the row's end), one and several 32-channel
+//! blocks, output channels that are not a multiple of 16 and odd tile counts, 3×3 / 1×1 / 5×3
+//! kernels, both paddings, bias, the fused epilogue; same bits on every run and thread count;
+//! the fallback where the CPU has no tiles. Skipped (with a line saying so) on a CPU or OS
+//! without AMX-BF16.
+
+#[path = "common/close.rs"]
+mod close;
+#[path = "common/random.rs"]
+mod random;
+use anisocb::ops::conv2d::amx::{self, bf16, conv2d_bf16_ref, f32_of_bf16};
+use anisocb::ops::conv2d::{conv2d, conv2d_packed, conv2d_ref, Epilogue, PackedConv, Precision};
+use anisocb::ops::{activation, Padding};
+use anisocb::rng::Rng;
+use anisocb::Tensor;
+use close::assert_close;
+use random::TestData;
+
+fn tiles_here() -> bool {
+    if !amx::available() {
+        println!("skipped: this CPU or OS has no AMX-BF16 tiles");
+    }
+    amx::available()
+}
+
+#[test]
+fn bf16_rounding_is_to_nearest_even_and_keeps_nan_and_infinity() {
+    // 1 + 2⁻⁸ is halfway between bf16 1.0 and 1 + 2⁻⁷: ties go to the even mantissa (1.0);
+    // 1 + 3·2⁻⁸ ties upwards to 1 + 2⁻⁶ (even); just above the tie rounds up.
+    assert_eq!(f32_of_bf16(bf16(1.0 + 2f32.powi(-8))), 1.0);
+    assert_eq!(f32_of_bf16(bf16(1.0 + 3.0 * 2f32.powi(-8))), 1.0 + 2f32.powi(-6));
+    assert_eq!(f32_of_bf16(bf16(1.0 + 2f32.powi(-8) + 2f32.powi(-20))), 1.0 + 2f32.powi(-7));
+    assert_eq!(f32_of_bf16(bf16(-2.5)), -2.5);
+    assert!(f32_of_bf16(bf16(f32::NAN)).is_nan());
+    assert_eq!(f32_of_bf16(bf16(f32::INFINITY)), f32::INFINITY);
+    assert_eq!(f32_of_bf16(bf16(f32::MAX)), f32::INFINITY, "rounds past the largest bf16");
+    // Half a unit in the last place: relative error ≤ 2⁻⁸ on random values.
+    let mut rng = Rng::new(3);
+    for _ in 0..10_000 {
+        let v = rng.uniform_in(-1e3, 1e3);
+        assert!((f32_of_bf16(bf16(v)) - v).abs() <= v.abs() * 2f32.powi(-8), "{v}");
+    }
+}
+
+#[allow(clippy::too_many_arguments)]
+fn check(
+    rng: &mut Rng,
+    n: usize,
+    c: usize,
+    o: usize,
+    h: usize,
+    w: usize,
+    kh: usize,
+    kw: usize,
+    pad: Padding,
+) {
+    let what = format!("n{n} c{c} o{o} {h}x{w} k{kh}x{kw} {pad:?}");
+    let x = rng.tensor(&[n, c, h, w], -1.0, 1.0);
+    let wt = rng.tensor(&[o, c, kh, kw], -1.0, 1.0);
+    let b = rng.tensor(&[o], -1.0, 1.0);
+    let packed = PackedConv::with_precision(&wt, Precision::Bf16);
+    assert!(packed.is_bf16(), "{what}: not packed for the tiles");
+    let got = conv2d_packed(&x, &packed, Some(&b), pad, Epilogue::NONE);
+    // Only the f32 summation order differs from the twin: sums of c·kh·kw products of size ≤ 1.
+    let k = (c * kh * kw) as f32;
+    assert_close(&format!("bf16 {what}"), &got, &conv2d_bf16_ref(&x, &wt, Some(&b), pad), 2e-6 * k, 0.0);
+    // And bf16 is what it says: within the rounding of inputs and weights of the fp32 result,
+    // and not equal to it.
+    let fp32 = conv2d_ref(&x, &wt, Some(&b), pad);
+    assert_close(&format!("bf16 vs fp32 {what}"), &got, &fp32, 8.0 * 2f32.powi(-9) * k.sqrt(), 0.0);
+    assert_ne!(got, fp32, "{what}: the bf16 kernel gave fp32's result");
+}
+
+#[test]
+fn bf16_tiles_match_the_scalar_twin_on_odd_widths_tails_and_kernels() {
+    if !tiles_here() {
+        return;
+    }
+    let mut rng = Rng::new(5);
+    for pad in [Padding::Zero, Padding::Replicate] {
+        // The nets' shapes (32 → 32, 32 → 128 at 32² and 64²) and the edges: width 1, widths
+        // 15/17/33/47 (tile tails, an odd count of pixel tiles), 64 channels (two blocks of
+        // 32), outputs 20 / 48 (a part tile, an odd count of output tiles), 1×1 and 5×3.
+        check(&mut rng, 1, 32, 32, 32, 32, 3, 3, pad);
+        check(&mut rng, 1, 32, 128, 16, 64, 3, 3, pad);
+        check(&mut rng, 2, 32, 32, 5, 1, 3, 3, pad);
+        check(&mut rng, 1, 64, 20, 7, 15, 3, 3, pad);
+        check(&mut rng, 2, 32, 48, 3, 17, 3, 3, pad);
+        check(&mut rng, 1, 96, 33, 4, 33, 1, 1, pad);
+        check(&mut rng, 1, 32, 16, 9, 47, 5, 3, pad);
+    }
+    for _ in 0..6 {
+        let (n, c, o) = (rng.below(2) + 1, 32 * (rng.below(3) + 1), 5 + rng.below(80));
+        let (h, w) = (1 + rng.below(20), 1 + rng.below(70));
+        let pad = if rng.below(2) == 0 { Padding::Zero } else { Padding::Replicate };
+        check(&mut rng, n, c, o, h, w, 3, 3, pad);
+    }
+}
+
+#[test]
+fn bf16_tiles_are_deterministic_and_fuse_the_epilogue() {
+    if !tiles_here() {
+        return;
+    }
+    let bits = |t: &Tensor| t.data.iter().map(|v| v.to_bits()).collect::<Vec<u32>>();
+    let mut rng = Rng::new(9);
+    let (x, w, b) = (
+        rng.tensor(&[2, 32, 13, 37], -1.0, 1.0),
+        rng.tensor(&[40, 32, 3, 3], -1.0, 1.0),
+        rng.tensor(&[40], -1.0, 1.0),
+    );
+    let skip = rng.tensor(&[2, 40, 13, 37], -1.0, 1.0);
+    let packed = PackedConv::with_precision(&w, Precision::Bf16);
+    let run = || conv2d_packed(&x, &packed, Some(&b), Padding::Replicate, Epilogue::NONE);
+    let plain = run();
+    assert_eq!(bits(&plain), bits(&run()), "two runs differ");
+    let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
+    assert_eq!(bits(&plain), bits(&one.install(run)), "1 thread differs from the default pool");
+    let mut added = plain.clone();
+    activation::add_assign(&mut added, &skip);
+    let fused =
+        conv2d_packed(&x, &packed, Some(&b), Padding::Replicate, Epilogue { skip: Some(&skip), relu: true });
+    assert_eq!(bits(&fused), bits(&activation::relu(&added)), "skip + relu fused");
+}
+
+#[test]
+fn bf16_packs_only_what_the_tiles_take_and_fp32_stays_fp32() {
+    let mut rng = Rng::new(2);
+    let x = rng.tensor(&[1, 32, 6, 9], -1.0, 1.0);
+    // The first conv (3 channels), 16 channels, and the last convs (≤ 4 outputs) stay fp32 with
+    // fp32's bits; so does every conv packed for fp32.
+    for (c, o, p) in [
+        (3, 32, Precision::Bf16),
+        (16, 32, Precision::Bf16),
+        (32, 3, Precision::Bf16),
+        (32, 32, Precision::Fp32),
+    ] {
+        let w = rng.tensor(&[o, c, 3, 3], -1.0, 1.0);
+        let packed = PackedConv::with_precision(&w, p);
+        assert!(!packed.is_bf16(), "{c} → {o} {p:?} packed for the tiles");
+        let xi = rng.tensor(&[1, c, 6, 9], -1.0, 1.0);
+        assert_eq!(
+            conv2d_packed(&xi, &packed, None, Padding::Zero, Epilogue::NONE),
+            conv2d(&xi, &w, None, Padding::Zero)
+        );
+    }
+    let w = rng.tensor(&[32, 32, 3, 3], -1.0, 1.0);
+    assert_eq!(PackedConv::with_precision(&w, Precision::Bf16).is_bf16(), amx::available());
+    assert_eq!(Precision::fastest_cpu() == Precision::Bf16, amx::available());
+    assert!(Precision::Fp32.runs_on_cpu() && !Precision::Fp16.runs_on_cpu());
+    assert_eq!(Precision::Bf16.runs_on_cpu(), amx::available());
+    drop(x);
+}
