@@ -10,8 +10,13 @@
 mod close;
 #[path = "common/random.rs"]
 mod random;
-use anisocb::ops::conv2d::amx::{self, bf16, conv2d_bf16_ref, f32_of_bf16};
-use anisocb::ops::conv2d::{conv2d, conv2d_packed, conv2d_ref, Epilogue, PackedConv, Precision};
+use anisocb::nn::config::{NetConfig, NetKind};
+use anisocb::nn::layers::Trunk;
+use anisocb::ops::conv2d::amx::{self, bf16, conv2d_bf16_ref, conv_act, f32_of_bf16, Act, ActEpilogue};
+use anisocb::ops::conv2d::{
+    conv2d, conv2d_packed, conv2d_ref, conv_act_nchw, Epilogue, PackedConv, Precision,
+};
+use anisocb::ops::pixel_shuffle::pixel_shuffle;
 use anisocb::ops::{activation, Padding};
 use anisocb::rng::Rng;
 use anisocb::Tensor;
@@ -152,4 +157,80 @@ fn bf16_packs_only_what_the_tiles_take_and_fp32_stays_fp32() {
     assert!(Precision::Fp32.runs_on_cpu() && !Precision::Fp16.runs_on_cpu());
     assert_eq!(Precision::Bf16.runs_on_cpu(), amx::available());
     drop(x);
+}
+
+/// bf16 rounding of every value of `t` (what an [`Act`] stores).
+fn rounded(t: &Tensor) -> Tensor {
+    let mut r = t.clone();
+    r.data.iter_mut().for_each(|v| *v = f32_of_bf16(bf16(*v)));
+    r
+}
+
+#[test]
+fn bf16_activation_chain_matches_the_twin_with_its_skip_relu_shuffle_and_borders() {
+    // conv_act keeps the activations padded channels-last in bf16 between convs, fusing the
+    // residual add, the ReLU and the pixel shuffle into the store and filling the border for
+    // the next conv: each against the twin, on widths off the tile (15, 37) and both paddings.
+    if !tiles_here() {
+        return;
+    }
+    let mut rng = Rng::new(13);
+    for (pad, h, w) in [(Padding::Replicate, 9, 37), (Padding::Zero, 6, 15), (Padding::Replicate, 32, 32)] {
+        let what = format!("{pad:?} {h}x{w}");
+        let x = rng.tensor(&[2, 32, h, w], -1.0, 1.0);
+        let (w1, b1) = (rng.tensor(&[32, 32, 3, 3], -0.2, 0.2), rng.tensor(&[32], -0.5, 0.5));
+        let (w2, b2) = (rng.tensor(&[128, 32, 3, 3], -0.2, 0.2), rng.tensor(&[128], -0.5, 0.5));
+        let a = Act::from_nchw(&x, pad);
+        assert_eq!(a.to_nchw(), rounded(&x), "{what}: the input act");
+        // Conv, skip, ReLU: the sum in f32, rounded once.
+        let p1 = PackedConv::with_precision(&w1, Precision::Bf16);
+        let got = conv_act(&a, &p1, Some(&b1), ActEpilogue { skip: Some(&a), relu: true });
+        let mut want = conv2d_bf16_ref(&x, &w1, Some(&b1), pad);
+        activation::add_assign(&mut want, &rounded(&x));
+        let want = activation::relu(&want);
+        // Rounding to bf16 (2⁻⁸ relative at most) after the summation order (1e-5 absolute).
+        assert_close(&format!("conv+skip+relu {what}"), &got.to_nchw(), &want, 1e-5 * 288.0, 2f32.powi(-8));
+        // The next conv reads `got` through its border: the chain's second conv against the
+        // twin on the rounded first output.
+        let p2 = PackedConv::for_shuffle(&w2, Precision::Bf16, 2);
+        let up = conv_act(&got, &p2, Some(&b2), ActEpilogue::default());
+        assert_eq!(up.shape, [2, 32, 2 * h, 2 * w], "{what}: shuffled shape");
+        let want_up = pixel_shuffle(&conv2d_bf16_ref(&got.to_nchw(), &w2, Some(&b2), pad), 2);
+        assert_close(&format!("conv+shuffle {what}"), &up.to_nchw(), &want_up, 1e-5 * 288.0, 2f32.powi(-8));
+        // And out to NCHW f32 (no rounding of the output), with the fused ReLU.
+        let y = conv_act_nchw(&up, &p1, Some(&b1), Epilogue::RELU);
+        let want_y = activation::relu(&conv2d_bf16_ref(&up.to_nchw(), &w1, Some(&b1), pad));
+        assert_close(&format!("conv to nchw {what}"), &y, &want_y, 1e-5 * 288.0, 0.0);
+    }
+}
+
+#[test]
+fn bf16_trunk_stays_within_bf16_rounding_of_the_fp32_trunk_and_is_deterministic() {
+    // Every net of the shipped shape (small config: 32 channels, replicate padding) and the
+    // paper's (64 channels), on a smooth input: the bf16 forward (`Trunk::pack(Bf16)`: the
+    // chain of Acts) within 1 % of the output's scale of the fp32 forward, not equal to it,
+    // and the same bits run to run.
+    if !tiles_here() {
+        return;
+    }
+    let ops = anisocb::ops::Cpu;
+    for (config, kind) in [
+        (NetConfig::small().with_padding(Padding::Replicate), NetKind::Geometry),
+        (NetConfig::small().with_padding(Padding::Replicate), NetKind::Boundary),
+        (NetConfig::paper(), NetKind::Geometry),
+    ] {
+        let net = Trunk::init(kind, config, 4);
+        let mut x = Tensor::zeros(&[2, 3, 12, 20]);
+        for (i, v) in x.data.iter_mut().enumerate() {
+            *v = (i as f32 * 0.37).sin() * 0.5;
+        }
+        let fp32 = net.forward_packed(&ops, &x, &net.pack(Precision::Fp32));
+        let packed = net.pack(Precision::Bf16);
+        let got = net.forward_packed(&ops, &x, &packed);
+        assert_eq!(got, net.forward_packed(&ops, &x, &packed), "{kind:?}: two runs differ");
+        assert_ne!(got, fp32, "{kind:?}: the bf16 forward gave fp32's result");
+        let scale = fp32.data.iter().fold(0f32, |m, v| m.max(v.abs()));
+        assert!(scale > 0.0);
+        assert_close(&format!("{kind:?} {}", config.channels), &got, &fp32, 0.01 * scale, 0.0);
+    }
 }

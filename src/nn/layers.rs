@@ -10,7 +10,8 @@
 //! stride 1, "same" size, with bias. Every op goes through `&dyn Ops`.
 
 use super::config::{NetConfig, NetKind, IN_CHANNELS, KERNEL, TAIL_CONVS};
-use crate::ops::conv2d::{Epilogue, PackedConv};
+use crate::ops::conv2d::amx::{conv_act, Act, ActEpilogue};
+use crate::ops::conv2d::{conv_act_nchw, Epilogue, PackedConv};
 use crate::ops::Precision;
 use crate::ops::{Ops, Padding};
 use crate::rng::{mix_seed, Rng};
@@ -267,8 +268,16 @@ impl Trunk {
 
     /// Every conv's weights packed for [`Trunk::forward_packed`] in `precision`
     /// ([`PackedConv::with_precision`]), in [`Trunk::convs`] order.
+    /// On the bf16 tiles the upscale conv is packed for the pixel shuffle its store fuses
+    /// ([`PackedConv::for_shuffle`]).
     pub fn pack(&self, precision: Precision) -> Vec<PackedConv> {
-        self.convs().into_iter().map(|(_, c)| PackedConv::with_precision(&c.weight, precision)).collect()
+        layout(self.kind, self.config)
+            .into_iter()
+            .map(|(l, ..)| match l {
+                Layer::Upscale => PackedConv::for_shuffle(&self.upscale.weight, precision, self.config.scale),
+                _ => PackedConv::with_precision(&self.conv(l).weight, precision),
+            })
+            .collect()
     }
 
     /// Inference forward: x (N, 3, H, W) → (N, out, rH, rW). Keeps no activations beyond the
@@ -297,6 +306,9 @@ impl Trunk {
         let (_, c, _, _) = x.dims4();
         assert_eq!(c, IN_CHANNELS, "trunk input must have {IN_CHANNELS} channels");
         let mut a = self.conv_in.forward_packed(ops, x, pad, at(Layer::ConvIn), Epilogue::NONE);
+        if at(Layer::Upscale).is_bf16() {
+            return self.forward_bf16(ops, &a, packed);
+        }
         for (k, b) in self.blocks.iter().enumerate() {
             let r1 = b.conv1.forward_packed(ops, &a, pad, at(Layer::Conv1(k)), Epilogue::RELU);
             let skip = self.kind.residual().then_some(&a);
@@ -315,6 +327,35 @@ impl Trunk {
             );
         }
         z
+    }
+
+    /// [`Trunk::forward_packed`] from conv_in's output `a` on, with the weights packed for the
+    /// bf16 tiles ([`Precision::Bf16`]): every conv but the first and the last (the ones with
+    /// 32·k input channels: all of them when any is) reads and writes bf16 activations in the
+    /// tiles' padded channels-last layout ([`Act`]), the residual adds, ReLUs and the pixel
+    /// shuffle fused into the stores; the last tail conv gets f32 NCHW again. CPU only: the
+    /// precision is resolved so that only a CPU packs for the tiles.
+    fn forward_bf16(&self, ops: &dyn Ops, a: &Tensor, packed: &[PackedConv]) -> Tensor {
+        let (nb, last) = (self.blocks.len(), self.tail.len() - 1);
+        let at = |l: Layer| &packed[l.index(nb)];
+        let mut a = Act::from_nchw(a, self.config.padding);
+        for (k, b) in self.blocks.iter().enumerate() {
+            let r1 = conv_act(
+                &a,
+                at(Layer::Conv1(k)),
+                Some(&b.conv1.bias),
+                ActEpilogue { skip: None, relu: true },
+            );
+            let skip = self.kind.residual().then_some(&a);
+            a = conv_act(&r1, at(Layer::Conv2(k)), Some(&b.conv2.bias), ActEpilogue { skip, relu: false });
+        }
+        let mut z = conv_act(&a, at(Layer::Upscale), Some(&self.upscale.bias), ActEpilogue::default());
+        drop(a);
+        for (i, conv) in self.tail[..last - 1].iter().enumerate() {
+            z = conv_act(&z, at(Layer::Tail(i)), Some(&conv.bias), ActEpilogue { skip: None, relu: true });
+        }
+        let z = conv_act_nchw(&z, at(Layer::Tail(last - 1)), Some(&self.tail[last - 1].bias), Epilogue::RELU);
+        self.tail[last].forward_packed(ops, &z, self.config.padding, at(Layer::Tail(last)), Epilogue::NONE)
     }
 
     /// Training forward: the output and the activations [`Trunk::backward`] needs.

@@ -45,6 +45,36 @@ pub fn f32_of_bf16(b: u16) -> f32 {
     f32::from_bits((b as u32) << 16)
 }
 
+/// A pooled f32 buffer viewed from a 64-byte boundary on: a tile row (64 bytes) then never
+/// straddles two cache lines (unaligned tiles ran the convs at half the speed).
+pub(super) struct Aligned {
+    buf: Scratch,
+    off: usize,
+    len: usize,
+}
+
+impl Aligned {
+    /// `len` floats, values unspecified.
+    pub(super) fn new(len: usize) -> Aligned {
+        let buf = Scratch::overwritten(len + 15);
+        let off = (64 - buf.as_ptr() as usize % 64) % 64 / 4;
+        Aligned { buf, off, len }
+    }
+}
+
+impl std::ops::Deref for Aligned {
+    type Target = [f32];
+    fn deref(&self) -> &[f32] {
+        &self.buf[self.off..self.off + self.len]
+    }
+}
+
+impl std::ops::DerefMut for Aligned {
+    fn deref_mut(&mut self) -> &mut [f32] {
+        &mut self.buf[self.off..self.off + self.len]
+    }
+}
+
 /// Whether this CPU runs AMX-BF16 tiles and the OS lets this process use them (on Linux the
 /// tile data state must be asked for once per process: `arch_prctl(ARCH_REQ_XCOMP_PERM)`).
 /// Checked once; `ANISOCB_NO_AMX=1` says no (to run the fallback on a machine that has it).
@@ -88,24 +118,38 @@ pub(super) fn eligible(c: usize, o: usize) -> bool {
 
 /// Weights packed into B tiles, [tap][c block of 32][o block of 16][16 pairs][16 × 2].
 pub(super) struct AmxPacked {
+    /// The tiles, from `data[off]` (64-byte aligned) on.
     data: Vec<u16>,
+    off: usize,
     /// (O, C, KH, KW).
     shape: [usize; 4],
     /// Output channels rounded up to a multiple of 16.
     pub(super) opad: usize,
+    /// The pixel shuffle r its output channels are ordered for ([`pack`]); 1: none.
+    pub(super) shuffle: usize,
 }
 
+/// Pack (O, C, KH, KW) weights, `get(o, c, ky, kx)`. With `shuffle` = r > 1 the output channels
+/// are reordered for a pixel shuffle fused into the store ([`conv_act`]): packed channel
+/// q = (i·r + j)·(O/r²) + c computes channel c·r² + i·r + j, so the channels of each of the r²
+/// sub-pixels lie together.
 pub(super) fn pack(
     o: usize,
     c: usize,
     kh: usize,
     kw: usize,
+    shuffle: usize,
     get: impl Fn(usize, usize, usize, usize) -> f32,
 ) -> AmxPacked {
     assert!(c.is_multiple_of(KT), "amx: {c} input channels is not a multiple of {KT}");
+    let r2 = shuffle * shuffle;
+    assert!(o.is_multiple_of(r2), "amx: {o} output channels do not shuffle by {shuffle}");
+    let get = |q: usize, ci: usize, ky: usize, kx: usize| get((q % (o / r2)) * r2 + q / (o / r2), ci, ky, kx);
     let (nkb, nob) = (c / KT, o.div_ceil(T));
-    let mut data = vec![0u16; kh * kw * nkb * nob * TILE];
-    for (i, tile) in data.chunks_exact_mut(TILE).enumerate() {
+    let len = kh * kw * nkb * nob * TILE;
+    let mut data = vec![0u16; len + 32];
+    let off = (64 - data.as_ptr() as usize % 64) % 64 / 2;
+    for (i, tile) in data[off..off + len].chunks_exact_mut(TILE).enumerate() {
         let (tap, kb, ob) = (i / (nkb * nob), i / nob % nkb, i % nob);
         let (ky, kx) = (tap / kw, tap % kw);
         for (r, row) in tile.chunks_exact_mut(2 * T).enumerate() {
@@ -119,17 +163,17 @@ pub(super) fn pack(
             }
         }
     }
-    AmxPacked { data, shape: [o, c, kh, kw], opad: nob * T }
+    AmxPacked { data, off, shape: [o, c, kh, kw], opad: nob * T, shuffle }
 }
 
 /// `x` (N, C, H, W) padded by (ph, pw) as bf16 channels-last: pixel (n, Y, X) at
 /// ((n·Hp + Y)·Wp + X)·C, with 16 zero pixels of slack after the last (the tiles' spill).
 /// Returned as f32 scratch (pooled) holding the bf16 pairs, and Hp, Wp.
-pub(super) fn pad_input(x: &Tensor, ph: usize, pw: usize, pad: Padding) -> (Scratch, usize, usize) {
+pub(super) fn pad_input(x: &Tensor, ph: usize, pw: usize, pad: Padding) -> (Aligned, usize, usize) {
     let (n, c, h, w) = x.dims4();
     let (hp, wp) = (h + 2 * ph, w + 2 * pw);
     let row_len = wp * c;
-    let mut out = Scratch::overwritten(((n * hp * wp + T) * c).div_ceil(2));
+    let mut out = Aligned::new(((n * hp * wp + T) * c).div_ceil(2));
     let bf: &mut [u16] = bytemuck::cast_slice_mut(&mut out[..]);
     let (body, slack) = bf.split_at_mut(n * hp * row_len);
     slack.fill(0);
@@ -265,6 +309,7 @@ pub(super) fn correlate(
 ) {
     assert!(available(), "amx: tiles used on a CPU or OS without them");
     let [_, c, kh, kw] = pk.shape;
+    assert_eq!(xp.len() * 2 / (n * hp * wp + T).max(1), c, "amx: the input has another channel count");
     let (opad, nob) = (pk.opad, pk.opad / T);
     let mt = out_w.div_ceil(T);
     assert!(out_h + kh - 1 <= hp && out_w + kw - 1 <= wp);
@@ -276,8 +321,8 @@ pub(super) fn correlate(
     // tile work, as much as handing a task to a thread, so several rows go to each task.
     let per_task = rows.div_ceil(8 * rayon::current_num_threads()).max(1);
     let xb = xp.as_ptr() as *const u16 as usize;
-    let fresh = || Scratch::overwritten(row_len);
-    (0..rows.div_ceil(per_task)).into_par_iter().for_each_init(fresh, |row: &mut Scratch, task| {
+    let fresh = || Aligned::new(row_len);
+    (0..rows.div_ceil(per_task)).into_par_iter().for_each_init(fresh, |row: &mut Aligned, task| {
         // SAFETY: the configuration is a valid palette-1 layout; tiles are released below.
         unsafe { asm!("ldtilecfg [{0}]", in(reg) &CONFIG as *const TileConfig, options(nostack, readonly)) };
         for r in task * per_task..((task + 1) * per_task).min(rows) {
@@ -298,7 +343,7 @@ pub(super) fn correlate(
                     // packed tiles of o blocks ob, ob+1 < nob; the scratch holds mt·16 pixels.
                     unsafe {
                         let x = (xb as *const u16).add(x_row + m * T * c);
-                        let w = pk.data.as_ptr().add(ob * TILE);
+                        let w = pk.data.as_ptr().add(pk.off + ob * TILE);
                         let acc = row.as_mut_ptr().add(m * T * opad + ob * T);
                         match (two_m, two_o) {
                             (true, true) => block::<2, 2>(x, wp, c, kh, kw, w, nob, acc, opad),
@@ -314,6 +359,150 @@ pub(super) fn correlate(
         // SAFETY: ends this thread's use of the tiles (their state is not kept across tasks).
         unsafe { asm!("tilerelease", options(nostack, nomem)) };
     });
+}
+
+/// Activations between bf16 convs (a trunk's inner layers, [`crate::nn::layers::Trunk`]):
+/// n images of H × W pixels and C channels, bf16, channels-last, padded by one pixel on every
+/// side (filled for `pad`) with [`pad_input`]'s slack: what the next 3×3 conv reads as it is,
+/// so the activations between two bf16 convs are never moved to NCHW f32 and back.
+pub struct Act {
+    data: Aligned,
+    /// (N, C, H, W) of the activation (unpadded).
+    pub shape: [usize; 4],
+    pad: Padding,
+}
+
+impl Act {
+    /// `x` (N, C, H, W) rounded to bf16, padded for a 3×3 conv.
+    pub fn from_nchw(x: &Tensor, pad: Padding) -> Act {
+        let (data, ..) = pad_input(x, 1, 1, pad);
+        Act { data, shape: [x.shape[0], x.shape[1], x.shape[2], x.shape[3]], pad }
+    }
+
+    /// The padded bf16 values, pixel (n, Y, X) of the padded grid at ((n·(H+2) + Y)·(W+2) + X)·C.
+    fn values(&self) -> &[u16] {
+        &bytemuck::cast_slice(&self.data[..])[..self.padded_len()]
+    }
+
+    /// The buffer [`correlate`] reads (bf16 pairs in f32 slots).
+    pub(super) fn padded(&self) -> &[f32] {
+        &self.data
+    }
+
+    fn padded_len(&self) -> usize {
+        let [n, c, h, w] = self.shape;
+        n * (h + 2) * (w + 2) * c
+    }
+
+    /// As NCHW f32 (exact: bf16 widens losslessly).
+    pub fn to_nchw(&self) -> Tensor {
+        let [n, c, h, w] = self.shape;
+        let v = self.values();
+        let mut t = Tensor::for_overwrite(&[n, c, h, w]);
+        for ni in 0..n {
+            for y in 0..h {
+                for x in 0..w {
+                    let px = &v[((ni * (h + 2) + y + 1) * (w + 2) + x + 1) * c..][..c];
+                    for (ci, &b) in px.iter().enumerate() {
+                        t.data[((ni * c + ci) * h + y) * w + x] = f32_of_bf16(b);
+                    }
+                }
+            }
+        }
+        t
+    }
+}
+
+/// What [`conv_act`] does to conv(x) + b as it stores it: add `skip` (an [`Act`] of the
+/// output's shape), ReLU, then the pixel shuffle the weights were packed for.
+#[derive(Clone, Copy, Default)]
+pub struct ActEpilogue<'a> {
+    pub skip: Option<&'a Act>,
+    pub relu: bool,
+}
+
+/// A 3×3 conv from one [`Act`] to the next, on the tiles: `packed` must be bf16 ([`PackedConv::is_bf16`]);
+/// with weights packed for a shuffle by r ([`PackedConv::for_shuffle`]) the output is the
+/// pixel-shuffled (N, O/r², rH, rW). The sum, skip and ReLU are in f32, rounded to bf16 once
+/// as they are stored.
+pub fn conv_act(x: &Act, packed: &PackedConv, b: Option<&Tensor>, epi: ActEpilogue) -> Act {
+    let PackedKind::Amx(pk) = &packed.kind else { panic!("conv_act: weights not packed for the tiles") };
+    let [n, c, h, w] = x.shape;
+    let [o, c2, kh, kw] = pk.shape;
+    assert!(c == c2 && kh == 3 && kw == 3, "conv_act: a 3×3 conv of {c2} channels on {c}");
+    let r = pk.shuffle;
+    let (oc, ho, wo) = (o / (r * r), h * r, w * r);
+    if let Some(s) = epi.skip {
+        assert!(r == 1 && s.shape == [n, o, h, w], "conv_act: the skip is not the output's shape");
+    }
+    let out_len = (n * (ho + 2) * (wo + 2) + T) * oc;
+    let mut data = Aligned::new(out_len.div_ceil(2));
+    let init = b.map(|b| {
+        let mut v = vec![0.0; pk.opad];
+        for (q, d) in v[..o].iter_mut().enumerate() {
+            *d = b.data[(q % oc) * r * r + q / oc];
+        }
+        v
+    });
+    let out = SyncPtr(data.as_mut_ptr());
+    let skip = epi.skip.map(|s| s.values());
+    let (opad, relu) = (pk.opad, epi.relu);
+    let sink = move |ni: usize, y: usize, row: &[f32]| {
+        let dst = out.get() as *mut u16;
+        for i in 0..r {
+            let yo = (ni * (ho + 2) + r * y + i + 1) * (wo + 2);
+            // SAFETY: LR row y of image ni is this task's; it writes HR rows r·y .. r·y + r
+            // (padded: + 1) of that image, columns 0 .. wo + 2, all inside the n·(ho+2)·(wo+2)
+            // pixels of oc channels; the row scratch holds w pixels of opad ≥ o floats.
+            let line = unsafe { std::slice::from_raw_parts_mut(dst.add(yo * oc), (wo + 2) * oc) };
+            for xi in 0..w {
+                for j in 0..r {
+                    let src = &row[xi * opad + (i * r + j) * oc..][..oc];
+                    let px = &mut line[(r * xi + j + 1) * oc..][..oc];
+                    match skip {
+                        Some(s) => {
+                            let sk = &s[(yo + xi + 1) * oc..][..oc];
+                            for ((d, &v), &k) in px.iter_mut().zip(src).zip(sk) {
+                                let v = v + f32_of_bf16(k);
+                                *d = bf16(if relu { relu1(v) } else { v });
+                            }
+                        }
+                        None => {
+                            for (d, &v) in px.iter_mut().zip(src) {
+                                *d = bf16(if relu { relu1(v) } else { v });
+                            }
+                        }
+                    }
+                }
+            }
+            // The left and right border pixels of the padded row.
+            let (l, rr) = match x.pad {
+                Padding::Zero => (None, None),
+                Padding::Replicate => (Some(1), Some(wo)),
+            };
+            for (to, from) in [(0, l), (wo + 1, rr)] {
+                match from {
+                    Some(f) => line.copy_within(f * oc..(f + 1) * oc, to * oc),
+                    None => line[to * oc..(to + 1) * oc].fill(0),
+                }
+            }
+        }
+    };
+    correlate(x.padded(), n, h + 2, w + 2, pk, init.as_deref(), h, w, &sink);
+    // The top and bottom border rows, and the slack.
+    let v: &mut [u16] = bytemuck::cast_slice_mut(&mut data[..]);
+    let row = (wo + 2) * oc;
+    for ni in 0..n {
+        let img = ni * (ho + 2) * row;
+        for (to, from) in [(0, 1), (ho + 1, ho)] {
+            match x.pad {
+                Padding::Replicate => v.copy_within(img + from * row..img + (from + 1) * row, img + to * row),
+                Padding::Zero => v[img + to * row..img + (to + 1) * row].fill(0),
+            }
+        }
+    }
+    v[n * (ho + 2) * row..].fill(0);
+    Act { data, shape: [n, oc, ho, wo], pad: x.pad }
 }
 
 /// The scalar twin: [`conv2d_ref`] on `x` and `w` rounded to bf16 (sums in f64, so the only

@@ -118,11 +118,23 @@ impl PackedConv {
     /// [`PackedConv::new`] for the kernels of `precision` ([`Precision::Bf16`]: the AMX kernel
     /// where the conv and the CPU take it, else the fp32 one).
     pub fn with_precision(w: &Tensor, precision: Precision) -> PackedConv {
+        PackedConv::packed(w, precision, 1)
+    }
+
+    /// [`PackedConv::with_precision`] for a conv a pixel shuffle by `r` follows: on the bf16
+    /// tiles its output channels are ordered for [`amx::conv_act`], which fuses the shuffle
+    /// into the store (such weights run only there); the fp32 kernels leave the shuffle to
+    /// its own op and pack as [`PackedConv::with_precision`].
+    pub fn for_shuffle(w: &Tensor, precision: Precision, r: usize) -> PackedConv {
+        PackedConv::packed(w, precision, r)
+    }
+
+    fn packed(w: &Tensor, precision: Precision, shuffle: usize) -> PackedConv {
         let (o, c, kh, kw) = w.dims4();
         assert!(kh % 2 == 1 && kw % 2 == 1, "conv2d: odd kernels only, got {kh}x{kw}");
         let get = |oi: usize, ci: usize, ky: usize, kx: usize| w.data[((oi * c + ci) * kh + ky) * kw + kx];
         let kind = if precision == Precision::Bf16 && amx::eligible(c, o) && amx::available() {
-            PackedKind::Amx(amx::pack(o, c, kh, kw, get))
+            PackedKind::Amx(amx::pack(o, c, kh, kw, shuffle, get))
         } else if o <= SMALL_OUT_MAX {
             PackedKind::SmallOut(pack_small_out(w))
         } else if winograd::eligible(c, o, kh, kw) {
@@ -172,7 +184,13 @@ pub fn conv2d_packed(
         }
         PackedKind::Winograd(pk) => (Some(pk), true),
         PackedKind::Direct(pk) => (Some(pk), false),
-        PackedKind::Amx(_) => (None, false),
+        PackedKind::Amx(ak) => {
+            assert_eq!(
+                ak.shuffle, 1,
+                "conv2d: weights packed for a fused pixel shuffle (amx::conv_act only)"
+            );
+            (None, false)
+        }
     };
     let opad = match &packed.kind {
         PackedKind::Amx(ak) => ak.opad,
@@ -198,10 +216,43 @@ pub fn conv2d_packed(
     });
     let bias = bias.as_ref().map(|v| v.data.as_slice());
     let mut y = Tensor::for_overwrite(&[n, o, h, wd]);
+    let sink = nchw_store(&mut y, opad, epi);
+    let Some(pk) = pk else {
+        let PackedKind::Amx(ak) = &packed.kind else { unreachable!() };
+        let (xp, hp, wp) = amx::pad_input(x, ph, pw, pad);
+        amx::correlate(&xp, n, hp, wp, ak, bias, h, wd, &sink);
+        drop(sink);
+        return y;
+    };
+    match (&padded, wino) {
+        (Some((xp, hp, wp)), false) => {
+            correlate_rows(xp, n, *hp, *wp, c, kh, kw, pk, bias, h, wd, RowGroups::Single(h), &sink)
+        }
+        (Some((xp, hp, wp)), true) => {
+            let input = winograd::Input::Padded { xp, hp: *hp, wp: *wp };
+            winograd::correlate(&input, n, c, pk, bias, h, wd, &sink)
+        }
+        (None, _) => winograd::correlate(&winograd::Input::Nchw { x, pad }, n, c, pk, bias, h, wd, &sink),
+    }
+    drop(sink);
+    y
+}
+
+/// The store of the fast kernels: row (n, yy) of their NHWC scratch (wd pixels, pixel stride
+/// `opad` ≥ O) into `y` (N, O, H, W), with `epi` fused: a transpose through registers.
+fn nchw_store<'a>(
+    y: &'a mut Tensor,
+    opad: usize,
+    epi: Epilogue<'a>,
+) -> impl Fn(usize, usize, &[f32]) + Sync + 'a {
+    let (_, o, h, wd) = y.dims4();
+    if let Some(s) = epi.skip {
+        assert_eq!(s.shape, y.shape, "conv2d: the skip tensor is not the output's shape");
+    }
     let yp = SyncPtr(y.data.as_mut_ptr());
     let skip = epi.skip.map(|s| s.data.as_ptr() as usize);
     let relu = epi.relu;
-    let sink = move |ni: usize, yy: usize, row: &[f32]| {
+    move |ni: usize, yy: usize, row: &[f32]| {
         assert!(row.len() >= wd * opad);
         let base = (ni * o * h + yy) * wd;
         // SAFETY: row (ni, yy) of every plane is written by this task only; the row holds wd
@@ -229,23 +280,27 @@ pub fn conv2d_packed(
             };
             transpose_map(row.as_ptr(), opad, wd, o, yp.get().add(base), h * wd, f, g)
         };
-    };
-    let Some(pk) = pk else {
-        let PackedKind::Amx(ak) = &packed.kind else { unreachable!() };
-        let (xp, hp, wp) = amx::pad_input(x, ph, pw, pad);
-        amx::correlate(&xp, n, hp, wp, ak, bias, h, wd, &sink);
-        return y;
-    };
-    match (&padded, wino) {
-        (Some((xp, hp, wp)), false) => {
-            correlate_rows(xp, n, *hp, *wp, c, kh, kw, pk, bias, h, wd, RowGroups::Single(h), &sink)
-        }
-        (Some((xp, hp, wp)), true) => {
-            let input = winograd::Input::Padded { xp, hp: *hp, wp: *wp };
-            winograd::correlate(&input, n, c, pk, bias, h, wd, &sink)
-        }
-        (None, _) => winograd::correlate(&winograd::Input::Nchw { x, pad }, n, c, pk, bias, h, wd, &sink),
     }
+}
+
+/// [`conv2d_packed`] on an [`amx::Act`] (the bf16 tiles' padded input, kept from the conv
+/// before), out to NCHW f32 with `epi`: how a chain of bf16 convs hands its result to an fp32
+/// op.
+pub fn conv_act_nchw(x: &amx::Act, packed: &PackedConv, b: Option<&Tensor>, epi: Epilogue) -> Tensor {
+    let PackedKind::Amx(ak) = &packed.kind else { panic!("conv_act_nchw: weights not packed for the tiles") };
+    assert_eq!(ak.shuffle, 1, "conv_act_nchw: weights packed for a fused pixel shuffle");
+    let [n, c, h, wd] = x.shape;
+    let [o, c2, kh, kw] = packed.shape;
+    assert!(c == c2 && kh == 3 && kw == 3, "conv_act_nchw: a 3×3 conv of {c2} channels on {c}");
+    let bias = b.map(|b| {
+        let mut v = vec![0.0; ak.opad];
+        v[..o].copy_from_slice(&b.data[..o]);
+        v
+    });
+    let mut y = Tensor::for_overwrite(&[n, o, h, wd]);
+    let sink = nchw_store(&mut y, ak.opad, epi);
+    amx::correlate(x.padded(), n, h + 2, wd + 2, ak, bias.as_deref(), h, wd, &sink);
+    drop(sink);
     y
 }
 
