@@ -14,7 +14,7 @@
 
 use anisocb::nn::{AnisoCb, GeometryNet, NetConfig};
 use anisocb::ops::conv2d::{Epilogue, PackedConv};
-use anisocb::ops::{AdamParams, Cpu, Ops, Padding};
+use anisocb::ops::{AdamParams, Cpu, Ops, Padding, Precision};
 use anisocb::train::adam::Adam;
 use anisocb::Tensor;
 use std::time::Instant;
@@ -98,6 +98,17 @@ fn net_rows() {
             drop(std::hint::black_box(nets.forward_with(&Cpu, &frame, true).unwrap()))
         });
         emit(&format!("nets {name} 1x3x32x32"), ms);
+        // bf16 on the AMX tiles where the CPU has them (`upscale --precision bf16`), at 32² and 64².
+        if Precision::Bf16.runs_on_cpu() {
+            let nets = bundle.packed_as(Precision::Bf16);
+            for s in [32usize, 64] {
+                let frame = random(&[1, 3, s, s], 4);
+                let ms = median_ms(10, 1.0, &mut || {
+                    drop(std::hint::black_box(nets.forward_with(&Cpu, &frame, true).unwrap()))
+                });
+                emit(&format!("nets {name} bf16 1x3x{s}x{s}"), ms);
+            }
+        }
     }
 }
 

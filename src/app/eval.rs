@@ -22,6 +22,7 @@ use crate::geom::GridMesh;
 use crate::io::json::{write_json, Layout, Object, Value};
 use crate::io::write_atomic_bytes;
 use crate::nn::bundle::AnisoCb;
+use crate::ops::Precision;
 use crate::pipeline::folder::{self, Ownership};
 use crate::viz::closeup;
 use crate::viz::heat::{render_heat_row, scale_max, ScalarColors};
@@ -117,20 +118,25 @@ pub struct Args {
     /// Compute device: cpu or cuda.
     #[arg(long, default_value = "cpu")]
     pub device: String,
+    /// The nets' arithmetic in every anisocb row, as `upscale --precision`: auto (what upscale
+    /// runs here by default), fp32, bf16 or fp16.
+    #[arg(long, default_value = "auto", value_parser = ["auto", "fp32", "bf16", "fp16"])]
+    pub precision: String,
 }
 
 pub fn run(a: Args) -> Result<()> {
     set_threads(a.threads)?;
     let ops = crate::cuda::ops_for_device(&a.device)?;
+    let precision = Precision::resolve(&a.precision, ops.as_ref())?;
     let model = load_model(a.weights.as_deref())?;
-    let own = ownership(&a, &model, ops.name())?;
+    let own = ownership(&a, &model, ops.name(), precision)?;
     let claim = folder::claim(&a.out, &own, a.overwrite)?;
     for n in &claim.removed {
         eprintln!("note: removed {n}, an earlier run's output that this run does not write");
     }
     own.write_summary(&a.out, Object::new(), false)?;
     if !a.meshes.is_empty() {
-        let params = crate::sr::params::UpscaleParams::default();
+        let params = crate::sr::params::UpscaleParams { precision, ..Default::default() };
         let mut rows = Vec::new();
         let pb = progress(a.meshes.len() as u64, "eval meshes");
         for dir in &a.meshes {
@@ -166,7 +172,7 @@ pub fn run(a: Args) -> Result<()> {
         linear: a.linear.as_deref().map(LinearUpsampler::load).transpose()?,
         also: a.also.iter().map(|p| Ok((stem(p), AnisoCb::load(p)?))).collect::<Result<_>>()?,
     };
-    let opts = EvalOptions { etas: a.eta.clone(), physics: a.physics, moved: a.moved };
+    let opts = EvalOptions { etas: a.eta.clone(), physics: a.physics, moved: a.moved, precision };
     let mut invariance = Vec::new();
     let mut cells = Vec::new();
     let pb = progress(a.runs.len() as u64, "eval");
@@ -207,7 +213,7 @@ pub fn run(a: Args) -> Result<()> {
 /// Who this run is for its output folder ([`folder::claim`]): the runs, the settings that
 /// decide the tables and pictures (the weights by a checksum), and every file it writes (the
 /// pictures are named by each run's label, known before the run is read).
-fn ownership(a: &Args, model: &AnisoCb, device: &str) -> Result<Ownership> {
+fn ownership(a: &Args, model: &AnisoCb, device: &str, precision: Precision) -> Result<Ownership> {
     let paths =
         |v: &[PathBuf]| Value::from(folder::canonical(v).into_iter().map(Value::from).collect::<Vec<_>>());
     let one = |p: &Option<PathBuf>| p.as_ref().map_or(Value::Null, |p| paths(std::slice::from_ref(p)));
@@ -223,7 +229,8 @@ fn ownership(a: &Args, model: &AnisoCb, device: &str) -> Result<Ownership> {
         .val("flipbook", Value::Bool(a.flipbook))
         .val("physics", Value::Bool(a.physics))
         .val("speed", Value::Bool(a.speed))
-        .str("device", device);
+        .str("device", device)
+        .str("precision", precision.name());
     let mut files = Vec::new();
     if !a.meshes.is_empty() {
         files.extend(["meshes.md", "meshes.json"].map(String::from));

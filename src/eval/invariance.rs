@@ -8,7 +8,7 @@ use crate::geom::cloth_frame::Affine;
 use crate::geom::geometry_image::images_to_sequence;
 use crate::geom::GridMesh;
 use crate::nn::bundle::AnisoCb;
-use crate::ops::Ops;
+use crate::ops::{Ops, Precision};
 use crate::sr::params::UpscaleParams;
 use crate::sr::upscale::upscale_images;
 
@@ -51,6 +51,7 @@ pub fn invariance_rows(
     lr: &[GridMesh],
     ours: &[GridMesh],
     hr: &[GridMesh],
+    precision: Precision,
 ) -> Result<Vec<InvarianceRow>> {
     let n = lr.len().max(2) as f64 - 1.0;
     type PerFrame = Box<dyn Fn(f64) -> Affine>;
@@ -75,7 +76,8 @@ pub fn invariance_rows(
         let lr_t: Vec<GridMesh> = lr.iter().zip(&ts).map(|(m, t)| apply_mesh(t, m)).collect();
         let dom = crate::geom::Domain::enclosing(&lr_t, 0.05);
         let img = crate::geom::geometry_image::sequence_to_images(&lr_t, &dom);
-        let up = upscale_images(ops, model, &img, &dom, &UpscaleParams::default(), &mut |_| {})?;
+        let params = UpscaleParams { precision, ..UpscaleParams::default() };
+        let up = upscale_images(ops, model, &img, &dom, &params, &mut |_| {})?;
         let out = images_to_sequence(&up.hr, &dom);
         let (mut dev, mut rmse) = (0.0f32, 0.0f64);
         for k in 0..lr.len() {

@@ -15,7 +15,7 @@ use crate::geom::geometry_image::images_to_sequence;
 use crate::geom::{Domain, GridMesh};
 use crate::nn::bundle::AnisoCb;
 use crate::nn::geometry_net::{interpolate, GeometryNet};
-use crate::ops::{Interp, Ops};
+use crate::ops::{Interp, Ops, Precision};
 use crate::sr::compose::{compose, DEFAULT_ETA};
 use crate::sr::params::{UpscaleParams, EVAL_STRAIN_ITERS};
 use crate::sr::upscale::upscale_images;
@@ -70,6 +70,8 @@ pub struct EvalOptions {
     pub physics: bool,
     /// Also upscale the run moved, turned and scaled ([`invariance_rows`]).
     pub moved: bool,
+    /// The nets' arithmetic in every anisocb row.
+    pub precision: Precision,
 }
 
 /// One held-out run evaluated: its meshes, every method's, and their scores.
@@ -120,8 +122,9 @@ pub fn methods_for_run(
     lr: &Tensor,
     domain: &Domain,
     etas: &[f32],
+    precision: Precision,
 ) -> Result<Vec<Method>> {
-    let p = UpscaleParams::default();
+    let p = UpscaleParams { precision, ..UpscaleParams::default() };
     // Every η is composed from one run of the nets, so EnhanceNet runs whatever the default η.
     let up = upscale_images(ops, model, lr, domain, &UpscaleParams { enhance_map: true, ..p }, &mut |_| {})?;
     // Each model's residual goes onto the interpolation it was trained over (its `upsample`).
@@ -217,7 +220,7 @@ pub fn evaluate_run(
     let scenario = pair.label();
     let hr = images_to_sequence(&pair.hr, domain);
     let lr_m = images_to_sequence(lr, domain);
-    let mut methods = methods_for_run(ops, model, others, lr, domain, &with_default_eta(&opts.etas))?;
+    let mut methods = methods_for_run(ops, model, others, lr, domain, &with_default_eta(&opts.etas), opts.precision)?;
     let ours = default_method();
     let mut invariance = Vec::new();
     if opts.physics {
@@ -228,7 +231,7 @@ pub fn evaluate_run(
     }
     if opts.moved {
         let o = &methods.iter().find(|m| m.name == ours).unwrap().meshes;
-        invariance = invariance_rows(ops, model, &scenario, &lr_m, o, &hr)?;
+        invariance = invariance_rows(ops, model, &scenario, &lr_m, o, &hr, opts.precision)?;
     }
     let mask = border_band(hr[0].w, hr[0].h, BAND_ROWS);
     // Wrinkle detail is what the grid every method upscaled (lr: (T, 3, h, w)) cannot hold.
