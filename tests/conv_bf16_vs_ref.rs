@@ -170,37 +170,55 @@ fn rounded(t: &Tensor) -> Tensor {
 fn bf16_activation_chain_matches_the_twin_with_its_skip_relu_shuffle_and_borders() {
     // conv_act keeps the activations padded channels-last in bf16 between convs, fusing the
     // residual add, the ReLU and the pixel shuffle into the store and filling the border for
-    // the next conv: each against the twin, on widths off the tile (15, 37) and both paddings.
+    // the next conv: each against the twin, on widths off the tile (15, 37) and both paddings,
+    // with single bf16 and with hi + lo pairs (the trunk's LR part: the input exact to 2⁻¹⁷,
+    // so the twin is the reference on rounded weights and the unrounded input).
     if !tiles_here() {
         return;
     }
     let mut rng = Rng::new(13);
-    for (pad, h, w) in [(Padding::Replicate, 9, 37), (Padding::Zero, 6, 15), (Padding::Replicate, 32, 32)] {
-        let what = format!("{pad:?} {h}x{w}");
-        let x = rng.tensor(&[2, 32, h, w], -1.0, 1.0);
-        let (w1, b1) = (rng.tensor(&[32, 32, 3, 3], -0.2, 0.2), rng.tensor(&[32], -0.5, 0.5));
-        let (w2, b2) = (rng.tensor(&[128, 32, 3, 3], -0.2, 0.2), rng.tensor(&[128], -0.5, 0.5));
-        let a = Act::from_nchw(&x, pad);
-        assert_eq!(a.to_nchw(), rounded(&x), "{what}: the input act");
-        // Conv, skip, ReLU: the sum in f32, rounded once.
-        let p1 = PackedConv::with_precision(&w1, Precision::Bf16);
-        let got = conv_act(&a, &p1, Some(&b1), ActEpilogue { skip: Some(&a), relu: true });
-        let mut want = conv2d_bf16_ref(&x, &w1, Some(&b1), pad);
-        activation::add_assign(&mut want, &rounded(&x));
-        let want = activation::relu(&want);
-        // Rounding to bf16 (2⁻⁸ relative at most) after the summation order (1e-5 absolute).
-        assert_close(&format!("conv+skip+relu {what}"), &got.to_nchw(), &want, 1e-5 * 288.0, 2f32.powi(-8));
-        // The next conv reads `got` through its border: the chain's second conv against the
-        // twin on the rounded first output.
-        let p2 = PackedConv::for_shuffle(&w2, Precision::Bf16, 2);
-        let up = conv_act(&got, &p2, Some(&b2), ActEpilogue::default());
-        assert_eq!(up.shape, [2, 32, 2 * h, 2 * w], "{what}: shuffled shape");
-        let want_up = pixel_shuffle(&conv2d_bf16_ref(&got.to_nchw(), &w2, Some(&b2), pad), 2);
-        assert_close(&format!("conv+shuffle {what}"), &up.to_nchw(), &want_up, 1e-5 * 288.0, 2f32.powi(-8));
-        // And out to NCHW f32 (no rounding of the output), with the fused ReLU.
-        let y = conv_act_nchw(&up, &p1, Some(&b1), Epilogue::RELU);
-        let want_y = activation::relu(&conv2d_bf16_ref(&up.to_nchw(), &w1, Some(&b1), pad));
-        assert_close(&format!("conv to nchw {what}"), &y, &want_y, 1e-5 * 288.0, 0.0);
+    for split in [false, true] {
+        for (pad, h, w) in [(Padding::Replicate, 9, 37), (Padding::Zero, 6, 15), (Padding::Replicate, 32, 32)]
+        {
+            let what = format!("{pad:?} {h}x{w} split={split}");
+            let x = rng.tensor(&[2, 32, h, w], -1.0, 1.0);
+            let (w1, b1) = (rng.tensor(&[32, 32, 3, 3], -0.2, 0.2), rng.tensor(&[32], -0.5, 0.5));
+            let (w2, b2) = (rng.tensor(&[128, 32, 3, 3], -0.2, 0.2), rng.tensor(&[128], -0.5, 0.5));
+            // What an Act holds: the value rounded, or to 2⁻¹⁷ as a pair.
+            let held = |t: &Tensor| if split { t.clone() } else { rounded(t) };
+            let (rtol, stored) =
+                if split { (2f32.powi(-16), 2f32.powi(-16)) } else { (2f32.powi(-8), 2f32.powi(-8)) };
+            let a = Act::from_nchw(&x, pad, split);
+            assert_close(&format!("input act {what}"), &a.to_nchw(), &held(&x), 0.0, stored);
+            // The twin: weights rounded, the input as the Act holds it.
+            let twin = |x: &Tensor, w: &Tensor, b: &Tensor| conv2d_ref(&held(x), &rounded(w), Some(b), pad);
+            // Conv, skip, ReLU: the sum in f32, stored once.
+            let p1 = PackedConv::for_chain(&w1, Precision::Bf16, 1, split);
+            let got = conv_act(&a, &p1, Some(&b1), ActEpilogue { skip: Some(&a), relu: true }, split);
+            let mut want = twin(&x, &w1, &b1);
+            activation::add_assign(&mut want, &held(&x));
+            let want = activation::relu(&want);
+            // Storing (2⁻⁸ or 2⁻¹⁶ relative) after the summation order (1e-5 absolute).
+            assert_close(&format!("conv+skip+relu {what}"), &got.to_nchw(), &want, 1e-5 * 288.0, rtol);
+            // The next conv reads `got` through its border: the shuffled conv against the twin
+            // on the first output as stored, out as single bf16 (the HR tail's form).
+            let p2 = PackedConv::for_chain(&w2, Precision::Bf16, 2, split);
+            let up = conv_act(&got, &p2, Some(&b2), ActEpilogue::default(), false);
+            assert_eq!(up.shape, [2, 32, 2 * h, 2 * w], "{what}: shuffled shape");
+            let want_up = pixel_shuffle(&twin(&got.to_nchw(), &w2, &b2), 2);
+            assert_close(
+                &format!("conv+shuffle {what}"),
+                &up.to_nchw(),
+                &want_up,
+                1e-5 * 288.0,
+                2f32.powi(-8),
+            );
+            // And out to NCHW f32 (no rounding of the output), with the fused ReLU.
+            let p3 = PackedConv::for_chain(&w1, Precision::Bf16, 1, false);
+            let y = conv_act_nchw(&up, &p3, Some(&b1), Epilogue::RELU);
+            let want_y = activation::relu(&conv2d_ref(&up.to_nchw(), &rounded(&w1), Some(&b1), pad));
+            assert_close(&format!("conv to nchw {what}"), &y, &want_y, 1e-5 * 288.0, 0.0);
+        }
     }
 }
 

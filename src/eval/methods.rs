@@ -220,7 +220,8 @@ pub fn evaluate_run(
     let scenario = pair.label();
     let hr = images_to_sequence(&pair.hr, domain);
     let lr_m = images_to_sequence(lr, domain);
-    let mut methods = methods_for_run(ops, model, others, lr, domain, &with_default_eta(&opts.etas), opts.precision)?;
+    let mut methods =
+        methods_for_run(ops, model, others, lr, domain, &with_default_eta(&opts.etas), opts.precision)?;
     let ours = default_method();
     let mut invariance = Vec::new();
     if opts.physics {

@@ -268,14 +268,23 @@ impl Trunk {
 
     /// Every conv's weights packed for [`Trunk::forward_packed`] in `precision`
     /// ([`PackedConv::with_precision`]), in [`Trunk::convs`] order.
-    /// On the bf16 tiles the upscale conv is packed for the pixel shuffle its store fuses
-    /// ([`PackedConv::for_shuffle`]).
+    /// On the bf16 tiles ([`Trunk::forward_packed`]'s chain of [`Act`]s) the upscale conv is
+    /// packed for the pixel shuffle its store fuses, and the LR part (the blocks and the
+    /// upscale conv) takes its inputs as hi + lo pairs of bf16 ([`PackedConv::for_chain`]):
+    /// rounding them to one bf16 moved held-out output vertices by up to 0.36 mm and raised
+    /// flicker (STED) by up to 6.5 %; pairs there keep every held-out figure within 0.7 % of
+    /// fp32 (docs/performance.md). The HR tail, whose rounding measured no difference, reads
+    /// single bf16.
     pub fn pack(&self, precision: Precision) -> Vec<PackedConv> {
         layout(self.kind, self.config)
             .into_iter()
-            .map(|(l, ..)| match l {
-                Layer::Upscale => PackedConv::for_shuffle(&self.upscale.weight, precision, self.config.scale),
-                _ => PackedConv::with_precision(&self.conv(l).weight, precision),
+            .map(|(l, ..)| {
+                let (shuffle, split) = match l {
+                    Layer::Upscale => (self.config.scale, true),
+                    Layer::Conv1(_) | Layer::Conv2(_) => (1, true),
+                    Layer::ConvIn | Layer::Tail(_) => (1, false),
+                };
+                PackedConv::for_chain(&self.conv(l).weight, precision, shuffle, split)
             })
             .collect()
     }
@@ -338,21 +347,41 @@ impl Trunk {
     fn forward_bf16(&self, ops: &dyn Ops, a: &Tensor, packed: &[PackedConv]) -> Tensor {
         let (nb, last) = (self.blocks.len(), self.tail.len() - 1);
         let at = |l: Layer| &packed[l.index(nb)];
-        let mut a = Act::from_nchw(a, self.config.padding);
+        let mut a = Act::from_nchw(a, self.config.padding, at(Layer::Conv1(0)).is_split());
         for (k, b) in self.blocks.iter().enumerate() {
             let r1 = conv_act(
                 &a,
                 at(Layer::Conv1(k)),
                 Some(&b.conv1.bias),
                 ActEpilogue { skip: None, relu: true },
+                at(Layer::Conv2(k)).is_split(),
             );
             let skip = self.kind.residual().then_some(&a);
-            a = conv_act(&r1, at(Layer::Conv2(k)), Some(&b.conv2.bias), ActEpilogue { skip, relu: false });
+            let next = if k + 1 < nb { Layer::Conv1(k + 1) } else { Layer::Upscale };
+            a = conv_act(
+                &r1,
+                at(Layer::Conv2(k)),
+                Some(&b.conv2.bias),
+                ActEpilogue { skip, relu: false },
+                at(next).is_split(),
+            );
         }
-        let mut z = conv_act(&a, at(Layer::Upscale), Some(&self.upscale.bias), ActEpilogue::default());
+        let mut z = conv_act(
+            &a,
+            at(Layer::Upscale),
+            Some(&self.upscale.bias),
+            ActEpilogue::default(),
+            at(Layer::Tail(0)).is_split(),
+        );
         drop(a);
         for (i, conv) in self.tail[..last - 1].iter().enumerate() {
-            z = conv_act(&z, at(Layer::Tail(i)), Some(&conv.bias), ActEpilogue { skip: None, relu: true });
+            z = conv_act(
+                &z,
+                at(Layer::Tail(i)),
+                Some(&conv.bias),
+                ActEpilogue { skip: None, relu: true },
+                at(Layer::Tail(i + 1)).is_split(),
+            );
         }
         let z = conv_act_nchw(&z, at(Layer::Tail(last - 1)), Some(&self.tail[last - 1].bias), Epilogue::RELU);
         self.tail[last].forward_packed(ops, &z, self.config.padding, at(Layer::Tail(last)), Epilogue::NONE)

@@ -86,8 +86,12 @@ pub fn available() -> bool {
 #[cfg(all(target_arch = "x86_64", target_os = "linux"))]
 fn detect() -> bool {
     use std::arch::x86_64::{__cpuid, __cpuid_count};
-    // CPUID.(EAX=7,ECX=0):EDX bit 22 AMX-BF16, bit 24 AMX-TILE.
-    let has = __cpuid(0).eax >= 7 && (__cpuid_count(7, 0).edx >> 22) & 0b101 == 0b101;
+    // CPUID.(EAX=7,ECX=0):EDX bit 22 AMX-BF16, bit 24 AMX-TILE; AVX512_BF16 for the stores.
+    // CPUID.(EAX=7,ECX=1):EAX bit 5 AVX512_BF16 (the epilogue's conversion).
+    let has = __cpuid(0).eax >= 7
+        && (__cpuid_count(7, 0).edx >> 22) & 0b101 == 0b101
+        && std::arch::is_x86_feature_detected!("avx512f")
+        && std::arch::is_x86_feature_detected!("avx512bf16");
     if !has {
         return false;
     }
@@ -127,6 +131,8 @@ pub(super) struct AmxPacked {
     pub(super) opad: usize,
     /// The pixel shuffle r its output channels are ordered for ([`pack`]); 1: none.
     pub(super) shuffle: usize,
+    /// Inputs as bf16 pairs hi + lo ([`split`]): `shape[1]` counts both halves.
+    pub(super) split: bool,
 }
 
 /// Pack (O, C, KH, KW) weights, `get(o, c, ky, kx)`. With `shuffle` = r > 1 the output channels
@@ -139,9 +145,13 @@ pub(super) fn pack(
     kh: usize,
     kw: usize,
     shuffle: usize,
+    split: bool,
     get: impl Fn(usize, usize, usize, usize) -> f32,
 ) -> AmxPacked {
     assert!(c.is_multiple_of(KT), "amx: {c} input channels is not a multiple of {KT}");
+    // Split inputs: channels [hi 0..c, lo 0..c], both times the same weights.
+    let (c_in, c) = (c, if split { 2 * c } else { c });
+    let get = move |o: usize, ci: usize, ky: usize, kx: usize| get(o, ci % c_in, ky, kx);
     let r2 = shuffle * shuffle;
     assert!(o.is_multiple_of(r2), "amx: {o} output channels do not shuffle by {shuffle}");
     let get = |q: usize, ci: usize, ky: usize, kx: usize| get((q % (o / r2)) * r2 + q / (o / r2), ci, ky, kx);
@@ -163,14 +173,22 @@ pub(super) fn pack(
             }
         }
     }
-    AmxPacked { data, off, shape: [o, c, kh, kw], opad: nob * T, shuffle }
+    AmxPacked { data, off, shape: [o, c, kh, kw], opad: nob * T, shuffle, split }
 }
 
 /// `x` (N, C, H, W) padded by (ph, pw) as bf16 channels-last: pixel (n, Y, X) at
-/// ((n·Hp + Y)·Wp + X)·C, with 16 zero pixels of slack after the last (the tiles' spill).
+/// ((n·Hp + Y)·Wp + X)·C (`split`: 2C, [`store_bf16`]), with 16 zero pixels of slack after
+/// the last (the tiles' spill).
 /// Returned as f32 scratch (pooled) holding the bf16 pairs, and Hp, Wp.
-pub(super) fn pad_input(x: &Tensor, ph: usize, pw: usize, pad: Padding) -> (Aligned, usize, usize) {
-    let (n, c, h, w) = x.dims4();
+pub(super) fn pad_input(
+    x: &Tensor,
+    ph: usize,
+    pw: usize,
+    pad: Padding,
+    split: bool,
+) -> (Aligned, usize, usize) {
+    let (n, c0, h, w) = x.dims4();
+    let c = if split { 2 * c0 } else { c0 };
     let (hp, wp) = (h + 2 * ph, w + 2 * pw);
     let row_len = wp * c;
     let mut out = Aligned::new(((n * hp * wp + T) * c).div_ceil(2));
@@ -179,12 +197,86 @@ pub(super) fn pad_input(x: &Tensor, ph: usize, pw: usize, pad: Padding) -> (Alig
     slack.fill(0);
     // Rows per rayon task: ≥ 2¹⁴ values, so small images are converted on one thread.
     let min_rows = ((1 << 14) / row_len.max(1)).max(1);
-    let fresh = || Scratch::overwritten(row_len);
+    let fresh = || Scratch::overwritten(wp * c0);
     body.par_chunks_mut(row_len).with_min_len(min_rows).enumerate().for_each_init(fresh, |f, (r, dst)| {
         pad_row_nhwc(x, r / hp, r % hp, ph, pw, pad, f);
-        dst.iter_mut().zip(f.iter()).for_each(|(d, &v)| *d = bf16(v));
+        for (d, v) in dst.chunks_exact_mut(c).zip(f.chunks_exact(c0)) {
+            store_bf16(d, v, split);
+        }
     });
     (out, hp, wp)
+}
+
+/// One pixel's channels `v` as bf16 into `d`: rounded (`d.len()` = C), or split (2C: the hi
+/// parts, then the lo parts, `hi + lo` = v to 2⁻¹⁷ relative).
+#[inline(always)]
+fn store_bf16(d: &mut [u16], v: &[f32], split: bool) {
+    if split {
+        let (hi, lo) = d.split_at_mut(v.len());
+        store_bf16_split(hi, lo, v);
+    } else {
+        d.iter_mut().zip(v).for_each(|(d, &v)| *d = bf16(v));
+    }
+}
+
+/// `v` as bf16 pairs: hi = bf16(v), lo = bf16(v − hi).
+#[inline(always)]
+fn store_bf16_split(hi: &mut [u16], lo: &mut [u16], v: &[f32]) {
+    for ((h, l), &v) in hi.iter_mut().zip(lo).zip(v) {
+        *h = bf16(v);
+        *l = bf16(v - f32_of_bf16(*h));
+    }
+}
+
+/// The epilogue of one output pixel of [`conv_act`]: `src` (the conv's C sums, f32) + the
+/// skip's values (hi + lo where split), ReLU, stored as bf16 (split: hi, then lo) into `px`.
+/// 16 channels at a time with `vcvtneps2bf16` (round to nearest even like [`bf16`]; it reads
+/// f32 subnormals, below 1.2·10⁻³⁸, as 0), the rest one by one.
+///
+/// # Safety
+/// The CPU has AVX512F and AVX512_BF16; `px` (and `sk`) hold C values, 2C split.
+#[target_feature(enable = "avx512f,avx512bf16")]
+unsafe fn store_pixel(src: &[f32], sk: Option<&[u16]>, relu: bool, px: &mut [u16], split: bool) {
+    use std::arch::x86_64::*;
+    let c = src.len();
+    assert!(px.len() == c * (1 + split as usize) && sk.is_none_or(|s| s.len() == px.len()));
+    let widen = |p: *const u16| {
+        _mm512_castsi512_ps(_mm512_slli_epi32::<16>(_mm512_cvtepu16_epi32(_mm256_loadu_si256(
+            p as *const __m256i,
+        ))))
+    };
+    let c16 = c / 16 * 16;
+    for c0 in (0..c16).step_by(16) {
+        let mut v = _mm512_loadu_ps(src.as_ptr().add(c0));
+        if let Some(s) = sk {
+            v = _mm512_add_ps(v, widen(s.as_ptr().add(c0)));
+            if split {
+                v = _mm512_add_ps(v, widen(s.as_ptr().add(c + c0)));
+            }
+        }
+        if relu {
+            // max(0, v): v where it is not below 0 (−0 and NaN kept, as `relu1`).
+            v = _mm512_max_ps(_mm512_setzero_ps(), v);
+        }
+        let hi: __m256i = std::mem::transmute(_mm512_cvtneps_pbh(v));
+        _mm256_storeu_si256(px.as_mut_ptr().add(c0) as *mut __m256i, hi);
+        if split {
+            let rest = _mm512_sub_ps(v, widen(px.as_ptr().add(c0)));
+            let lo: __m256i = std::mem::transmute(_mm512_cvtneps_pbh(rest));
+            _mm256_storeu_si256(px.as_mut_ptr().add(c + c0) as *mut __m256i, lo);
+        }
+    }
+    for k in c16..c {
+        let mut v = src[k];
+        if let Some(s) = sk {
+            v += f32_of_bf16(s[k]) + if split { f32_of_bf16(s[c + k]) } else { 0.0 };
+        }
+        let v = if relu { relu1(v) } else { v };
+        px[k] = bf16(v);
+        if split {
+            px[c + k] = bf16(v - f32_of_bf16(px[k]));
+        }
+    }
 }
 
 /// The tile configuration: palette 1, all eight tiles 16 rows × 64 bytes.
@@ -244,16 +336,7 @@ unsafe fn block<const MT: usize, const NT: usize>(
     let (xs, cs, ws) = (c * 2, opad * 4, 2 * T * 2);
     let c01 = acc.add(T);
     let (c10, c11) = (acc.add(T * opad), acc.add(T * opad + T));
-    tile_load!("0", acc, cs);
-    if NT == 2 {
-        tile_load!("1", c01, cs);
-    }
-    if MT == 2 {
-        tile_load!("2", c10, cs);
-        if NT == 2 {
-            tile_load!("3", c11, cs);
-        }
-    }
+    asm!("tilezero tmm0", "tilezero tmm1", "tilezero tmm2", "tilezero tmm3", options(nostack, nomem));
     let nkb = c / KT;
     for ky in 0..kh {
         for kx in 0..kw {
@@ -327,12 +410,6 @@ pub(super) fn correlate(
         unsafe { asm!("ldtilecfg [{0}]", in(reg) &CONFIG as *const TileConfig, options(nostack, readonly)) };
         for r in task * per_task..((task + 1) * per_task).min(rows) {
             let (ni, y) = (r / out_h, r % out_h);
-            for px in row.chunks_exact_mut(opad) {
-                match init {
-                    Some(b) => px.copy_from_slice(&b[..opad]),
-                    None => px.fill(0.0),
-                }
-            }
             let x_row = ((ni * hp + y) * wp) * c;
             for m in (0..mt).step_by(2) {
                 let two_m = m + 1 < mt;
@@ -354,6 +431,11 @@ pub(super) fn correlate(
                     }
                 }
             }
+            if let Some(b) = init {
+                for px in row.chunks_exact_mut(opad) {
+                    px.iter_mut().zip(&b[..opad]).for_each(|(v, &b)| *v += b);
+                }
+            }
             sink(ni, y, row);
         }
         // SAFETY: ends this thread's use of the tiles (their state is not kept across tasks).
@@ -370,18 +452,32 @@ pub struct Act {
     /// (N, C, H, W) of the activation (unpadded).
     pub shape: [usize; 4],
     pad: Padding,
+    /// Each value as a pair of bf16, hi + lo ([`store_bf16`]): 2C values a pixel.
+    split: bool,
 }
 
 impl Act {
-    /// `x` (N, C, H, W) rounded to bf16, padded for a 3×3 conv.
-    pub fn from_nchw(x: &Tensor, pad: Padding) -> Act {
-        let (data, ..) = pad_input(x, 1, 1, pad);
-        Act { data, shape: [x.shape[0], x.shape[1], x.shape[2], x.shape[3]], pad }
+    /// `x` (N, C, H, W) in bf16, padded for a 3×3 conv: rounded, or `split` into hi + lo.
+    pub fn from_nchw(x: &Tensor, pad: Padding, split: bool) -> Act {
+        let (n, c, h, w) = x.dims4();
+        let (data, ..) = pad_input(x, 1, 1, pad, split);
+        Act { data, shape: [n, c, h, w], pad, split }
     }
 
-    /// The padded bf16 values, pixel (n, Y, X) of the padded grid at ((n·(H+2) + Y)·(W+2) + X)·C.
+    /// bf16 values a pixel: C, or 2C split.
+    pub(super) fn stored(&self) -> usize {
+        self.shape[1] * (1 + self.split as usize)
+    }
+
+    /// The padded bf16 values, pixel (n, Y, X) of the padded grid at ((n·(H+2) + Y)·(W+2) + X)·C
+    /// (2C split).
     fn values(&self) -> &[u16] {
         &bytemuck::cast_slice(&self.data[..])[..self.padded_len()]
+    }
+
+    /// Whether each value is a hi + lo pair of bf16.
+    pub fn is_split(&self) -> bool {
+        self.split
     }
 
     /// The buffer [`correlate`] reads (bf16 pairs in f32 slots).
@@ -390,21 +486,22 @@ impl Act {
     }
 
     fn padded_len(&self) -> usize {
-        let [n, c, h, w] = self.shape;
-        n * (h + 2) * (w + 2) * c
+        let [n, _, h, w] = self.shape;
+        n * (h + 2) * (w + 2) * self.stored()
     }
 
-    /// As NCHW f32 (exact: bf16 widens losslessly).
+    /// As NCHW f32 (exact: bf16 widens losslessly; split: hi + lo).
     pub fn to_nchw(&self) -> Tensor {
         let [n, c, h, w] = self.shape;
-        let v = self.values();
+        let (v, cs) = (self.values(), self.stored());
         let mut t = Tensor::for_overwrite(&[n, c, h, w]);
         for ni in 0..n {
             for y in 0..h {
                 for x in 0..w {
-                    let px = &v[((ni * (h + 2) + y + 1) * (w + 2) + x + 1) * c..][..c];
-                    for (ci, &b) in px.iter().enumerate() {
-                        t.data[((ni * c + ci) * h + y) * w + x] = f32_of_bf16(b);
+                    let px = &v[((ni * (h + 2) + y + 1) * (w + 2) + x + 1) * cs..][..cs];
+                    for ci in 0..c {
+                        let lo = if self.split { f32_of_bf16(px[c + ci]) } else { 0.0 };
+                        t.data[((ni * c + ci) * h + y) * w + x] = f32_of_bf16(px[ci]) + lo;
                     }
                 }
             }
@@ -421,21 +518,29 @@ pub struct ActEpilogue<'a> {
     pub relu: bool,
 }
 
-/// A 3×3 conv from one [`Act`] to the next, on the tiles: `packed` must be bf16 ([`PackedConv::is_bf16`]);
-/// with weights packed for a shuffle by r ([`PackedConv::for_shuffle`]) the output is the
-/// pixel-shuffled (N, O/r², rH, rW). The sum, skip and ReLU are in f32, rounded to bf16 once
-/// as they are stored.
-pub fn conv_act(x: &Act, packed: &PackedConv, b: Option<&Tensor>, epi: ActEpilogue) -> Act {
+/// A 3×3 conv from one [`Act`] to the next, on the tiles: `packed` must be bf16
+/// ([`PackedConv::is_bf16`]) and take `x`'s form (split or not, [`PackedConv::for_chain`]);
+/// with weights packed for a shuffle by r the output is the pixel-shuffled (N, O/r², rH, rW).
+/// The sum, skip and ReLU are in f32, stored once as bf16: split into hi + lo pairs if
+/// `out_split` (the form the next conv takes), else rounded.
+pub fn conv_act(x: &Act, packed: &PackedConv, b: Option<&Tensor>, epi: ActEpilogue, out_split: bool) -> Act {
     let PackedKind::Amx(pk) = &packed.kind else { panic!("conv_act: weights not packed for the tiles") };
-    let [n, c, h, w] = x.shape;
+    let [n, _, h, w] = x.shape;
     let [o, c2, kh, kw] = pk.shape;
-    assert!(c == c2 && kh == 3 && kw == 3, "conv_act: a 3×3 conv of {c2} channels on {c}");
-    let r = pk.shuffle;
+    let c = x.stored();
+    assert!(c == c2 && kh == 3 && kw == 3, "conv_act: a 3×3 conv of {c2} stored channels on {c}");
+    let (r, split) = (pk.shuffle, out_split);
+    assert_eq!(x.split, pk.split, "conv_act: the input is not in the weights' bf16 form");
     let (oc, ho, wo) = (o / (r * r), h * r, w * r);
+    // Stored values a pixel of the output (hi and lo halves when split).
+    let os = oc * (1 + split as usize);
     if let Some(s) = epi.skip {
-        assert!(r == 1 && s.shape == [n, o, h, w], "conv_act: the skip is not the output's shape");
+        assert!(
+            r == 1 && s.shape == [n, o, h, w] && s.split == split,
+            "conv_act: the skip is not the output's shape"
+        );
     }
-    let out_len = (n * (ho + 2) * (wo + 2) + T) * oc;
+    let out_len = (n * (ho + 2) * (wo + 2) + T) * os;
     let mut data = Aligned::new(out_len.div_ceil(2));
     let init = b.map(|b| {
         let mut v = vec![0.0; pk.opad];
@@ -453,26 +558,16 @@ pub fn conv_act(x: &Act, packed: &PackedConv, b: Option<&Tensor>, epi: ActEpilog
             let yo = (ni * (ho + 2) + r * y + i + 1) * (wo + 2);
             // SAFETY: LR row y of image ni is this task's; it writes HR rows r·y .. r·y + r
             // (padded: + 1) of that image, columns 0 .. wo + 2, all inside the n·(ho+2)·(wo+2)
-            // pixels of oc channels; the row scratch holds w pixels of opad ≥ o floats.
-            let line = unsafe { std::slice::from_raw_parts_mut(dst.add(yo * oc), (wo + 2) * oc) };
+            // pixels of os values; the row scratch holds w pixels of opad ≥ o floats.
+            let line = unsafe { std::slice::from_raw_parts_mut(dst.add(yo * os), (wo + 2) * os) };
             for xi in 0..w {
                 for j in 0..r {
                     let src = &row[xi * opad + (i * r + j) * oc..][..oc];
-                    let px = &mut line[(r * xi + j + 1) * oc..][..oc];
-                    match skip {
-                        Some(s) => {
-                            let sk = &s[(yo + xi + 1) * oc..][..oc];
-                            for ((d, &v), &k) in px.iter_mut().zip(src).zip(sk) {
-                                let v = v + f32_of_bf16(k);
-                                *d = bf16(if relu { relu1(v) } else { v });
-                            }
-                        }
-                        None => {
-                            for (d, &v) in px.iter_mut().zip(src) {
-                                *d = bf16(if relu { relu1(v) } else { v });
-                            }
-                        }
-                    }
+                    let px = &mut line[(r * xi + j + 1) * os..][..os];
+                    let sk = skip.map(|s| &s[(yo + xi + 1) * os..][..os]);
+                    // SAFETY: `available()` (asserted by `correlate`) includes AVX512_BF16;
+                    // `src` has oc values, `px` and `sk` os.
+                    unsafe { store_pixel(src, sk, relu, px, split) };
                 }
             }
             // The left and right border pixels of the padded row.
@@ -482,8 +577,8 @@ pub fn conv_act(x: &Act, packed: &PackedConv, b: Option<&Tensor>, epi: ActEpilog
             };
             for (to, from) in [(0, l), (wo + 1, rr)] {
                 match from {
-                    Some(f) => line.copy_within(f * oc..(f + 1) * oc, to * oc),
-                    None => line[to * oc..(to + 1) * oc].fill(0),
+                    Some(f) => line.copy_within(f * os..(f + 1) * os, to * os),
+                    None => line[to * os..(to + 1) * os].fill(0),
                 }
             }
         }
@@ -491,7 +586,7 @@ pub fn conv_act(x: &Act, packed: &PackedConv, b: Option<&Tensor>, epi: ActEpilog
     correlate(x.padded(), n, h + 2, w + 2, pk, init.as_deref(), h, w, &sink);
     // The top and bottom border rows, and the slack.
     let v: &mut [u16] = bytemuck::cast_slice_mut(&mut data[..]);
-    let row = (wo + 2) * oc;
+    let row = (wo + 2) * os;
     for ni in 0..n {
         let img = ni * (ho + 2) * row;
         for (to, from) in [(0, 1), (ho + 1, ho)] {
@@ -502,7 +597,7 @@ pub fn conv_act(x: &Act, packed: &PackedConv, b: Option<&Tensor>, epi: ActEpilog
         }
     }
     v[n * (ho + 2) * row..].fill(0);
-    Act { data, shape: [n, oc, ho, wo], pad: x.pad }
+    Act { data, shape: [n, oc, ho, wo], pad: x.pad, split }
 }
 
 /// The scalar twin: [`conv2d_ref`] on `x` and `w` rounded to bf16 (sums in f64, so the only

@@ -118,23 +118,24 @@ impl PackedConv {
     /// [`PackedConv::new`] for the kernels of `precision` ([`Precision::Bf16`]: the AMX kernel
     /// where the conv and the CPU take it, else the fp32 one).
     pub fn with_precision(w: &Tensor, precision: Precision) -> PackedConv {
-        PackedConv::packed(w, precision, 1)
+        PackedConv::packed(w, precision, 1, false)
     }
 
-    /// [`PackedConv::with_precision`] for a conv a pixel shuffle by `r` follows: on the bf16
-    /// tiles its output channels are ordered for [`amx::conv_act`], which fuses the shuffle
-    /// into the store (such weights run only there); the fp32 kernels leave the shuffle to
-    /// its own op and pack as [`PackedConv::with_precision`].
-    pub fn for_shuffle(w: &Tensor, precision: Precision, r: usize) -> PackedConv {
-        PackedConv::packed(w, precision, r)
+    /// [`PackedConv::with_precision`] for a conv in a chain of [`amx::Act`]s
+    /// ([`amx::conv_act`]): on the bf16 tiles, with its output channels ordered for a fused
+    /// pixel shuffle by `shuffle` (such weights run only there; 1: none), and taking its input
+    /// as hi + lo pairs of bf16 if `split` (twice the tile work, the input exact to 2⁻¹⁷).
+    /// The fp32 kernels pack as [`PackedConv::with_precision`] and leave the shuffle to its own op.
+    pub fn for_chain(w: &Tensor, precision: Precision, shuffle: usize, split: bool) -> PackedConv {
+        PackedConv::packed(w, precision, shuffle, split)
     }
 
-    fn packed(w: &Tensor, precision: Precision, shuffle: usize) -> PackedConv {
+    fn packed(w: &Tensor, precision: Precision, shuffle: usize, split: bool) -> PackedConv {
         let (o, c, kh, kw) = w.dims4();
         assert!(kh % 2 == 1 && kw % 2 == 1, "conv2d: odd kernels only, got {kh}x{kw}");
         let get = |oi: usize, ci: usize, ky: usize, kx: usize| w.data[((oi * c + ci) * kh + ky) * kw + kx];
         let kind = if precision == Precision::Bf16 && amx::eligible(c, o) && amx::available() {
-            PackedKind::Amx(amx::pack(o, c, kh, kw, shuffle, get))
+            PackedKind::Amx(amx::pack(o, c, kh, kw, shuffle, split, get))
         } else if o <= SMALL_OUT_MAX {
             PackedKind::SmallOut(pack_small_out(w))
         } else if winograd::eligible(c, o, kh, kw) {
@@ -153,6 +154,11 @@ impl PackedConv {
     /// Whether these weights run on the bf16 tiles.
     pub fn is_bf16(&self) -> bool {
         matches!(self.kind, PackedKind::Amx(_))
+    }
+
+    /// On the bf16 tiles: whether the inputs are hi + lo pairs ([`amx::Act`]'s split form).
+    pub fn is_split(&self) -> bool {
+        matches!(&self.kind, PackedKind::Amx(a) if a.split)
     }
 }
 
@@ -219,7 +225,7 @@ pub fn conv2d_packed(
     let sink = nchw_store(&mut y, opad, epi);
     let Some(pk) = pk else {
         let PackedKind::Amx(ak) = &packed.kind else { unreachable!() };
-        let (xp, hp, wp) = amx::pad_input(x, ph, pw, pad);
+        let (xp, hp, wp) = amx::pad_input(x, ph, pw, pad, ak.split);
         amx::correlate(&xp, n, hp, wp, ak, bias, h, wd, &sink);
         drop(sink);
         return y;
@@ -289,6 +295,7 @@ fn nchw_store<'a>(
 pub fn conv_act_nchw(x: &amx::Act, packed: &PackedConv, b: Option<&Tensor>, epi: Epilogue) -> Tensor {
     let PackedKind::Amx(ak) = &packed.kind else { panic!("conv_act_nchw: weights not packed for the tiles") };
     assert_eq!(ak.shuffle, 1, "conv_act_nchw: weights packed for a fused pixel shuffle");
+    assert_eq!(x.is_split(), ak.split, "conv_act_nchw: the input is not in the weights' bf16 form");
     let [n, c, h, wd] = x.shape;
     let [o, c2, kh, kw] = packed.shape;
     assert!(c == c2 && kh == 3 && kw == 3, "conv_act_nchw: a 3×3 conv of {c2} channels on {c}");
