@@ -522,12 +522,13 @@ fn cuda_device_resident_training_matches_cpu() {
     }
 }
 
-/// `--precision`: auto is fp32 on the CPU and fp16 on a GPU with tensor cores; fp16 on the CPU
+/// `--precision`: auto is bf16 on a CPU with AMX tiles, else fp32, and fp16 on a GPU with
+/// tensor cores; fp16 on the CPU
 /// is refused saying where it runs; fp32 on the GPU turns the tensor-core path off.
 #[test]
 fn precision_resolves_per_device_and_fp32_turns_the_tensor_cores_off() {
     use anisocb::pipeline::job::Precision;
-    assert_eq!(Precision::resolve("auto", &Cpu).unwrap(), Precision::Fp32);
+    assert_eq!(Precision::resolve("auto", &Cpu).unwrap(), Precision::fastest_cpu());
     assert_eq!(Precision::resolve("fp32", &Cpu).unwrap(), Precision::Fp32);
     let e = Precision::resolve("fp16", &Cpu).unwrap_err();
     assert!(

@@ -130,7 +130,8 @@ pub struct Args {
     /// Compute device: cpu or cuda.
     #[arg(help_heading = "Model and engine", long, default_value = "cpu")]
     pub device: String,
-    /// The nets' arithmetic: auto (fp16 on a GPU with tensor cores, else fp32), fp32 (the audited path; on a GPU the op-by-op kernels), bf16 (the
+    /// The nets' arithmetic: auto (fp16 on a GPU with tensor cores, bf16 on a CPU with AMX
+    /// tiles, else fp32), fp32 (the audited path; on a GPU the op-by-op kernels), bf16 (the
     /// CPU's AMX tiles: bf16 products summed in f32, the nets' first and last convs in fp32)
     /// or fp16 (--device cuda only).
     #[arg(help_heading = "Model and engine", long, default_value = "auto", value_parser = ["auto", "fp32", "bf16", "fp16"])]

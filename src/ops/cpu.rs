@@ -20,6 +20,9 @@ impl Ops for Cpu {
     fn name(&self) -> &'static str {
         "cpu"
     }
+    fn runs_bf16_tiles(&self) -> bool {
+        true
+    }
     fn conv2d(&self, x: &Tensor, w: &Tensor, b: Option<&Tensor>, pad: Padding) -> Tensor {
         conv2d::conv2d(x, w, b, pad)
     }

@@ -164,6 +164,13 @@ pub trait Ops: Sync {
     fn as_cuda(&self) -> Option<&crate::cuda::Cuda> {
         None
     }
+    /// Whether nets run through this table may take the CPU's bf16 tile chain
+    /// ([`Precision::Bf16`]), which runs the trunks' inner convs itself instead of through the
+    /// table. Only [`Cpu`]: another table (a GPU, a wrapper that counts or fails convs) gets
+    /// every conv. Default: no.
+    fn runs_bf16_tiles(&self) -> bool {
+        false
+    }
 }
 
 /// `Err` with the device's failure if `ops` recorded one ([`Ops::take_error`]).

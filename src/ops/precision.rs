@@ -12,7 +12,9 @@ pub enum Precision {
     Fp32,
     /// bf16 operands with f32 sums on the CPU's AMX tiles ([`amx`]): the convs with 32·k
     /// input channels; the first conv (3 channels) and the last (≤ 4 outputs) stay fp32, so
-    /// the geometry enters and leaves each net in f32. Only where [`amx::available`].
+    /// the geometry enters and leaves each net in f32, and the trunk's LR part takes its
+    /// activations as hi + lo pairs of bf16 ([`crate::nn::layers::Trunk::pack`]). Only where
+    /// [`amx::available`].
     Bf16,
     /// fp16 operands with f32 accumulation: the CUDA tensor-core path (`cuda::nets_views`).
     Fp16,
@@ -37,6 +39,15 @@ impl Precision {
         }
     }
 
+    /// The precision the nets are packed in for `ops`: bf16 only on a table that runs the
+    /// tiles ([`Ops::runs_bf16_tiles`]), fp32 elsewhere.
+    pub fn for_ops(self, ops: &dyn Ops) -> Precision {
+        match self {
+            Precision::Bf16 if !ops.runs_bf16_tiles() => Precision::Fp32,
+            p => p,
+        }
+    }
+
     /// Whether it runs on the CPU here (bf16 needs [`amx::available`]; fp16 is a GPU's).
     pub fn runs_on_cpu(self) -> bool {
         match self {
@@ -47,7 +58,8 @@ impl Precision {
     }
 
     /// The precision `request` (`auto`, `fp32`, `bf16` or `fp16`) resolved for `ops`: `auto`
-    /// is fp16 where `ops` is a GPU with tensor cores, else fp32. `fp32` on such a GPU turns its tensor-core path off (the op-by-op fp32 kernels
+    /// is fp16 where `ops` is a GPU with tensor cores, bf16 on a CPU with AMX tiles
+    /// ([`Precision::fastest_cpu`]), else fp32. `fp32` on such a GPU turns its tensor-core path off (the op-by-op fp32 kernels
     /// run). Errors: a precision that cannot run here, saying which can.
     pub fn resolve(request: &str, ops: &dyn Ops) -> Result<Precision> {
         let tc = ops.as_cuda().map(|c| c.tensor_cores());
@@ -57,7 +69,7 @@ impl Precision {
                 Ok(Precision::Fp32)
             }
             ("fp32", None) => Ok(Precision::Fp32),
-            ("auto", None) => Ok(Precision::Fp32),
+            ("auto", None) => Ok(Precision::fastest_cpu()),
             ("auto", Some(Err(_))) => Ok(Precision::Fp32),
             ("auto", Some(Ok(()))) | ("fp16", Some(Ok(()))) => Ok(Precision::Fp16),
             ("fp16", Some(Err(why))) => {

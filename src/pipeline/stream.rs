@@ -173,7 +173,7 @@ pub(crate) fn upscale_stream(
     if chunk == 0 {
         return Err(Error::config("chunk must be ≥ 1 frame"));
     }
-    let nets = model.packed_as(params.precision);
+    let nets = model.packed_as(params.precision.for_ops(ops));
     let mut win = FrameWindow::new(temporal_radius(model, params));
     let (mut fresh, mut window) = (Predictions::none(), Predictions::none());
     let mut a = range.start;

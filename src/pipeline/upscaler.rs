@@ -267,6 +267,7 @@ impl Upscaler {
     /// Run on another op table (`crate::cuda::ops_for_device("cuda")`).
     pub fn with_ops(mut self, ops: Box<dyn Ops>) -> Upscaler {
         self.ops = ops;
+        self.packed = self.model.pack_all(self.params.precision.for_ops(self.ops.as_ref()));
         self
     }
 

@@ -133,9 +133,10 @@ pub struct UpscaleParams {
     /// BoundaryNet says "interpolate", only their coarse shift; η's gain `1 + ηΓe` applies to
     /// the fine part: Γ = U + (1 − Γb)·S(R) + (1 + ηΓe)·(R − S(R)). Off by default.
     pub gate_coarse_only: bool,
-    /// The nets' arithmetic ([`Precision`]): fp32 by default (the audited path, the same bits
-    /// on every machine with the same kernels); `anisocb upscale` picks the fastest the CPU
-    /// has (`--precision auto`).
+    /// The nets' arithmetic ([`Precision`]): by default the fastest the CPU has
+    /// ([`Precision::fastest_cpu`]: bf16 on AMX tiles, within 0.7 % of fp32 on every held-out
+    /// figure, else fp32), as `upscale --precision auto`; [`Precision::Fp32`] for the audited
+    /// path and the same bits on every machine.
     pub precision: Precision,
 }
 
@@ -200,7 +201,7 @@ impl Default for UpscaleParams {
             mirrors: DEFAULT_MIRRORS,
             keep_outline: DEFAULT_KEEP_OUTLINE,
             gate_coarse_only: false,
-            precision: Precision::Fp32,
+            precision: Precision::fastest_cpu(),
         }
     }
 }

@@ -315,7 +315,15 @@ pub fn run_nets(
     params.validate()?;
     // Every conv's weights packed once for all batches and mirror views.
     let mut out = Predictions::none();
-    run_nets_into(ops, &model.packed_as(params.precision), lr, domain, params, on_frames, &mut out)?;
+    run_nets_into(
+        ops,
+        &model.packed_as(params.precision.for_ops(ops)),
+        lr,
+        domain,
+        params,
+        on_frames,
+        &mut out,
+    )?;
     Ok(out)
 }
 

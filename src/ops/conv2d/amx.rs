@@ -542,8 +542,9 @@ pub fn conv_act(x: &Act, packed: &PackedConv, b: Option<&Tensor>, epi: ActEpilog
     }
     let out_len = (n * (ho + 2) * (wo + 2) + T) * os;
     let mut data = Aligned::new(out_len.div_ceil(2));
+    // The bias in the packed channel order (a pooled buffer: no allocation per conv).
     let init = b.map(|b| {
-        let mut v = vec![0.0; pk.opad];
+        let mut v = Scratch::zeroed(pk.opad);
         for (q, d) in v[..o].iter_mut().enumerate() {
             *d = b.data[(q % oc) * r * r + q / oc];
         }

@@ -300,7 +300,7 @@ pub fn conv_act_nchw(x: &amx::Act, packed: &PackedConv, b: Option<&Tensor>, epi:
     let [o, c2, kh, kw] = packed.shape;
     assert!(c == c2 && kh == 3 && kw == 3, "conv_act_nchw: a 3×3 conv of {c2} channels on {c}");
     let bias = b.map(|b| {
-        let mut v = vec![0.0; ak.opad];
+        let mut v = Scratch::zeroed(ak.opad);
         v[..o].copy_from_slice(&b.data[..o]);
         v
     });
