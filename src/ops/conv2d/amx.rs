@@ -179,7 +179,7 @@ pub(super) fn pack(
 /// `x` (N, C, H, W) padded by (ph, pw) as bf16 channels-last: pixel (n, Y, X) at
 /// ((n·Hp + Y)·Wp + X)·C (`split`: 2C, [`store_bf16`]), with 16 zero pixels of slack after
 /// the last (the tiles' spill).
-/// Returned as f32 scratch (pooled) holding the bf16 pairs, and Hp, Wp.
+/// Returned as pooled f32 scratch holding the bf16 values two to a slot, and Hp, Wp.
 pub(super) fn pad_input(
     x: &Tensor,
     ph: usize,
@@ -480,7 +480,7 @@ impl Act {
         self.split
     }
 
-    /// The buffer [`correlate`] reads (bf16 pairs in f32 slots).
+    /// The buffer [`correlate`] reads (bf16 values, two to an f32 slot).
     pub(super) fn padded(&self) -> &[f32] {
         &self.data
     }
