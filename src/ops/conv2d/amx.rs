@@ -228,6 +228,35 @@ fn store_bf16_split(hi: &mut [u16], lo: &mut [u16], v: &[f32]) {
     }
 }
 
+/// [`store_pixel`] for w pixels: source pixel x at `row[x·opad + off ..][..oc]`, destination
+/// at `out[x·stride ..]` (a pixel-shuffled row: every r-th pixel), skip pixel x at
+/// `skip[x·os ..]`. One call a row, so the per-pixel work inlines under the target features.
+///
+/// # Safety
+/// As [`store_pixel`].
+#[target_feature(enable = "avx512f,avx512bf16")]
+#[allow(clippy::too_many_arguments)]
+unsafe fn store_pixels(
+    row: &[f32],
+    opad: usize,
+    off: usize,
+    oc: usize,
+    w: usize,
+    out: &mut [u16],
+    stride: usize,
+    skip: Option<&[u16]>,
+    relu: bool,
+    split: bool,
+) {
+    let os = oc * (1 + split as usize);
+    for x in 0..w {
+        let src = &row[x * opad + off..][..oc];
+        let px = &mut out[x * stride..][..os];
+        let sk = skip.map(|s| &s[x * os..][..os]);
+        store_pixel(src, sk, relu, px, split);
+    }
+}
+
 /// The epilogue of one output pixel of [`conv_act`]: `src` (the conv's C sums, f32) + the
 /// skip's values (hi + lo where split), ReLU, stored as bf16 (split: hi, then lo) into `px`.
 /// 16 channels at a time with `vcvtneps2bf16` (round to nearest even like [`bf16`]; it reads
@@ -236,6 +265,7 @@ fn store_bf16_split(hi: &mut [u16], lo: &mut [u16], v: &[f32]) {
 /// # Safety
 /// The CPU has AVX512F and AVX512_BF16; `px` (and `sk`) hold C values, 2C split.
 #[target_feature(enable = "avx512f,avx512bf16")]
+#[inline]
 unsafe fn store_pixel(src: &[f32], sk: Option<&[u16]>, relu: bool, px: &mut [u16], split: bool) {
     use std::arch::x86_64::*;
     let c = src.len();
@@ -561,15 +591,24 @@ pub fn conv_act(x: &Act, packed: &PackedConv, b: Option<&Tensor>, epi: ActEpilog
             // (padded: + 1) of that image, columns 0 .. wo + 2, all inside the n·(ho+2)·(wo+2)
             // pixels of os values; the row scratch holds w pixels of opad ≥ o floats.
             let line = unsafe { std::slice::from_raw_parts_mut(dst.add(yo * os), (wo + 2) * os) };
-            for xi in 0..w {
-                for j in 0..r {
-                    let src = &row[xi * opad + (i * r + j) * oc..][..oc];
-                    let px = &mut line[(r * xi + j + 1) * os..][..os];
-                    let sk = skip.map(|s| &s[(yo + xi + 1) * os..][..os]);
-                    // SAFETY: `available()` (asserted by `correlate`) includes AVX512_BF16;
-                    // `src` has oc values, `px` and `sk` os.
-                    unsafe { store_pixel(src, sk, relu, px, split) };
-                }
+            for j in 0..r {
+                let sk = skip.map(|s| &s[(yo + 1) * os..][..w * os]);
+                // SAFETY: `available()` (asserted by `correlate`) includes AVX512_BF16; the
+                // slices' lengths are checked inside.
+                unsafe {
+                    store_pixels(
+                        row,
+                        opad,
+                        (i * r + j) * oc,
+                        oc,
+                        w,
+                        &mut line[(j + 1) * os..],
+                        r * os,
+                        sk,
+                        relu,
+                        split,
+                    )
+                };
             }
             // The left and right border pixels of the padded row.
             let (l, rr) = match x.pad {
