@@ -268,6 +268,7 @@ impl Trunk {
 
     /// Every conv's weights packed for [`Trunk::forward_packed`] in `precision`
     /// ([`PackedConv::with_precision`]), in [`Trunk::convs`] order.
+    ///
     /// On the bf16 tiles ([`Trunk::forward_packed`]'s chain of [`Act`]s) the upscale conv is
     /// packed for the pixel shuffle its store fuses, and the LR part (the blocks and the
     /// upscale conv) takes its inputs as hi + lo pairs of bf16 ([`PackedConv::for_chain`]):
@@ -343,7 +344,7 @@ impl Trunk {
     /// 32·k input channels: all of them when any is) reads and writes bf16 activations in the
     /// tiles' padded channels-last layout ([`Act`]), the residual adds, ReLUs and the pixel
     /// shuffle fused into the stores; the last tail conv gets f32 NCHW again. CPU only: the
-    /// precision is resolved so that only a CPU packs for the tiles.
+    /// pipelines pack for the tiles only for the CPU table ([`Precision::for_ops`]).
     fn forward_bf16(&self, ops: &dyn Ops, a: &Tensor, packed: &[PackedConv]) -> Tensor {
         let (nb, last) = (self.blocks.len(), self.tail.len() - 1);
         let at = |l: Layer| &packed[l.index(nb)];
