@@ -4,6 +4,7 @@
 
 use crate::error::{Error, Result};
 use crate::nn::bundle::AnisoCb;
+use crate::nn::map_net::MapNet;
 use crate::nn::weights::{load_any, Weights};
 use crate::nn::{NetKind, Trunk};
 use crate::pipeline::folder;
@@ -20,7 +21,9 @@ pub struct Args {
     /// Given more than once: an ensemble whose residuals are averaged (same configuration).
     #[arg(long, value_name = "WEIGHTS", required = true)]
     pub geometry: Vec<PathBuf>,
-    /// BoundaryNet: a single-net weights file or a bundle.
+    /// BoundaryNet: a single-net weights file or a bundle; `none` for a map that gates nothing
+    /// (Γb = 0, never run), beside a GeometryNet distilled from a whole bundle (`dataset
+    /// --distil`), whose residual is already gated.
     #[arg(long, value_name = "WEIGHTS")]
     pub boundary: PathBuf,
     /// EnhanceNet: a single-net weights file or a bundle.
@@ -35,6 +38,12 @@ pub struct Args {
     #[arg(long)]
     pub overwrite: bool,
 }
+
+/// `--boundary none`.
+const NO_BOUNDARY: &str = "none";
+
+/// Γb of `--boundary none`: σ(−40) ≈ 4·10⁻¹⁸, so that 1 − Γb is 1 in f32 and Eq 12 is U + R.
+const NO_BOUNDARY_LOGIT: f32 = -40.0;
 
 /// The net of `kind` in `path` (a single net of that kind, or a bundle).
 fn net_of(path: &Path, kind: NetKind) -> Result<Trunk> {
@@ -53,7 +62,9 @@ fn net_of(path: &Path, kind: NetKind) -> Result<Trunk> {
 
 pub fn run(a: Args) -> Result<()> {
     // The bundle is written over nothing it is made from (a shipped bundle given as both).
-    let inputs = a.geometry.iter().chain([&a.boundary, &a.enhance]);
+    let none = a.boundary.as_os_str() == NO_BOUNDARY;
+    let boundary = (!none).then_some(&a.boundary);
+    let inputs = a.geometry.iter().chain(boundary).chain([&a.enhance]);
     if let Some(p) = inputs.into_iter().find(|p| same_file(p, &a.out)) {
         return Err(Error::config(format!(
             "--out {} is the input {}: writing it would replace a net it is made from; choose \
@@ -65,12 +76,13 @@ pub fn run(a: Args) -> Result<()> {
     let is_weights = |p: &Path| load_any(p).is_ok();
     let claim = folder::claim_file(&a.out, "a weights file (.npz of nets)", is_weights, a.overwrite)?;
     let more = a.geometry[1..].iter().map(|p| net_of(p, NetKind::Geometry)).collect::<Result<Vec<_>>>()?;
-    let b = AnisoCb::from_trunks(
-        net_of(&a.geometry[0], NetKind::Geometry)?,
-        net_of(&a.boundary, NetKind::Boundary)?,
-        net_of(&a.enhance, NetKind::Enhance)?,
-    )?
-    .with_more_geometry(more)?;
+    let geometry = net_of(&a.geometry[0], NetKind::Geometry)?;
+    let boundary = match boundary {
+        Some(p) => net_of(p, NetKind::Boundary)?,
+        None => MapNet::constant(NetKind::Boundary, geometry.config, NO_BOUNDARY_LOGIT)?.trunk,
+    };
+    let b = AnisoCb::from_trunks(geometry, boundary, net_of(&a.enhance, NetKind::Enhance)?)?
+        .with_more_geometry(more)?;
     b.save(&a.out)?;
     drop(claim);
     let nets =

@@ -61,6 +61,16 @@ pub struct Args {
     /// the residual; the grid border stays 1.
     #[arg(long, value_name = "WEIGHTS")]
     pub boundary_benefit: Option<PathBuf>,
+    /// HR target distilled from a bundle (weights .npz, trained in the same input frame): what
+    /// it composes from each LR frame at η = 0, `U + (1 − Γb) ⊙ R`, its GeometryNets averaged
+    /// and (with --distil-mirrors true) over the grid's four mirror views, as `upscale` runs
+    /// it. A GeometryNet trained on it does in one pass what the bundle does in many.
+    #[arg(long, value_name = "WEIGHTS")]
+    pub distil: Option<PathBuf>,
+    /// With --distil: average the teacher over the four mirror views (as `upscale --mirrors
+    /// true`).
+    #[arg(long, default_value_t = true, action = clap::ArgAction::Set, value_name = "BOOL")]
+    pub distil_mirrors: bool,
     /// EnhanceNet's target: `canny` (edges of the HR geometry image, the paper's) or
     /// `wrinkle-energy` (where the HR truth folds: the local amplitude of its detail beyond the
     /// LR grid over a 7×7 window, divided by its 90 % quantile, clamped to 1), so that η
@@ -146,6 +156,14 @@ pub fn run(a: Args) -> Result<()> {
         refuse_writing_into_run(&pd, &[&a.out, &png])?;
         seen.push(pd);
     }
+    if let Some(w) = a.distil.as_ref().filter(|w| same_file(w, &a.out)) {
+        return Err(Error::config(format!(
+            "--out {} is the --distil weights {}: writing the data set would replace them; \
+             choose another file",
+            a.out.display(),
+            w.display()
+        )));
+    }
     if let Some(w) = a.boundary_benefit.as_ref().filter(|w| same_file(w, &a.out)) {
         return Err(Error::config(format!(
             "--out {} is the --boundary-benefit weights {}: writing the data set would replace \
@@ -214,6 +232,19 @@ pub fn run(a: Args) -> Result<()> {
             ));
         }
         benefit_boundary(&mut ds, &crate::ops::Cpu, &net)?;
+    }
+    if let Some(w) = &a.distil {
+        let teacher = super::setup::load_model(Some(w))?;
+        let pb = super::ui::progress(ds.len() as u64, "teacher");
+        crate::train::dataset::distil_targets(
+            &mut ds,
+            &crate::ops::Cpu,
+            &teacher,
+            a.distil_mirrors,
+            &mut |d| pb.set_position(d as u64),
+        )
+        .map_err(|e| e.in_file(w))?;
+        pb.finish_and_clear();
     }
     crate::io::write_npz(&a.out, &ds.to_npz())?;
     super::ui::save_png(&png, &crate::viz::sheet::contact_sheet(&ds, a.sheet_frames)?)?;

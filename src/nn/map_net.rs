@@ -33,9 +33,33 @@ impl MapNet {
         self.trunk.kind
     }
 
+    /// A map net that marks nothing: every weight and bias zero but the last conv's bias,
+    /// `logit` (Γ = σ(logit) everywhere). `bundle --boundary none` writes one beside a
+    /// GeometryNet distilled from a whole bundle, whose residual is already gated; it is never
+    /// run ([`MapNet::constant_logit`]).
+    pub fn constant(kind: NetKind, config: NetConfig, logit: f32) -> Result<Self> {
+        let mut net = MapNet::new(kind, config, 0)?;
+        net.trunk.params_mut().into_iter().for_each(|t| t.data.iter_mut().for_each(|v| *v = 0.0));
+        net.trunk.tail.last_mut().expect("a trunk ends in a tail conv").bias.data[0] = logit;
+        Ok(net)
+    }
+
+    /// The last conv's bias where that conv's weights are all zero: the logits are then that
+    /// value at every pixel whatever the input (finite, as [`check_input`] requires), and the
+    /// trunk need not run to know them.
+    pub fn constant_logit(&self) -> Option<f32> {
+        let last = self.trunk.tail.last()?;
+        last.weight.data.iter().all(|&w| w == 0.0).then(|| last.bias.data[0])
+    }
+
     /// lr (N, 3, H, W) → logits (N, 1, rH, rW).
     pub fn logits(&self, ops: &dyn Ops, lr: &Tensor) -> Result<Tensor> {
         check_input(lr, "map net input")?;
+        if let Some(z) = self.constant_logit() {
+            let (n, _, h, w) = lr.dims4();
+            let r = self.trunk.config.scale;
+            return Ok(Tensor::full(&[n, 1, r * h, r * w], z));
+        }
         Ok(self.trunk.forward(ops, lr))
     }
 
@@ -53,6 +77,7 @@ impl MapNet {
         packed: Option<&[PackedConv]>,
     ) -> Result<Tensor> {
         match packed {
+            Some(_) if self.constant_logit().is_some() => self.probabilities(ops, lr),
             Some(p) => {
                 check_input(lr, "map net input")?;
                 Ok(ops.sigmoid(&self.trunk.forward_packed(ops, lr, p)))
@@ -97,4 +122,32 @@ pub fn map_loss(
             loss
         }
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::ops::Cpu;
+
+    /// A map net whose last conv has zero weights is not run, and gives the bits running it
+    /// would: σ(bias) at every pixel, packed or not.
+    #[test]
+    fn a_constant_map_net_is_skipped_with_the_bits_of_running_it() {
+        let config = NetConfig::tiny();
+        let lr =
+            Tensor { shape: [2, 3, 5, 7].into(), data: (0..210).map(|i| (i as f32 * 0.61).cos()).collect() };
+        let net = MapNet::constant(NetKind::Boundary, config, -2.5).unwrap();
+        assert_eq!(net.constant_logit(), Some(-2.5));
+        let ran = Cpu.sigmoid(&net.trunk.forward(&Cpu, &lr));
+        let packed = net.trunk.pack(crate::ops::Precision::Fp32);
+        for got in [
+            net.probabilities(&Cpu, &lr).unwrap(),
+            net.probabilities_packed(&Cpu, &lr, Some(&packed)).unwrap(),
+        ] {
+            assert_eq!(got.shape, ran.shape);
+            assert!(got.data.iter().zip(&ran.data).all(|(a, b)| a.to_bits() == b.to_bits()));
+        }
+        // A trained net (random weights here) is run.
+        assert_eq!(MapNet::new(NetKind::Boundary, config, 1).unwrap().constant_logit(), None);
+    }
 }

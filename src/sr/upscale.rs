@@ -21,7 +21,7 @@ use crate::geom::cloth_frame::{
 use crate::geom::geometry_image::{images_to_sequence, sequence_to_images};
 use crate::geom::mesh::ring_vertices;
 use crate::geom::{Domain, GridMesh};
-use crate::nn::bundle::{AnisoCb, PackedAnisoCb};
+use crate::nn::bundle::{AnisoCb, NetsOutput, PackedAnisoCb};
 use crate::ops::{Interp, Ops};
 use crate::pool;
 use crate::tensor::Tensor;
@@ -376,44 +376,11 @@ pub(crate) fn run_nets_into(
         into_cloth_frames(model.input_frame(), &mut x, domain, &mut out.net_frames);
         out.lr_net.data[done * 3 * h * w..(done + n) * 3 * h * w].copy_from_slice(&x.data);
         let (r_at, m_at) = (done * px3..(done + n) * px3, done * px1..(done + n) * px1);
-        // The other mirrors of the grid, each in its own frame; their outputs back onto this one.
-        let mirrors = if params.mirrors { &GRID_MIRRORS[1..] } else { &[] };
-        let frame = model.input_frame();
-        let views: Vec<MirrorView> = GRID_MIRRORS[..1 + mirrors.len()]
-            .iter()
-            .map(|&(rows, cols)| MirrorView { rows, cols, axes: net_axes(rows, cols, frame) })
-            .collect();
-        // A GPU with tensor cores runs every view and net at once and averages them there.
-        let on_device = crate::cuda::nets_views(ops, nets, &x, &views, out.how.enhance_ran);
-        let averaged = on_device.is_some();
-        let o = match on_device {
-            Some(o) => o,
-            None => nets.forward_with(ops, &x, out.how.enhance_ran)?,
-        };
+        let o = views_averaged(ops, nets, &x, params.mirrors, out.how.enhance_ran)?;
         out.interpolated.data[r_at.clone()].copy_from_slice(&o.interpolated.data);
         out.residual.data[r_at.clone()].copy_from_slice(&o.residual.data);
         out.boundary.data[m_at.clone()].copy_from_slice(&o.boundary.data);
         out.enhance.data[m_at.clone()].copy_from_slice(&o.enhance.data);
-        if !averaged && !mirrors.is_empty() {
-            let add = |acc: &mut [f32], t: &Tensor| acc.iter_mut().zip(&t.data).for_each(|(a, b)| *a += b);
-            for &(rows, cols) in mirrors {
-                let o = nets.forward_with(
-                    ops,
-                    &mirror_net_images(&x, rows, cols, frame, true),
-                    out.how.enhance_ran,
-                )?;
-                add(
-                    &mut out.residual.data[r_at.clone()],
-                    &mirror_net_images(&o.residual, rows, cols, frame, false),
-                );
-                add(&mut out.boundary.data[m_at.clone()], &o.boundary.flipped(rows, cols));
-                add(&mut out.enhance.data[m_at.clone()], &o.enhance.flipped(rows, cols));
-            }
-            let s = 1.0 / (1 + mirrors.len()) as f32;
-            out.residual.data[r_at].iter_mut().for_each(|v| *v *= s);
-            out.enhance.data[m_at.clone()].iter_mut().for_each(|v| *v *= s);
-            out.boundary.data[m_at.clone()].iter_mut().for_each(|v| *v *= s);
-        }
         if params.pin_border {
             let mut b = out.boundary.slice_batch(done, n);
             set_border(&mut b, 1.0);
@@ -425,6 +392,43 @@ pub(crate) fn run_nets_into(
         on_frames(done);
     }
     Ok(())
+}
+
+/// The nets on `x` (N, 3, H, W), frames already in the nets' frame: U, R, Γb, Γe, with
+/// `mirrors` the mean over the grid's four mirror images (each in its own frame, its outputs
+/// mirrored back onto `x`'s grid). `enhance`: run EnhanceNet (else Γe = 0).
+pub fn views_averaged(
+    ops: &dyn Ops,
+    nets: &PackedAnisoCb,
+    x: &Tensor,
+    mirrors: bool,
+    enhance: bool,
+) -> Result<NetsOutput> {
+    let mirrors = if mirrors { &GRID_MIRRORS[1..] } else { &[] };
+    let frame = nets.model().input_frame();
+    let views: Vec<MirrorView> = GRID_MIRRORS[..1 + mirrors.len()]
+        .iter()
+        .map(|&(rows, cols)| MirrorView { rows, cols, axes: net_axes(rows, cols, frame) })
+        .collect();
+    // A GPU with tensor cores runs every view and net at once and averages them there.
+    if let Some(o) = crate::cuda::nets_views(ops, nets, x, &views, enhance) {
+        return Ok(o);
+    }
+    let mut o = nets.forward_with(ops, x, enhance)?;
+    if !mirrors.is_empty() {
+        let add = |acc: &mut [f32], t: &Tensor| acc.iter_mut().zip(&t.data).for_each(|(a, b)| *a += b);
+        for &(rows, cols) in mirrors {
+            let m = nets.forward_with(ops, &mirror_net_images(x, rows, cols, frame, true), enhance)?;
+            add(&mut o.residual.data, &mirror_net_images(&m.residual, rows, cols, frame, false));
+            add(&mut o.boundary.data, &m.boundary.flipped(rows, cols));
+            add(&mut o.enhance.data, &m.enhance.flipped(rows, cols));
+        }
+        let s = 1.0 / (1 + mirrors.len()) as f32;
+        for t in [&mut o.residual, &mut o.enhance, &mut o.boundary] {
+            t.data.iter_mut().for_each(|v| *v *= s);
+        }
+    }
+    Ok(o)
 }
 
 /// Refuse a frame of `lr` (T, 3, H, W, geometry images in `domain`) whose vertices all lie at

@@ -39,10 +39,13 @@ use crate::geom::Domain;
 use crate::imgproc::{enhance_map, CannyParams};
 use crate::io::json::{Layout, Object, Value};
 use crate::io::NpzEntries;
+use crate::nn::bundle::AnisoCb;
 use crate::nn::geometry_net::GeometryNet;
 use crate::ops::loss::{detail_amplitude, DetailEnergy};
 use crate::ops::resample::resize;
 use crate::ops::{Interp, Ops};
+use crate::sr::compose::compose;
+use crate::sr::upscale::views_averaged;
 use crate::tensor::Tensor;
 use rayon::prelude::*;
 
@@ -188,6 +191,8 @@ pub struct Dataset {
     pub boundary_source: String,
     /// What the edge target is (Canny edges of the HR frame, or the truth's wrinkle energy).
     pub edges_source: String,
+    /// What `hr` holds: the HR runs, or a bundle's output distilled from them.
+    pub hr_source: String,
     pub upscale: usize,
     pub holdout: Vec<String>,
 }
@@ -244,6 +249,7 @@ pub fn build(
         input_frame,
         boundary_source: "anisotropy (Eq 4-9)".into(),
         edges_source: "Canny edges of the HR geometry image".into(),
+        hr_source: "the HR runs".into(),
         upscale: hh / hl,
         holdout: holdout.to_vec(),
     };
@@ -291,6 +297,54 @@ pub fn benefit_boundary(ds: &mut Dataset, ops: &dyn Ops, net: &GeometryNet) -> R
         }
     }
     ds.boundary_source = format!("benefit of the residual of {}", net.trunk.config);
+    Ok(())
+}
+
+/// Replace the HR target by what `teacher` composes from each LR frame at η = 0 (Eq 12,
+/// before the outline floor): `U + (1 − Γb) ⊙ R`, with R the mean of its GeometryNets and, with
+/// `mirrors`, R and Γb averaged over the grid's four mirror views, as `upscale` runs it
+/// ([`crate::sr::upscale::views_averaged`]). A GeometryNet trained on these targets learns in
+/// one pass what the bundle computes in (GeometryNets + BoundaryNet) × views: distillation.
+/// Frames in batches of 16, the teacher at fp32; `tick(frames done)` after each batch.
+pub fn distil_targets(
+    ds: &mut Dataset,
+    ops: &dyn Ops,
+    teacher: &AnisoCb,
+    mirrors: bool,
+    tick: &mut dyn FnMut(usize),
+) -> Result<()> {
+    if teacher.input_frame() != ds.input_frame {
+        return Err(Error::config(format!(
+            "the teacher's nets take {} input, the data set is in {}: build the data set with \
+             --input-frame {}",
+            teacher.input_frame().name(),
+            ds.input_frame.name(),
+            teacher.input_frame().name()
+        )));
+    }
+    if teacher.scale() != ds.upscale {
+        return Err(Error::config(format!(
+            "the teacher upscales ×{}, the data set ×{}",
+            teacher.scale(),
+            ds.upscale
+        )));
+    }
+    let n = ds.lr.shape[0];
+    let px3 = ds.hr.len() / n.max(1);
+    let nets = teacher.packed();
+    for n0 in (0..n).step_by(16) {
+        let cnt = 16.min(n - n0);
+        let o = views_averaged(ops, &nets, &ds.lr.slice_batch(n0, cnt), mirrors, false)?;
+        let t = compose(&o.interpolated, &o.residual, Some(&o.boundary), None, 0.0)?;
+        ds.hr.data[n0 * px3..(n0 + cnt) * px3].copy_from_slice(&t.data);
+        tick(n0 + cnt);
+    }
+    ds.hr_source = format!(
+        "distilled: U + (1 - boundary) * residual of a bundle of {} GeometryNet(s) ({}), {}",
+        1 + teacher.more_geometry.len(),
+        teacher.geometry.trunk.config,
+        if mirrors { "averaged over the 4 mirror views" } else { "one view" }
+    );
     Ok(())
 }
 
@@ -368,6 +422,7 @@ impl Dataset {
             .str("input_frame", self.input_frame.name())
             .str("boundary", &self.boundary_source)
             .str("edges", &self.edges_source)
+            .str("hr", &self.hr_source)
             .val("holdout", hold);
         Value::from(o).to_json_with(Layout::Indented) + "\n"
     }
@@ -388,7 +443,8 @@ impl Dataset {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::nn::NetConfig;
+    use crate::nn::map_net::MapNet;
+    use crate::nn::{NetConfig, NetKind};
     use crate::ops::Cpu;
 
     /// A tiny GeometryNet whose residual is the constant `bias` per channel.
@@ -423,6 +479,7 @@ mod tests {
             input_frame: InputFrame::Cloth,
             boundary_source: String::new(),
             edges_source: String::new(),
+            hr_source: String::new(),
             upscale: 2,
             holdout: Vec::new(),
         }
@@ -439,6 +496,64 @@ mod tests {
                 assert!((v - inside).abs() < 1e-4, "sign {sign}, pixel {p}: {v} vs {inside}");
             }
         }
+    }
+
+    /// A cloth-frame bundle of tiny random nets (two GeometryNets), BoundaryNet `boundary` if given.
+    fn teacher(boundary: Option<f32>) -> AnisoCb {
+        let config = NetConfig { input_frame: InputFrame::Cloth, ..NetConfig::tiny() };
+        let mut b = AnisoCb::new(config, 3);
+        b.more_geometry.push(GeometryNet::new(config, 4));
+        if let Some(z) = boundary {
+            b.boundary = MapNet::constant(NetKind::Boundary, config, z).unwrap();
+        }
+        b
+    }
+
+    #[test]
+    fn distilled_targets_are_the_teachers_gated_mean_residual() {
+        let t = teacher(Some(-0.7));
+        let mut ds = dataset_with_hr(&constant_residual([0.0; 3]), 1.0);
+        distil_targets(&mut ds, &Cpu, &t, false, &mut |_| {}).unwrap();
+        let (u, r1) = t.geometry.forward(&Cpu, &ds.lr).unwrap();
+        let (_, r2) = t.more_geometry[0].forward(&Cpu, &ds.lr).unwrap();
+        let keep = 1.0 - 1.0 / (1.0 + 0.7f32.exp());
+        for i in 0..u.len() {
+            let want = u.data[i] + keep * 0.5 * (r1.data[i] + r2.data[i]);
+            assert!((ds.hr.data[i] - want).abs() < 1e-6, "pixel {i}: {} vs {want}", ds.hr.data[i]);
+        }
+        assert!(ds.hr_source.starts_with("distilled"), "{}", ds.hr_source);
+        // A teacher in another input frame is refused.
+        let mut domain = dataset_with_hr(&constant_residual([0.0; 3]), 1.0);
+        domain.input_frame = InputFrame::Domain;
+        assert!(distil_targets(&mut domain, &Cpu, &t, false, &mut |_| {}).is_err());
+    }
+
+    /// The mirror-averaged teacher does not depend on which way the grid runs: the target of a
+    /// mirrored frame is the mirrored target (what one pass of a student is trained to learn).
+    #[test]
+    fn mirror_averaged_targets_of_a_mirrored_frame_are_the_mirrored_targets() {
+        use crate::geom::cloth_frame::mirror_net_images;
+        let t = teacher(None);
+        let mut ds = dataset_with_hr(&constant_residual([0.0; 3]), 1.0);
+        let lr = ds.lr.clone();
+        distil_targets(&mut ds, &Cpu, &t, true, &mut |_| {}).unwrap();
+        for (rows, cols) in [(true, false), (false, true), (true, true)] {
+            let mut m = dataset_with_hr(&constant_residual([0.0; 3]), 1.0);
+            m.lr = mirror_net_images(&lr, rows, cols, InputFrame::Cloth, true);
+            distil_targets(&mut m, &Cpu, &t, true, &mut |_| {}).unwrap();
+            let want = mirror_net_images(&ds.hr, rows, cols, InputFrame::Cloth, true);
+            let worst = m.hr.data.iter().zip(&want.data).map(|(a, b)| (a - b).abs()).fold(0.0f32, f32::max);
+            assert!(worst < 1e-5, "mirror ({rows}, {cols}): off by {worst}");
+        }
+        // One view alone is not mirror-symmetric (else the test above proves nothing).
+        let mut one = dataset_with_hr(&constant_residual([0.0; 3]), 1.0);
+        let mut flipped = dataset_with_hr(&constant_residual([0.0; 3]), 1.0);
+        flipped.lr = mirror_net_images(&lr, true, false, InputFrame::Cloth, true);
+        distil_targets(&mut one, &Cpu, &t, false, &mut |_| {}).unwrap();
+        distil_targets(&mut flipped, &Cpu, &t, false, &mut |_| {}).unwrap();
+        let want = mirror_net_images(&one.hr, true, false, InputFrame::Cloth, true);
+        let worst = flipped.hr.data.iter().zip(&want.data).map(|(a, b)| (a - b).abs()).fold(0.0f32, f32::max);
+        assert!(worst > 1e-4, "one view is already mirror-symmetric ({worst})");
     }
 
     /// A 16×16 HR sheet (8×8 LR) with folds of a 4-pixel wavelength (finer than the LR grid)
