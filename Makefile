@@ -1,7 +1,7 @@
 # anisocb — `make demo` runs the main job, `make test` runs every check.
 CARGO ?= cargo
 
-.PHONY: all build test lint c-example c-example-if-cc rust-example fmt-check clippy check-features cuda-parity dist-test bench bench-peers demo weights dist fixtures onnx blender-addon blender-test blender-usd-test usd-test clean
+.PHONY: all build test lint c-example c-example-if-cc rust-example fmt-check clippy check-features cuda-parity dist-test bench bench-peers demo weights dist fixtures onnx blender-addon blender-test blender-screenshot blender-usd-test usd-test clean
 
 all: build
 
@@ -140,6 +140,18 @@ usd-test:
 
 blender-test: build blender-addon
 	$(BLENDER_PY) tests/blender/test_addon.py --anisocb target/release/anisocb --zip target/anisocb_addon.zip
+
+## The README's picture of the panel (docs/blender-panel.png), taken in a real Blender window:
+## needs Blender 4.2+ itself (BLENDER, not the bpy module: it draws no UI), xvfb-run and xwd
+## (Debian: xvfb x11-apps). Presses Upscale as the button does and fails if the modal run does
+## not bring the HR object back (tests/blender/screenshot_panel.py).
+BLENDER ?= blender
+SHOT_HOME ?= /tmp/anisocb-shot
+blender-screenshot: build
+	rm -rf $(SHOT_HOME) && mkdir -p $(SHOT_HOME)
+	HOME=$(SHOT_HOME) $(BLENDER) -b --factory-startup --python-expr "import bpy; bpy.context.preferences.view.show_splash = False; bpy.ops.wm.save_userpref(); bpy.ops.wm.save_as_mainfile(filepath='$(SHOT_HOME)/start.blend')"
+	HOME=$(SHOT_HOME) xvfb-run -a -s "-screen 0 1600x900x24" $(BLENDER) $(SHOT_HOME)/start.blend \
+		--python tests/blender/screenshot_panel.py -- --anisocb target/release/anisocb --out docs/blender-panel.png
 
 ## USD from Blender's exporter through `anisocb upscale` (feature `usd`) and back through its
 ## importer (tests/blender/test_usd.py; BLENDER_PY as for blender-test).

@@ -181,9 +181,15 @@ def key_path(objs, frames):
             o.keyframe_insert("location", index=0, frame=fr)
 
 
-def build_scene():
-    with quiet():
-        bpy.ops.wm.read_factory_settings(use_empty=True)
+def build_scene(fresh=True):
+    """fresh: start from Blender's factory settings (else: clear the objects of the open file,
+    as screenshot_panel.py does in a Blender window)."""
+    if fresh:
+        with quiet():
+            bpy.ops.wm.read_factory_settings(use_empty=True)
+    else:
+        for o in list(bpy.data.objects):
+            bpy.data.objects.remove(o)
     scene = bpy.context.scene
     scene.render.fps = FPS
     scene.render.fps_base = 1.0
