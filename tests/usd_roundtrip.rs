@@ -120,6 +120,13 @@ fn check_output(usd_in: &Path, root: &Path) {
     let stem = usd_in.file_stem().unwrap().to_str().unwrap();
     let dst = out.join(format!("{stem}.usda"));
     assert!(!out.join(".anisocb-usd").exists());
+    // The completion marker beside the .usda: the run's summary, naming it.
+    let summary = std::fs::read_to_string(out.join("upscale.json")).expect("upscale.json beside the .usda");
+    assert!(
+        summary.contains("\"complete\": true") && summary.contains(&format!("\"{stem}.usda\"")),
+        "{summary}"
+    );
+    assert!(summary.contains("/World/Cloth"), "{summary}");
 
     // The same frames as OBJ.
     let (objs, hr_obj) = (root.join("objs"), root.join("hr_obj"));
@@ -209,4 +216,71 @@ fn no_mesh_and_static_mesh_are_refused_naming_the_file() {
         err.contains("still.usda") && err.contains("/World/Cloth") && err.contains("time-sampled"),
         "{err}"
     );
+}
+
+/// A cloth whose parent moves (an animated `xformOp:translate`, as a character's root carries a
+/// garment): the points are upscaled as authored, and the output carries the transform's time
+/// samples unchanged, so it plays where the input plays.
+#[test]
+fn an_animated_transform_is_carried_to_the_output() {
+    let root = tmp("animated-xform");
+    let f = root.join("moving.usda");
+    let moving = "    double3 xformOp:translate.timeSamples = {\n        1: (0, 0, 1),\n        2: (0.1, 0, 1),\n        \
+                  3: (0.2, 0, 1.05),\n        4: (0.3, 0, 1.1),\n    }\n";
+    let text = usda_text().replace("    double3 xformOp:translate = (0, 0, 1)\n", moving);
+    assert!(text.contains("translate.timeSamples"));
+    std::fs::write(&f, text).unwrap();
+    let out = root.join("hr");
+    let o = anisocb(&["upscale", f.to_str().unwrap(), "--out", out.to_str().unwrap()]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "upscale failed: {err}");
+    assert!(err.contains("animated transforms") && err.contains("xformOp:translate"), "{err}");
+    let stage = Stage::open(out.join("moving.usda").to_str().unwrap()).unwrap();
+    let world = stage.prim(sdf::path("/World").unwrap());
+    let samples = world.attribute("xformOp:translate").time_samples().unwrap().unwrap();
+    let got: Vec<(f64, String)> = samples.iter().map(|(t, v)| (*t, format!("{v:?}"))).collect();
+    let want: Vec<(f64, String)> = [[0.0, 0.0, 1.0], [0.1, 0.0, 1.0], [0.2, 0.0, 1.05], [0.3, 0.0, 1.1]]
+        .iter()
+        .zip(TIMES)
+        .map(|(v, t)| (t, format!("{:?}", Value::Vec3d((*v).into()))))
+        .collect();
+    assert_eq!(got, want);
+    // The points are those of the same shot without the motion (the static file's output).
+    let still = root.join("still.usda");
+    std::fs::write(&still, usda_text()).unwrap();
+    let out2 = root.join("hr-still");
+    assert!(anisocb(&["upscale", still.to_str().unwrap(), "--out", out2.to_str().unwrap()]).status.success());
+    let pts = |p: &Path| {
+        let s = Stage::open(p.to_str().unwrap()).unwrap();
+        let m = s.prim(sdf::path("/World/Cloth").unwrap());
+        format!("{:?}", m.attribute("points").time_samples().unwrap().unwrap())
+    };
+    assert!(pts(&out.join("moving.usda")) == pts(&out2.join("still.usda")), "the points changed");
+}
+
+/// A farm's --frames slices of one USD shot into one folder: each slice its own `.usda` and
+/// summary, together the whole shot's points (the slices give the whole shot's bytes).
+#[test]
+fn frame_slices_write_their_own_usda_beside_each_other() {
+    let root = tmp("slices");
+    let f = root.join("shot.usda");
+    std::fs::write(&f, usda_text()).unwrap();
+    let (out, whole) = (root.join("hr"), root.join("whole"));
+    for range in ["0:2", "2:4"] {
+        let o = anisocb(&["upscale", f.to_str().unwrap(), "--out", out.to_str().unwrap(), "--frames", range]);
+        assert!(o.status.success(), "{range}: {}", String::from_utf8_lossy(&o.stderr));
+    }
+    assert!(anisocb(&["upscale", f.to_str().unwrap(), "--out", whole.to_str().unwrap()]).status.success());
+    let samples = |p: &Path| {
+        let s = Stage::open(p.to_str().unwrap()).unwrap();
+        s.prim(sdf::path("/World/Cloth").unwrap()).attribute("points").time_samples().unwrap().unwrap()
+    };
+    let mut joined = samples(&out.join("shot.0-2.usda"));
+    joined.extend(samples(&out.join("shot.2-4.usda")));
+    assert_eq!(format!("{joined:?}"), format!("{:?}", samples(&whole.join("shot.usda"))));
+    for tag in ["0-2", "2-4"] {
+        let s = std::fs::read_to_string(out.join(format!("upscale.{tag}.json"))).unwrap();
+        assert!(s.contains(&format!("\"shot.{tag}.usda\"")), "{s}");
+    }
+    assert!(!out.join("shot.usda").exists());
 }

@@ -422,7 +422,7 @@ pub fn run(a: Args) -> Result<()> {
 
 /// `upscale shot.usd[a|c] --out DIR`: the USD's animated mesh written as an OBJ sequence in
 /// DIR/.anisocb-usd/lr, upscaled as any mesh into DIR/.anisocb-usd/hr, and written back as
-/// DIR/STEM.usda (same prim path, static transforms, time codes; UVs subdivided).
+/// DIR/STEM.usda (same prim path, transforms, time codes; UVs subdivided) with the run's summary.
 #[cfg(feature = "usd")]
 fn run_usd(mut a: Args) -> Result<()> {
     use crate::io::usd::UsdShot;
@@ -435,7 +435,11 @@ fn run_usd(mut a: Args) -> Result<()> {
         eprintln!("note: {n}");
     }
     let out = a.out.clone();
-    let work = out.join(".anisocb-usd");
+    // One work folder per --frames slice: a farm's slices may share the output folder.
+    let work = out.join(match &a.frames {
+        Some(f) => format!(".anisocb-usd.{}", f.replace(|c: char| !c.is_ascii_alphanumeric(), "-")),
+        None => ".anisocb-usd".into(),
+    });
     let (lr, hr) = (work.join("lr"), work.join("hr"));
     if work.exists() {
         std::fs::remove_dir_all(&work).map_err(|e| Error::io(&work, e))?;
@@ -446,11 +450,48 @@ fn run_usd(mut a: Args) -> Result<()> {
     a.out = hr.clone();
     run(a)?;
     let stem = src.file_stem().unwrap_or_default().to_string_lossy().into_owned();
-    let dst = out.join(format!("{stem}.usda"));
-    shot.write_hr(&hr, &dst)?;
+    let dst = usd_result(&hr, &out, &stem, &shot)?;
     std::fs::remove_dir_all(&work).map_err(|e| Error::io(&work, e))?;
     println!("wrote {} ({})", dst.display(), shot.prim);
     Ok(())
+}
+
+/// Write the HR frames in `hr` (the OBJ run of a USD shot) as `out/STEM.usda`
+/// (`STEM.A-B.usda` for a --frames slice, so that the slices of a farm do not overwrite each
+/// other), then the run's summary beside it (`upscale.json`, `upscale.A-B.json`): written
+/// after the `.usda`, a summary saying `"complete": true` means the USD file is whole. Its
+/// `files` names the `.usda`, `usd` the source file and the prim. Returns the `.usda`'s path.
+#[cfg(feature = "usd")]
+fn usd_result(
+    hr: &std::path::Path,
+    out: &std::path::Path,
+    stem: &str,
+    shot: &crate::io::usd::UsdShot,
+) -> Result<std::path::PathBuf> {
+    use crate::io::json::{read_json, write_json, Layout, Object, Value};
+    let mut summaries = Vec::new();
+    for e in std::fs::read_dir(hr).map_err(|e| Error::io(hr, e))? {
+        let name = e.map_err(|e| Error::io(hr, e))?.file_name().to_string_lossy().into_owned();
+        if let Some(tag) = name.strip_prefix("upscale").and_then(|t| t.strip_suffix(".json")) {
+            summaries.push((name.clone(), tag.to_string()));
+        }
+    }
+    let [(summary, tag)] = summaries.as_slice() else {
+        return Err(Error::format(hr, format!("expected one run summary here, found {}", summaries.len())));
+    };
+    let dst = out.join(format!("{stem}{tag}.usda"));
+    shot.write_hr(hr, &dst)?;
+    let Value::Obj(o) = read_json(&hr.join(summary))? else {
+        return Err(Error::format(hr.join(summary), "not a JSON object"));
+    };
+    let mut members: Vec<(String, Value)> =
+        o.0.into_iter().filter(|(k, _)| k != "files" && k != "usd").collect();
+    let name = dst.file_name().unwrap_or_default().to_string_lossy().into_owned();
+    members.push(("files".into(), Value::Arr(vec![Value::from(name.as_str())])));
+    let usd = Object::new().str("source", &shot.file.to_string_lossy()).str("prim", &shot.prim);
+    members.push(("usd".into(), Value::from(usd)));
+    write_json(&out.join(summary), &Value::Obj(Object(members)), Layout::Indented)?;
+    Ok(dst)
 }
 
 /// The held vertices of `--physics-pin-vertices` and `--physics-pin-group` (0-based, each once).

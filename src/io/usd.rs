@@ -21,13 +21,14 @@ pub fn is_usd(p: &Path) -> bool {
     })
 }
 
-/// A prim on the way to the mesh (or the mesh itself) and its static transform ops.
+/// A prim on the way to the mesh (or the mesh itself) and its transform ops.
 pub struct XformPrim {
     pub name: String,
     pub type_name: String,
     /// `xformOpOrder`, if authored.
     pub order: Option<Value>,
-    /// Each op attribute: (name, type name, value).
+    /// Each op attribute: (name, type name, value); an animated op's value is its
+    /// `Value::TimeSamples`, written back as they were read.
     pub ops: Vec<(String, String, Value)>,
 }
 
@@ -93,7 +94,7 @@ fn walk(root: Prim, file: &Path, out: &mut Vec<Prim>) -> Result<()> {
     Ok(())
 }
 
-/// The static transform ops of `prim`; an animated op is refused.
+/// The transform ops of `prim`: each static op's value, or an animated op's time samples.
 fn xform_of(stage: &Stage, path: &sdf::Path, file: &Path) -> Result<XformPrim> {
     let prim = stage.prim(path.clone());
     let name = path.name().unwrap_or_default().to_string();
@@ -109,25 +110,28 @@ fn xform_of(stage: &Stage, path: &sdf::Path, file: &Path) -> Result<XformPrim> {
                 continue; // !resetXformStack! and inverted ops name no new attribute
             }
             let a = prim.attribute(n);
-            if a.num_time_samples().map_err(|e| err(file, e))? > 0 {
-                return Err(Error::format(
-                    file,
-                    format!(
-                        "{}.{n} is an animated transform (time samples); anisocb reads the mesh's points as \
-                         authored and does not apply animated transforms: bake the transform into the points \
-                         (e.g. Blender's USD export of the cloth with the object at rest) and try again",
-                        path
-                    ),
-                ));
-            }
             let ty =
                 a.type_name().map_err(|e| err(file, e))?.map(|t| t.as_str().to_string()).unwrap_or_default();
-            if let Some(v) = a.get::<Value>().map_err(|e| err(file, e))? {
+            let samples = a.time_samples().map_err(|e| err(file, e))?.filter(|s| !s.is_empty());
+            if let Some(s) = samples {
+                ops.push((n.to_string(), ty, Value::TimeSamples(s)));
+            } else if let Some(v) = a.get::<Value>().map_err(|e| err(file, e))? {
                 ops.push((n.to_string(), ty, v));
             }
         }
     }
     Ok(XformPrim { name, type_name, order, ops })
+}
+
+impl XformPrim {
+    /// The names of the ops that are animated (time samples).
+    pub fn animated(&self) -> Vec<&str> {
+        self.ops
+            .iter()
+            .filter(|(_, _, v)| matches!(v, Value::TimeSamples(_)))
+            .map(|(n, _, _)| n.as_str())
+            .collect()
+    }
 }
 
 impl UsdShot {
@@ -291,6 +295,18 @@ impl UsdShot {
             p = p.parent().unwrap_or_else(sdf::Path::abs_root);
         }
         chain.reverse();
+        let animated: Vec<String> = chain
+            .iter()
+            .flat_map(|x| x.animated().into_iter().map(move |n| format!("{}.{n}", x.name)))
+            .collect();
+        if !animated.is_empty() {
+            notes.push(format!(
+                "animated transforms ({}) are written to the output as they are: the points are \
+                 upscaled in the mesh's own space, where that motion is not (the physics pass, if \
+                 on, does not see it either; bake it into the points for that)",
+                animated.join(", ")
+            ));
+        }
         Ok(UsdShot {
             file: file.to_path_buf(),
             prim: path.to_string(),
@@ -409,7 +425,12 @@ impl UsdShot {
                 attr(&mut data, "xformOpOrder", "token[]", true, FieldKey::Default, order.clone())?;
             }
             for (n, ty, v) in &x.ops {
-                attr(&mut data, n, ty, false, FieldKey::Default, v.clone())?;
+                let field = if matches!(v, Value::TimeSamples(_)) {
+                    FieldKey::TimeSamples
+                } else {
+                    FieldKey::Default
+                };
+                attr(&mut data, n, ty, false, field, v.clone())?;
             }
             if last {
                 let counts = m.faces.iter().map(|f| f.len() as i32).collect();
