@@ -13,6 +13,8 @@ build:
 ## exists (required under CI, whose .ci/run installs one) + the portable build's tests
 test: fmt-check clippy check-features
 	$(CARGO) test --release
+	@# The bf16 convolution again on its AVX512_BF16 dot-product kernel (a CPU without AMX).
+	ANISOCB_NO_AMX=1 $(CARGO) test --release --test conv_bf16_vs_ref
 	$(MAKE) cuda-parity
 	$(MAKE) rust-example
 	$(MAKE) c-example-if-cc

@@ -1,10 +1,11 @@
-//! The bf16 AMX convolution (`--precision bf16`) against its scalar twin `conv2d_bf16_ref` (the
+//! The bf16 convolution (`--precision bf16`; AMX tiles, or AVX512_BF16 dot products under
+//! `ANISOCB_NO_AMX=1` or on a CPU without tiles: `make test` runs this file both ways) against its scalar twin `conv2d_bf16_ref` (the
 //! fp32 reference on bf16-rounded inputs and weights) on random shapes: widths that are not a
 //! multiple of the 16-pixel tile (the lanes past the row's end), one and several 32-channel
 //! blocks, output channels that are not a multiple of 16 and odd tile counts, 3×3 / 1×1 / 5×3
 //! kernels, both paddings, bias, the fused epilogue; same bits on every run and thread count;
-//! the fallback where the CPU has no tiles. Skipped (with a line saying so) on a CPU or OS
-//! without AMX-BF16.
+//! the fallback where the CPU has no tiles. Skipped (with a line saying so) on a CPU without
+//! AVX512_BF16.
 
 #[path = "common/close.rs"]
 mod close;
@@ -25,9 +26,24 @@ use random::TestData;
 
 fn tiles_here() -> bool {
     if !amx::available() {
-        println!("skipped: this CPU or OS has no AMX-BF16 tiles");
+        println!("skipped: this CPU has no AVX512_BF16 (or ANISOCB_NO_BF16 is set)");
     }
     amx::available()
+}
+
+/// The kernel is the one the environment and the CPU ask for: tiles only where the CPU and OS
+/// have them and `ANISOCB_NO_AMX` is unset, the dot-product kernel otherwise.
+#[test]
+fn bf16_runs_on_tiles_or_dot_products_as_the_cpu_and_environment_say() {
+    let no_amx = std::env::var_os("ANISOCB_NO_AMX").is_some();
+    assert!(!(no_amx && amx::tiles()), "tiles used under ANISOCB_NO_AMX");
+    assert!(!amx::tiles() || amx::available(), "tiles without AVX512_BF16");
+    let kernel = match (amx::available(), amx::tiles()) {
+        (false, _) => "none (fp32)",
+        (true, true) => "AMX tiles",
+        (true, false) => "AVX512_BF16 dot products",
+    };
+    println!("bf16 kernel here: {kernel}");
 }
 
 #[test]
@@ -153,7 +169,7 @@ fn bf16_packs_only_what_the_tiles_take_and_fp32_stays_fp32() {
     }
     let w = rng.tensor(&[32, 32, 3, 3], -1.0, 1.0);
     assert_eq!(PackedConv::with_precision(&w, Precision::Bf16).is_bf16(), amx::available());
-    assert_eq!(Precision::fastest_cpu() == Precision::Bf16, amx::available());
+    assert_eq!(Precision::fastest_cpu() == Precision::Bf16, amx::tiles());
     assert!(Precision::Fp32.runs_on_cpu() && !Precision::Fp16.runs_on_cpu());
     assert_eq!(Precision::Bf16.runs_on_cpu(), amx::available());
     drop(x);

@@ -10,7 +10,8 @@ pub enum Precision {
     /// f32 throughout: the audited path.
     #[default]
     Fp32,
-    /// bf16 operands with f32 sums on the CPU's AMX tiles ([`amx`]): the convs with 32·k
+    /// bf16 operands with f32 sums on the CPU's AMX tiles, or its AVX512_BF16 dot products
+    /// where it has no tiles ([`amx`]): the convs with 32·k
     /// input channels; the first conv (3 channels) and the last (≤ 4 outputs) stay fp32, so
     /// the geometry enters and leaves each net in f32, and the trunk's LR part takes its
     /// activations as hi + lo pairs of bf16 ([`crate::nn::layers::Trunk::pack`]). Only where
@@ -30,9 +31,12 @@ impl Precision {
         }
     }
 
-    /// The fastest the CPU has: bf16 where it has AMX tiles, else fp32.
+    /// The fastest the CPU has: bf16 where it has AMX tiles, else fp32. The dot-product kernel
+    /// of a CPU with AVX512_BF16 and no tiles is not chosen: it measured 1.9× slower than fp32
+    /// on `upscale` (docs/performance.md), since the hi + lo pairs double its work and one
+    /// `vdpbf16ps` does as many multiply-adds as one fp32 FMA there.
     pub fn fastest_cpu() -> Precision {
-        if amx::available() {
+        if amx::tiles() {
             Precision::Bf16
         } else {
             Precision::Fp32
@@ -77,13 +81,13 @@ impl Precision {
             }
             ("fp16", None) => Err(Error::invalid(
                 "precision",
-                "fp16 runs on --device cuda (a GPU with tensor cores); on the CPU use bf16 (with AMX tiles), fp32 or auto",
+                "fp16 runs on --device cuda (a GPU with tensor cores); on the CPU use bf16 (with AVX512_BF16), fp32 or auto",
             )),
             ("bf16", None) if amx::available() => Ok(Precision::Bf16),
-            ("bf16", None) => Err(Error::invalid("precision", BF16_NEEDS_AMX)),
+            ("bf16", None) => Err(Error::invalid("precision", BF16_NEEDS_AVX512)),
             ("bf16", Some(_)) => Err(Error::invalid(
                 "precision",
-                "bf16 runs on the CPU's AMX tiles; on --device cuda use fp16, fp32 or auto",
+                "bf16 runs on the CPU (AMX tiles or AVX512_BF16); on --device cuda use fp16, fp32 or auto",
             )),
             (other, _) => Err(Error::invalid(
                 "precision",
@@ -93,6 +97,7 @@ impl Precision {
     }
 }
 
-/// Why bf16 is refused on a CPU without tiles.
-pub(crate) const BF16_NEEDS_AMX: &str = "bf16 needs a CPU with AMX-BF16 tiles (Intel Xeon Sapphire Rapids \
-     or later) and an OS that grants them (Linux 5.16+); this one has none: use fp32 or auto";
+/// Why bf16 is refused on a CPU without AVX512_BF16.
+pub(crate) const BF16_NEEDS_AVX512: &str = "bf16 needs a CPU with AVX512_BF16 (Intel Cooper Lake or \
+     Sapphire Rapids and later, whose AMX tiles make it fast; AMD Zen 4 and later); this one has none: \
+     use fp32 or auto";

@@ -157,7 +157,7 @@ impl UpscaleParams {
             ));
         }
         if self.precision == Precision::Bf16 && !self.precision.runs_on_cpu() {
-            return Err(Error::invalid("precision", crate::ops::precision::BF16_NEEDS_AMX));
+            return Err(Error::invalid("precision", crate::ops::precision::BF16_NEEDS_AVX512));
         }
         if self.temporal > MAX_TEMPORAL {
             return Err(Error::invalid(

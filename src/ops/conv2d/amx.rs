@@ -1,4 +1,4 @@
-//! The bf16 forward on AMX tiles (`--precision bf16`): inference only; training, `audit` and
+//! The bf16 forward on AMX tiles or AVX512_BF16 (`--precision bf16`): inference only; training, `audit` and
 //! the fp32 path never come here.
 //!
 //! Inputs and weights are rounded to bf16 (round to nearest even, [`bf16`]), products are
@@ -11,6 +11,10 @@
 //! tiles, so each tile loaded feeds two products. The row scratch starts at the bias, the tiles
 //! accumulate on it, and the same store as the fp32 kernels ([`super::conv2d_packed`]'s sink)
 //! moves it to NCHW with the skip and ReLU.
+//!
+//! Without tiles (a CPU with AVX512_BF16 only, or `ANISOCB_NO_AMX=1`) the same packed weights
+//! and activations go through [`block_dot`]: `vdpbf16ps` against each input pixel's channel
+//! pair broadcast, the result in the same row scratch ([`tiles`] says which runs).
 //!
 //! Output rows are padded to whole 16-pixel tiles: the lanes past the row's end read the next
 //! padded row (or the zero slack after the last) and are never stored. Same input, same bits:
@@ -75,23 +79,39 @@ impl std::ops::DerefMut for Aligned {
     }
 }
 
-/// Whether this CPU runs AMX-BF16 tiles and the OS lets this process use them (on Linux the
-/// tile data state must be asked for once per process: `arch_prctl(ARCH_REQ_XCOMP_PERM)`).
-/// Checked once; `ANISOCB_NO_AMX=1` says no (to run the fallback on a machine that has it).
+/// Whether this CPU runs the bf16 kernels: AMX tiles ([`tiles`]) or, without them, AVX512_BF16
+/// dot products (`vdpbf16ps`: Intel since Cooper Lake, AMD since Zen 4). Checked once;
+/// `ANISOCB_NO_BF16=1` says no (to run the fp32 fallback on a machine that has them, as a CPU
+/// without AVX-512 would).
 pub fn available() -> bool {
     static AVAILABLE: OnceLock<bool> = OnceLock::new();
-    *AVAILABLE.get_or_init(|| std::env::var_os("ANISOCB_NO_AMX").is_none() && detect())
+    *AVAILABLE.get_or_init(|| std::env::var_os("ANISOCB_NO_BF16").is_none() && has_avx512_bf16())
+}
+
+/// Whether the bf16 kernels run on AMX tiles: [`available`], and the CPU has AMX-BF16 tiles and
+/// the OS lets this process use them (on Linux the tile data state must be asked for once per
+/// process: `arch_prctl(ARCH_REQ_XCOMP_PERM)`). `ANISOCB_NO_AMX=1` says no: the dot-product
+/// kernel then runs, as on a CPU with AVX512_BF16 and no tiles.
+pub fn tiles() -> bool {
+    static TILES: OnceLock<bool> = OnceLock::new();
+    *TILES.get_or_init(|| available() && std::env::var_os("ANISOCB_NO_AMX").is_none() && detect_tiles())
+}
+
+#[cfg(target_arch = "x86_64")]
+fn has_avx512_bf16() -> bool {
+    std::arch::is_x86_feature_detected!("avx512f") && std::arch::is_x86_feature_detected!("avx512bf16")
+}
+
+#[cfg(not(target_arch = "x86_64"))]
+fn has_avx512_bf16() -> bool {
+    false
 }
 
 #[cfg(all(target_arch = "x86_64", target_os = "linux"))]
-fn detect() -> bool {
+fn detect_tiles() -> bool {
     use std::arch::x86_64::{__cpuid, __cpuid_count};
-    // CPUID.(EAX=7,ECX=0):EDX bit 22 AMX-BF16, bit 24 AMX-TILE; AVX512_BF16 for the stores.
-    // CPUID.(EAX=7,ECX=1):EAX bit 5 AVX512_BF16 (the epilogue's conversion).
-    let has = __cpuid(0).eax >= 7
-        && (__cpuid_count(7, 0).edx >> 22) & 0b101 == 0b101
-        && std::arch::is_x86_feature_detected!("avx512f")
-        && std::arch::is_x86_feature_detected!("avx512bf16");
+    // CPUID.(EAX=7,ECX=0):EDX bit 22 AMX-BF16, bit 24 AMX-TILE.
+    let has = __cpuid(0).eax >= 7 && (__cpuid_count(7, 0).edx >> 22) & 0b101 == 0b101;
     if !has {
         return false;
     }
@@ -109,7 +129,7 @@ fn detect() -> bool {
 }
 
 #[cfg(not(all(target_arch = "x86_64", target_os = "linux")))]
-fn detect() -> bool {
+fn detect_tiles() -> bool {
     false
 }
 
@@ -404,6 +424,64 @@ unsafe fn block<const MT: usize, const NT: usize>(
     }
 }
 
+/// [`block`] with AVX512_BF16 dot products instead of tiles, for a CPU without AMX: the same
+/// packed weights and the same result. A B tile's row r holds the channel pairs (2r, 2r + 1) of
+/// 16 output channels, which is what one `vdpbf16ps` multiplies with an input pixel's pair r
+/// broadcast to every lane; 8 pixels × NT tiles of 16 channels are accumulated in registers,
+/// over the taps and channel blocks in the tiles' order.
+///
+/// # Safety
+/// The CPU has AVX512F and AVX512_BF16; every input pixel, weight row and accumulator of the
+/// block is in bounds (as for [`block`]).
+#[target_feature(enable = "avx512f,avx512bf16")]
+#[allow(clippy::too_many_arguments)]
+unsafe fn block_dot<const MT: usize, const NT: usize>(
+    x: *const u16,
+    wp: usize,
+    c: usize,
+    kh: usize,
+    kw: usize,
+    w: *const u16,
+    nob: usize,
+    acc: *mut f32,
+    opad: usize,
+) {
+    use std::arch::x86_64::*;
+    const G: usize = 8;
+    let nkb = c / KT;
+    for g in (0..MT * T).step_by(G) {
+        let mut s = [[_mm512_setzero_ps(); NT]; G];
+        for ky in 0..kh {
+            for kx in 0..kw {
+                let xt = x.add((ky * wp + kx + g) * c);
+                let wt = w.add((ky * kw + kx) * nkb * nob * TILE);
+                for kb in 0..nkb {
+                    let (a0, b0) = (xt.add(kb * KT), wt.add(kb * nob * TILE));
+                    for r in 0..KT / 2 {
+                        let b: [__m512bh; NT] = std::array::from_fn(|t| {
+                            std::mem::transmute::<__m512i, __m512bh>(_mm512_loadu_si512(
+                                b0.add(t * TILE + r * 2 * T) as *const __m512i,
+                            ))
+                        });
+                        for (p, sp) in s.iter_mut().enumerate() {
+                            let pair = (a0.add(p * c + 2 * r) as *const i32).read_unaligned();
+                            let a = std::mem::transmute::<__m512i, __m512bh>(_mm512_set1_epi32(pair));
+                            for (st, bt) in sp.iter_mut().zip(&b) {
+                                *st = _mm512_dpbf16_ps(*st, a, *bt);
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        for (p, sp) in s.iter().enumerate() {
+            for (t, st) in sp.iter().enumerate() {
+                _mm512_storeu_ps(acc.add((g + p) * opad + t * T), *st);
+            }
+        }
+    }
+}
+
 /// Correlate the padded bf16 input ([`pad_input`]: n images of hp × wp pixels, c channels)
 /// with `pk` into out_h × out_w outputs per image, starting from `init` (the bias, opad
 /// floats) or 0; `sink(n, y, row)` gets each output row as NHWC scratch (≥ out_w × opad
@@ -420,7 +498,8 @@ pub(super) fn correlate(
     out_w: usize,
     sink: &(dyn Fn(usize, usize, &[f32]) + Sync),
 ) {
-    assert!(available(), "amx: tiles used on a CPU or OS without them");
+    assert!(available(), "amx: bf16 kernels used on a CPU without AVX512_BF16");
+    let tiles = tiles();
     let [_, c, kh, kw] = pk.shape;
     assert_eq!(xp.len() * 2 / (n * hp * wp + T).max(1), c, "amx: the input has another channel count");
     let (opad, nob) = (pk.opad, pk.opad / T);
@@ -436,8 +515,12 @@ pub(super) fn correlate(
     let xb = xp.as_ptr() as *const u16 as usize;
     let fresh = || Aligned::new(row_len);
     (0..rows.div_ceil(per_task)).into_par_iter().for_each_init(fresh, |row: &mut Aligned, task| {
-        // SAFETY: the configuration is a valid palette-1 layout; tiles are released below.
-        unsafe { asm!("ldtilecfg [{0}]", in(reg) &CONFIG as *const TileConfig, options(nostack, readonly)) };
+        if tiles {
+            // SAFETY: the configuration is a valid palette-1 layout; tiles are released below.
+            unsafe {
+                asm!("ldtilecfg [{0}]", in(reg) &CONFIG as *const TileConfig, options(nostack, readonly))
+            };
+        }
         for r in task * per_task..((task + 1) * per_task).min(rows) {
             let (ni, y) = (r / out_h, r % out_h);
             let x_row = ((ni * hp + y) * wp) * c;
@@ -452,11 +535,15 @@ pub(super) fn correlate(
                         let x = (xb as *const u16).add(x_row + m * T * c);
                         let w = pk.data.as_ptr().add(pk.off + ob * TILE);
                         let acc = row.as_mut_ptr().add(m * T * opad + ob * T);
-                        match (two_m, two_o) {
-                            (true, true) => block::<2, 2>(x, wp, c, kh, kw, w, nob, acc, opad),
-                            (true, false) => block::<2, 1>(x, wp, c, kh, kw, w, nob, acc, opad),
-                            (false, true) => block::<1, 2>(x, wp, c, kh, kw, w, nob, acc, opad),
-                            (false, false) => block::<1, 1>(x, wp, c, kh, kw, w, nob, acc, opad),
+                        match (tiles, two_m, two_o) {
+                            (true, true, true) => block::<2, 2>(x, wp, c, kh, kw, w, nob, acc, opad),
+                            (true, true, false) => block::<2, 1>(x, wp, c, kh, kw, w, nob, acc, opad),
+                            (true, false, true) => block::<1, 2>(x, wp, c, kh, kw, w, nob, acc, opad),
+                            (true, false, false) => block::<1, 1>(x, wp, c, kh, kw, w, nob, acc, opad),
+                            (false, true, true) => block_dot::<2, 2>(x, wp, c, kh, kw, w, nob, acc, opad),
+                            (false, true, false) => block_dot::<2, 1>(x, wp, c, kh, kw, w, nob, acc, opad),
+                            (false, false, true) => block_dot::<1, 2>(x, wp, c, kh, kw, w, nob, acc, opad),
+                            (false, false, false) => block_dot::<1, 1>(x, wp, c, kh, kw, w, nob, acc, opad),
                         }
                     }
                 }
@@ -468,8 +555,10 @@ pub(super) fn correlate(
             }
             sink(ni, y, row);
         }
-        // SAFETY: ends this thread's use of the tiles (their state is not kept across tasks).
-        unsafe { asm!("tilerelease", options(nostack, nomem)) };
+        if tiles {
+            // SAFETY: ends this thread's use of the tiles (their state is not kept across tasks).
+            unsafe { asm!("tilerelease", options(nostack, nomem)) };
+        }
     });
 }
 
