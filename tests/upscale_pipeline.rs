@@ -50,6 +50,32 @@ fn all_boundary_map_keeps_the_interpolated_input_exactly() {
     assert_eq!(up.hr.max_abs_diff(&u), 0.0);
 }
 
+/// `bundle --boundary none` (beside a distilled GeometryNet): a BoundaryNet that gates nothing,
+/// recognised as constant, so the output is U + R, the same as Eq 12 without BoundaryNet.
+#[test]
+fn a_bundle_without_boundary_net_composes_u_plus_r() {
+    let dir = TempDir::new("bundle-none");
+    let out = dir.join("none.npz");
+    let shipped = concat!(env!("CARGO_MANIFEST_DIR"), "/weights/anisocb-x2.npz");
+    let o = Command::new(bin())
+        .args(["bundle", "--geometry", shipped, "--boundary", "none", "--enhance", shipped, "--out"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let anisocb::nn::weights::Weights::Bundle(b) = anisocb::nn::weights::load_any(&out).unwrap() else {
+        panic!("not a bundle")
+    };
+    assert_eq!(b.boundary.constant_logit(), Some(-40.0));
+    assert_eq!(embedded_model().unwrap().boundary.constant_logit(), None, "the shipped BoundaryNet is run");
+    let frames = small_run(4);
+    let d = Domain::enclosing(&frames, 0.05);
+    let lr = sequence_to_images(&frames, &d);
+    let up = upscale_images(&Cpu, &b, &lr, &d, &UpscaleParams::default(), &mut |_| {}).unwrap();
+    assert!(up.boundary().data.iter().all(|&v| 1.0 - v == 1.0), "Γb gates something");
+    assert_eq!(up.hr.max_abs_diff(&up.without_boundary(0.0).unwrap()), 0.0);
+}
+
 #[test]
 fn eta_zero_skips_enhance_net_without_changing_the_output() {
     let model = embedded_model().expect("embedded weights decode");
