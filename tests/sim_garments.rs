@@ -262,3 +262,29 @@ fn a_garment_run_becomes_sheet_sized_windows_of_a_dataset_and_is_held_out_by_its
         assert_ne!(code, 0, "--holdout {name} kept the run");
     }
 }
+
+/// `simulate --scenario G --pair --hr-jitter M` (the garment twin study of
+/// docs/research/wrinkles.md): the LR run stays bit for bit, the HR run starts moved by at most
+/// M per coordinate (pinned vertices not at all), and a bad jitter is refused.
+#[test]
+fn a_garment_hr_twin_changes_only_the_hr_run_within_its_jitter() {
+    let sp = spec(Garment::Cape, 6);
+    let run = garment_run(&sp, true, &mut |_| {}).unwrap();
+    let twin = garment_run(&GarmentSpec { hr_jitter: 1e-4, ..sp.clone() }, true, &mut |_| {}).unwrap();
+    let bits =
+        |f: &[Vec<[f32; 3]>]| f.iter().flatten().flat_map(|p| p.map(f32::to_bits)).collect::<Vec<u32>>();
+    assert_eq!(bits(&twin.lr), bits(&run.lr), "the LR run must not change");
+    assert_ne!(bits(&twin.hr[..1]), bits(&run.hr[..1]), "the jitter moves the HR start");
+    let moved: Vec<f32> = run.hr[0]
+        .iter()
+        .zip(&twin.hr[0])
+        .map(|(a, b)| (0..3).map(|k| (a[k] - b[k]).abs()).fold(0.0, f32::max))
+        .collect();
+    assert!(moved.iter().all(|&d| d <= 1.0001e-4), "a start moved by more than the jitter");
+    let pinned: Vec<usize> = run.mesh.pins.iter().map(|p| p.0 as usize).collect();
+    assert!(pinned.iter().all(|&v| moved[v] == 0.0), "a pinned vertex moved");
+    for bad in [f32::NAN, -1e-4, 0.5] {
+        let e = garment_run(&GarmentSpec { hr_jitter: bad, ..sp.clone() }, true, &mut |_| {});
+        assert!(e.is_err(), "jitter {bad} must be refused");
+    }
+}

@@ -144,7 +144,6 @@ pub fn garment_spec_from_args(a: &Args, garment: Garment) -> Result<GarmentSpec>
         ("--res", a.res.is_some()),
         ("--scale", a.scale != 2),
         ("--track", a.track != "coarse"),
-        ("--hr-jitter", a.hr_jitter != 0.0),
         ("--hr-restart", a.hr_restart != 0),
         ("--hr-blind", a.hr_blind),
         ("--obj", a.obj),
@@ -162,6 +161,7 @@ pub fn garment_spec_from_args(a: &Args, garment: Garment) -> Result<GarmentSpec>
     spec.vary = a.vary;
     spec.material = Material::from_name(&a.material)?;
     spec.tracking = a.tracking;
+    spec.hr_jitter = a.hr_jitter;
     set_sim_params(a, &mut spec.params);
     spec.validate()?;
     Ok(spec)

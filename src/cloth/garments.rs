@@ -132,6 +132,10 @@ pub struct GarmentSpec {
     pub material: Material,
     /// HR → LR attachment strength (1/s², coarse: one constraint per LR vertex); 0 = off.
     pub tracking: f32,
+    /// Metres of seeded noise (uniform in ±`hr_jitter` per coordinate, seed `seed`) added to
+    /// the HR run's free start positions: a twin of the HR truth under the same LR run, for
+    /// measuring how much of the truth the LR run fixes. 0 = the truth itself.
+    pub hr_jitter: f32,
     /// The gap the cloth keeps from the body (m).
     pub thickness: f32,
     pub params: SimParams,
@@ -146,6 +150,7 @@ impl GarmentSpec {
             vary: 0,
             material: Material::COTTON,
             tracking: DEFAULT_TRACKING,
+            hr_jitter: 0.0,
             thickness: 0.006,
             params: SimParams::default(),
         }
@@ -161,6 +166,9 @@ impl GarmentSpec {
                 "tracking must be finite and ≥ 0 (1/s²), got {}",
                 self.tracking
             )));
+        }
+        if !(self.hr_jitter.is_finite() && (0.0..=0.01).contains(&self.hr_jitter)) {
+            return Err(Error::config(format!("hr-jitter must be 0 to 0.01 m, got {}", self.hr_jitter)));
         }
         if !(self.thickness.is_finite() && (0.0005..=0.05).contains(&self.thickness)) {
             return Err(Error::config(format!("thickness must be 0.5 to 50 mm, got {} m", self.thickness)));
@@ -843,6 +851,15 @@ fn run_cloth(
     let pin_list: Vec<Pin> =
         pins.iter().map(|&(v, _)| Pin { vertex: v as usize, anchor: rest[v as usize], side: 0.0 }).collect();
     let mut cloth = Cloth::from_mesh(rest, faces, &|_| material, pin_list);
+    if track.is_some() && spec.hr_jitter > 0.0 {
+        let mut rng = crate::rng::Rng::new(crate::rng::mix_seed(&[spec.seed, 0x6a17]));
+        let j = spec.hr_jitter;
+        for (x, &im) in cloth.x.iter_mut().zip(&cloth.inv_mass) {
+            if im > 0.0 {
+                x.iter_mut().for_each(|c| *c += rng.uniform_in(-j, j));
+            }
+        }
+    }
     let mut p = params.clone();
     p.tethers = p.tethers && scene_of.tethers;
     let colliders = Colliders { ground: scene_of.ground, ..Default::default() };

@@ -379,7 +379,8 @@ pub fn write_garment_run(
                 .num("faces", run.sub.faces.len())
                 .str("mesh", "the LR mesh subdivided once (midpoints, quad centres), HR vertices 0..N_LR-1 are the LR vertices")
                 .val("tracking_per_s2", Value::real(if run.hr.is_empty() { 0.0 } else { spec.tracking }))
-                .str("tracking_mode", "coarse: one constraint per LR vertex"),
+                .str("tracking_mode", "coarse: one constraint per LR vertex")
+                .val("hr_jitter_m", Value::real(if run.hr.is_empty() { 0.0 } else { spec.hr_jitter })),
         )
         .num("pinned", m.pins.len())
         .val("collider_thickness_m", Value::real(spec.thickness))
