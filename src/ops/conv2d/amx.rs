@@ -220,8 +220,14 @@ pub(super) fn pad_input(
     let fresh = || Scratch::overwritten(wp * c0);
     body.par_chunks_mut(row_len).with_min_len(min_rows).enumerate().for_each_init(fresh, |f, (r, dst)| {
         pad_row_nhwc(x, r / hp, r % hp, ph, pw, pad, f);
+        let simd = available();
         for (d, v) in dst.chunks_exact_mut(c).zip(f.chunks_exact(c0)) {
-            store_bf16(d, v, split);
+            if simd {
+                // SAFETY: `available()` includes AVX-512F; d holds C (split: 2C) values for v's C.
+                unsafe { store_bf16_avx512(d, v, split) }
+            } else {
+                store_bf16(d, v, split);
+            }
         }
     });
     (out, hp, wp)
@@ -239,6 +245,44 @@ fn store_bf16(d: &mut [u16], v: &[f32], split: bool) {
     }
 }
 
+/// [`store_bf16`] 16 values at a time: [`bf16`]'s integer rounding (ties to even, NaN kept
+/// quiet, subnormals rounded as any value), so the same bits as the scalar twin.
+///
+/// # Safety
+/// The CPU has AVX-512F; `d` holds `v.len()` values, twice that if `split`.
+#[target_feature(enable = "avx512f")]
+unsafe fn store_bf16_avx512(d: &mut [u16], v: &[f32], split: bool) {
+    use std::arch::x86_64::*;
+    let c = v.len();
+    assert_eq!(d.len(), c * (1 + split as usize), "store_bf16: {} slots for {c} values", d.len());
+    let round = |x: __m512| -> __m256i {
+        let u = _mm512_castps_si512(x);
+        let odd = _mm512_and_si512(_mm512_srli_epi32::<16>(u), _mm512_set1_epi32(1));
+        let r =
+            _mm512_srli_epi32::<16>(_mm512_add_epi32(_mm512_add_epi32(u, _mm512_set1_epi32(0x7fff)), odd));
+        let quiet = _mm512_or_si512(_mm512_srli_epi32::<16>(u), _mm512_set1_epi32(0x40));
+        let nan = _mm512_cmp_ps_mask::<_CMP_UNORD_Q>(x, x);
+        _mm512_cvtepi32_epi16(_mm512_mask_blend_epi32(nan, r, quiet))
+    };
+    let widen = |h: __m256i| _mm512_castsi512_ps(_mm512_slli_epi32::<16>(_mm512_cvtepu16_epi32(h)));
+    let c16 = c / 16 * 16;
+    for c0 in (0..c16).step_by(16) {
+        let x = _mm512_loadu_ps(v.as_ptr().add(c0));
+        let hi = round(x);
+        _mm256_storeu_si256(d.as_mut_ptr().add(c0) as *mut __m256i, hi);
+        if split {
+            let lo = round(_mm512_sub_ps(x, widen(hi)));
+            _mm256_storeu_si256(d.as_mut_ptr().add(c + c0) as *mut __m256i, lo);
+        }
+    }
+    if split {
+        let (hi, lo) = d.split_at_mut(c);
+        store_bf16_split(&mut hi[c16..], &mut lo[c16..], &v[c16..]);
+    } else {
+        store_bf16(&mut d[c16..], &v[c16..], false);
+    }
+}
+
 /// `v` as bf16 pairs: hi = bf16(v), lo = bf16(v − hi).
 #[inline(always)]
 fn store_bf16_split(hi: &mut [u16], lo: &mut [u16], v: &[f32]) {
@@ -248,9 +292,10 @@ fn store_bf16_split(hi: &mut [u16], lo: &mut [u16], v: &[f32]) {
     }
 }
 
-/// [`store_pixel`] for w pixels: source pixel x at `row[x·opad + off ..][..oc]`, destination
-/// at `out[x·stride ..]` (a pixel-shuffled row: every r-th pixel), skip pixel x at
-/// `skip[x·os ..]`. One call a row, so the per-pixel work inlines under the target features.
+/// [`store_pixel`] for w pixels: source pixel x at `row[x·opad + off ..][..oc]`, its bias
+/// `bias[..oc]`, destination at `out[x·stride ..]` (a pixel-shuffled row: every r-th pixel),
+/// skip pixel x at `skip[x·os ..]`. One call a row, so the per-pixel work inlines under the
+/// target features.
 ///
 /// # Safety
 /// As [`store_pixel`].
@@ -261,6 +306,7 @@ unsafe fn store_pixels(
     opad: usize,
     off: usize,
     oc: usize,
+    bias: Option<&[f32]>,
     w: usize,
     out: &mut [u16],
     stride: usize,
@@ -269,16 +315,18 @@ unsafe fn store_pixels(
     split: bool,
 ) {
     let os = oc * (1 + split as usize);
+    let bias = bias.map(|b| &b[..oc]);
     for x in 0..w {
         let src = &row[x * opad + off..][..oc];
         let px = &mut out[x * stride..][..os];
         let sk = skip.map(|s| &s[x * os..][..os]);
-        store_pixel(src, sk, relu, px, split);
+        store_pixel(src, bias, sk, relu, px, split);
     }
 }
 
-/// The epilogue of one output pixel of [`conv_act`]: `src` (the conv's C sums, f32) + the
-/// skip's values (hi + lo where split), ReLU, stored as bf16 (split: hi, then lo) into `px`.
+/// The epilogue of one output pixel of [`conv_act`]: `src` (the conv's C sums, f32) + `bias`,
+/// then + the skip's values (hi + lo where split), ReLU, stored as bf16 (split: hi, then lo)
+/// into `px`.
 /// 16 channels at a time with `vcvtneps2bf16` (round to nearest even like [`bf16`]; it reads
 /// f32 subnormals, below 1.2·10⁻³⁸, as 0), the rest one by one.
 ///
@@ -286,10 +334,18 @@ unsafe fn store_pixels(
 /// The CPU has AVX512F and AVX512_BF16; `px` (and `sk`) hold C values, 2C split.
 #[target_feature(enable = "avx512f,avx512bf16")]
 #[inline]
-unsafe fn store_pixel(src: &[f32], sk: Option<&[u16]>, relu: bool, px: &mut [u16], split: bool) {
+unsafe fn store_pixel(
+    src: &[f32],
+    bias: Option<&[f32]>,
+    sk: Option<&[u16]>,
+    relu: bool,
+    px: &mut [u16],
+    split: bool,
+) {
     use std::arch::x86_64::*;
     let c = src.len();
     assert!(px.len() == c * (1 + split as usize) && sk.is_none_or(|s| s.len() == px.len()));
+    assert!(bias.is_none_or(|b| b.len() == c));
     let widen = |p: *const u16| {
         _mm512_castsi512_ps(_mm512_slli_epi32::<16>(_mm512_cvtepu16_epi32(_mm256_loadu_si256(
             p as *const __m256i,
@@ -298,6 +354,9 @@ unsafe fn store_pixel(src: &[f32], sk: Option<&[u16]>, relu: bool, px: &mut [u16
     let c16 = c / 16 * 16;
     for c0 in (0..c16).step_by(16) {
         let mut v = _mm512_loadu_ps(src.as_ptr().add(c0));
+        if let Some(b) = bias {
+            v = _mm512_add_ps(v, _mm512_loadu_ps(b.as_ptr().add(c0)));
+        }
         if let Some(s) = sk {
             v = _mm512_add_ps(v, widen(s.as_ptr().add(c0)));
             if split {
@@ -317,7 +376,10 @@ unsafe fn store_pixel(src: &[f32], sk: Option<&[u16]>, relu: bool, px: &mut [u16
         }
     }
     for k in c16..c {
-        let mut v = src[k];
+        let mut v = match bias {
+            Some(b) => src[k] + b[k],
+            None => src[k],
+        };
         if let Some(s) = sk {
             v += f32_of_bf16(s[k]) + if split { f32_of_bf16(s[c + k]) } else { 0.0 };
         }
@@ -690,6 +752,7 @@ pub fn conv_act(x: &Act, packed: &PackedConv, b: Option<&Tensor>, epi: ActEpilog
                         opad,
                         (i * r + j) * oc,
                         oc,
+                        init.as_deref().map(|b| &b[(i * r + j) * oc..]),
                         w,
                         &mut line[(j + 1) * os..],
                         r * os,
@@ -712,7 +775,8 @@ pub fn conv_act(x: &Act, packed: &PackedConv, b: Option<&Tensor>, epi: ActEpilog
             }
         }
     };
-    correlate(x.padded(), n, h + 2, w + 2, pk, init.as_deref(), h, w, &sink);
+    // The bias is added in the store (`init` None here): the same (sum + bias) + skip as ever.
+    correlate(x.padded(), n, h + 2, w + 2, pk, None, h, w, &sink);
     // The top and bottom border rows, and the slack.
     let v: &mut [u16] = bytemuck::cast_slice_mut(&mut data[..]);
     let row = (wo + 2) * os;
@@ -738,4 +802,50 @@ pub fn conv2d_bf16_ref(x: &Tensor, w: &Tensor, b: Option<&Tensor>, pad: Padding)
         r
     };
     conv2d_ref(&round(x), &round(w), b, pad)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The 16-lane store is the scalar [`store_bf16`] bit for bit: ties to even, NaN kept
+    /// quiet, ±0, subnormals, infinities, the largest finite values, and every tail length.
+    #[test]
+    fn the_avx512_bf16_store_has_the_bits_of_the_scalar_twin() {
+        if !available() {
+            return;
+        }
+        let mut rng = crate::rng::Rng::new(7);
+        let special = [
+            0.0f32,
+            -0.0,
+            f32::NAN,
+            -f32::NAN,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            f32::MAX,
+            -f32::MAX,
+            f32::MIN_POSITIVE,
+            1e-40,
+            -1e-40,
+            f32::from_bits(0x3f80_8000), // a tie, rounds to even (down)
+            f32::from_bits(0x3f81_8000), // a tie, rounds to even (up)
+            f32::from_bits(0x7f7f_ffff),
+        ];
+        for len in [1usize, 5, 15, 16, 17, 31, 32, 33, 64, 70] {
+            let v: Vec<f32> = (0..len)
+                .map(
+                    |i| if i % 3 == 0 { special[i / 3 % special.len()] } else { (rng.uniform() - 0.5) * 1e3 },
+                )
+                .collect();
+            for split in [false, true] {
+                let n = len * (1 + split as usize);
+                let (mut want, mut got) = (vec![0u16; n], vec![1u16; n]);
+                store_bf16(&mut want, &v, split);
+                // SAFETY: `available()` includes AVX-512F; the lengths match.
+                unsafe { store_bf16_avx512(&mut got, &v, split) };
+                assert_eq!(got, want, "len {len} split {split}");
+            }
+        }
+    }
 }

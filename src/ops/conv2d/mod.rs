@@ -271,7 +271,8 @@ fn nchw_store<'a>(
                     v += (sp.add(at) as *const f32x8).read_unaligned();
                 }
                 if relu {
-                    v = f32x8::from(v.to_array().map(relu1));
+                    // `relu1` on 8 lanes: 0 where v < 0; −0 and NaN kept.
+                    v = v.simd_lt(f32x8::ZERO).select(f32x8::ZERO, v);
                 }
                 v
             };

@@ -17,20 +17,22 @@ pub(super) const SMALL_P: usize = 4;
 pub(super) fn pad_planar(x: &Tensor, ph: usize, pw: usize, pad: Padding, wq: usize) -> (Scratch, usize) {
     let (n, c, h, w) = x.dims4();
     let hp = h + 2 * ph;
-    let mut out = Scratch::zeroed(n * c * hp * wq);
+    // Every element is written below (no pass of zeros first: on the HR tail's 128² planes
+    // that pass cost as much as the copy).
+    let mut out = Scratch::overwritten(n * c * hp * wq);
     out.par_chunks_mut(hp * wq).enumerate().for_each(|(plane, dst)| {
         let src = &x.data[plane * h * w..][..h * w];
         for (yy, drow) in dst.chunks_exact_mut(wq).enumerate() {
             let Some(sy) = pad_index(yy as isize - ph as isize, h, pad) else {
+                drow.fill(0.0);
                 continue;
             };
             let srow = &src[sy * w..][..w];
             drow[pw..pw + w].copy_from_slice(srow);
             for xx in (0..pw).chain(pw + w..w + 2 * pw) {
-                if let Some(sx) = pad_index(xx as isize - pw as isize, w, pad) {
-                    drow[xx] = srow[sx];
-                }
+                drow[xx] = pad_index(xx as isize - pw as isize, w, pad).map_or(0.0, |sx| srow[sx]);
             }
+            drow[w + 2 * pw..].fill(0.0);
         }
     });
     (out, hp)
