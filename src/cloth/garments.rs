@@ -852,13 +852,7 @@ fn run_cloth(
         pins.iter().map(|&(v, _)| Pin { vertex: v as usize, anchor: rest[v as usize], side: 0.0 }).collect();
     let mut cloth = Cloth::from_mesh(rest, faces, &|_| material, pin_list);
     if track.is_some() && spec.hr_jitter > 0.0 {
-        let mut rng = crate::rng::Rng::new(crate::rng::mix_seed(&[spec.seed, 0x6a17]));
-        let j = spec.hr_jitter;
-        for (x, &im) in cloth.x.iter_mut().zip(&cloth.inv_mass) {
-            if im > 0.0 {
-                x.iter_mut().for_each(|c| *c += rng.uniform_in(-j, j));
-            }
-        }
+        cloth.jitter_free(spec.seed, spec.hr_jitter);
     }
     let mut p = params.clone();
     p.tethers = p.tethers && scene_of.tethers;

@@ -456,13 +456,7 @@ pub fn run_at(
         None => 0,
     };
     if track.is_some() && spec.hr_jitter > 0.0 {
-        let mut rng = crate::rng::Rng::new(crate::rng::mix_seed(&[spec.seed, 0x6a17]));
-        let j = spec.hr_jitter;
-        for (x, &im) in cloth.x.iter_mut().zip(&cloth.inv_mass) {
-            if im > 0.0 {
-                x.iter_mut().for_each(|c| *c += rng.uniform_in(-j, j));
-            }
-        }
+        cloth.jitter_free(spec.seed, spec.hr_jitter);
     }
     let coarse = match (track, spec.tracking_mode) {
         (Some(lr), TrackingMode::Coarse) => {

@@ -69,6 +69,17 @@ impl Cloth {
         Cloth::assemble((rest.w, rest.h), &rest.pos, &rest.triangles(), dist, bend, material, pins)
     }
 
+    /// Move every free vertex by up to `j` metres per coordinate (uniform, seeded by `seed`): the
+    /// start of an HR twin under the same LR run (`simulate --hr-jitter`, on sheets and garments).
+    pub fn jitter_free(&mut self, seed: u64, j: f32) {
+        let mut rng = crate::rng::Rng::new(crate::rng::mix_seed(&[seed, 0x6a17]));
+        for (x, &im) in self.x.iter_mut().zip(&self.inv_mass) {
+            if im > 0.0 {
+                x.iter_mut().for_each(|c| *c += rng.uniform_in(-j, j));
+            }
+        }
+    }
+
     /// A cloth of any mesh of triangles and quads (`faces` over the rest positions `rest`, m):
     /// stretch on every edge, shear on each quad's diagonals, isometric bending on every
     /// interior edge of its triangles (a quad split along its 0–2 diagonal: bending needs no
