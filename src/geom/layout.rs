@@ -107,6 +107,10 @@ pub struct MeshLayout {
     border: Vec<(u32, u32)>,
     /// The HR vertices on the border and one edge in from it: what the outline floor blends.
     outer: Vec<u32>,
+    /// The faces the LR normals are taken on: the welded cloth's where it welds (so the
+    /// copies of a vertex on a seam get one normal), with each LR vertex's representative.
+    normal_faces: Vec<Vec<u32>>,
+    lr_rep: Vec<u32>,
 }
 
 impl MeshLayout {
@@ -159,7 +163,47 @@ impl MeshLayout {
             None => (0..sub.hr_vertices() as u32).collect(),
         };
         let (border, outer) = border_and_outer(&sub.faces, &rep);
-        Ok(MeshLayout { surface, sub, atlas, at, start, border, outer })
+        let mut lr_rep: Vec<u32> = (0..surface.vertices as u32).collect();
+        for (f, w) in surface.faces.iter().zip(faces) {
+            f.iter().zip(w).for_each(|(&v, &r)| lr_rep[v as usize] = r);
+        }
+        let normal_faces = faces.clone();
+        Ok(MeshLayout { surface, sub, atlas, at, start, border, outer, normal_faces, lr_rep })
+    }
+
+    /// Unit normals of the LR frame `pos` per vertex (area-weighted over its faces; a quad's
+    /// from its diagonals), one per point of the welded cloth; 0 for a vertex in no face.
+    fn normals(&self, pos: &[[f32; 3]]) -> Vec<[f32; 3]> {
+        let mut n = vec![[0.0f32; 3]; pos.len()];
+        let sub = |a: [f32; 3], b: [f32; 3]| -> [f32; 3] { std::array::from_fn(|k| a[k] - b[k]) };
+        for f in &self.normal_faces {
+            let p = |i: usize| pos[f[i] as usize];
+            let (u, v) = if f.len() == 4 {
+                (sub(p(2), p(0)), sub(p(3), p(1)))
+            } else {
+                (sub(p(1), p(0)), sub(p(2), p(0)))
+            };
+            let c = [u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]];
+            for &i in f {
+                (0..3).for_each(|k| n[i as usize][k] += c[k]);
+            }
+        }
+        let unit = |m: [f32; 3]| {
+            let len = (m[0] * m[0] + m[1] * m[1] + m[2] * m[2]).sqrt();
+            if len > 0.0 {
+                m.map(|c| c / len)
+            } else {
+                [0.0; 3]
+            }
+        };
+        (0..pos.len()).map(|v| unit(n[self.lr_rep[v] as usize])).collect()
+    }
+
+    /// What the nets' detail is added to on a mesh: the curved subdivision of the LR frame
+    /// `lr` ([`Subdivision::apply_curved`] on the welded cloth's normals), the counterpart of
+    /// the grid's Catmull-Rom U.
+    pub fn base(&self, lr: &[[f32; 3]]) -> Vec<[f32; 3]> {
+        self.sub.apply_curved(lr, &self.normals(lr))
     }
 
     pub fn lr_vertices(&self) -> usize {
@@ -191,9 +235,10 @@ impl MeshLayout {
         Ok(t)
     }
 
-    /// The HR frame: the LR frame `lr`'s subdivision plus, at each HR vertex's chart position,
-    /// the detail `hr − base` of frame `frame` of the HR images (both (T, 3, rH, rW) in
-    /// `domain`; `base` is the interpolation U the nets refined), bilinearly sampled. With
+    /// The HR frame: the LR frame `lr`'s curved subdivision ([`MeshLayout::base`]) plus, at
+    /// each HR vertex's chart position, the detail `hr − base` of frame `frame` of the HR images
+    /// (both (T, 3, rH, rW) in `domain`; `base` is the interpolation U the nets refined),
+    /// bilinearly sampled. With
     /// `keep_outline` ([`crate::sr::params::UpscaleParams::keep_outline`]), the outline floor
     /// of a mesh ([`MeshLayout::floor_outline`]).
     pub fn hr_frame(
@@ -211,7 +256,7 @@ impl MeshLayout {
         let plane = (frame * 3) * px;
         // Align-corners: LR pixel x is HR pixel x·(rW − 1)/(W − 1).
         let (sx, sy) = ((hw - 1) as f32 / (w - 1).max(1) as f32, (hh - 1) as f32 / (h - 1).max(1) as f32);
-        let mut out = self.sub.apply(lr);
+        let mut out = self.base(lr);
         for (v, p) in out.iter_mut().enumerate() {
             let copies = &self.at[self.start[v] as usize..self.start[v + 1] as usize];
             if copies.is_empty() {

@@ -159,6 +159,8 @@ pub struct Subdivision {
     edges: Vec<(u32, u32)>,
     /// One HR vertex per quad (`lr + edges.len() + k`): its corners.
     centres: Vec<[u32; 4]>,
+    /// Per quad centre, its four edges (indices into `edges`), in corner order.
+    centre_edges: Vec<[u32; 4]>,
     /// The HR faces, four per LR face in its order.
     pub faces: Vec<Vec<u32>>,
 }
@@ -179,6 +181,7 @@ impl Subdivision {
             }
         }
         let mut centres = Vec::new();
+        let mut centre_edges = Vec::new();
         let mut hr_faces = Vec::with_capacity(4 * faces.len());
         for f in faces {
             let n = f.len();
@@ -191,6 +194,7 @@ impl Subdivision {
             } else {
                 let o = (lr + edges.len() + centres.len()) as u32;
                 centres.push([f[0], f[1], f[2], f[3]]);
+                centre_edges.push(std::array::from_fn(|i| mid[i] - lr as u32));
                 let (a, b, c, d) = (f[0], f[1], f[2], f[3]);
                 let (ab, bc, cd, da) = (mid[0], mid[1], mid[2], mid[3]);
                 hr_faces.extend([
@@ -201,7 +205,7 @@ impl Subdivision {
                 ]);
             }
         }
-        Subdivision { lr, edges, centres, faces: hr_faces }
+        Subdivision { lr, edges, centres, centre_edges, faces: hr_faces }
     }
 
     /// Vertices of the subdivided mesh.
@@ -221,6 +225,46 @@ impl Subdivision {
         for c in &self.centres {
             let p = c.map(|v| lr[v as usize]);
             out.push(std::array::from_fn(|k| 0.25 * ((p[0][k] + p[1][k]) + (p[2][k] + p[3][k]))));
+        }
+        out
+    }
+
+    /// The curved subdivision of `lr` (m), given each LR vertex's unit normal `normals` (0 where
+    /// it has none): [`Subdivision::apply`] with each edge vertex moved off the chord onto the
+    /// arc its ends' normals describe, by ((n_b − n_a)·(x_b − x_a)) / 8 along their mean (a
+    /// circle through both ends with those normals, to second order in the angle), and each
+    /// quad centre by half the sum of its four edges' moves (one pair of opposite edges per
+    /// direction of the quad: on z = κ(u² + v²)/2 each edge is off by κh²/2 and the centre by
+    /// κh², on a cylinder the two edges across its axis carry it all). The LR vertices stay (it interpolates,
+    /// unlike Loop or Catmull–Clark, which pull them in): the mesh's counterpart of the grid's
+    /// Catmull-Rom U, the smooth surface through the LR vertices that the nets refine.
+    pub fn apply_curved(&self, lr: &[[f32; 3]], normals: &[[f32; 3]]) -> Vec<[f32; 3]> {
+        let mut out = self.apply(lr);
+        let moves: Vec<[f32; 3]> = self
+            .edges
+            .iter()
+            .map(|&(a, b)| {
+                let (na, nb) = (normals[a as usize], normals[b as usize]);
+                let (pa, pb) = (lr[a as usize], lr[b as usize]);
+                let d: f32 = (0..3).map(|k| (nb[k] - na[k]) * (pb[k] - pa[k])).sum::<f32>() / 8.0;
+                let m: [f32; 3] = std::array::from_fn(|k| na[k] + nb[k]);
+                let len = (m[0] * m[0] + m[1] * m[1] + m[2] * m[2]).sqrt();
+                if len > 1e-6 {
+                    m.map(|c| d * c / len)
+                } else {
+                    [0.0; 3]
+                }
+            })
+            .collect();
+        let n = self.lr;
+        for (k, mv) in moves.iter().enumerate() {
+            (0..3).for_each(|c| out[n + k][c] += mv[c]);
+        }
+        let nc = n + self.edges.len();
+        for (q, e) in self.centre_edges.iter().enumerate() {
+            for c in 0..3 {
+                out[nc + q][c] += 0.5 * e.iter().map(|&k| moves[k as usize][c]).sum::<f32>();
+            }
         }
         out
     }
@@ -440,6 +484,40 @@ mod tests {
         assert!(smooth[v(2, 2) as usize][2] < 2.0);
         let mixed = vec![vec![0, 1, 6], vec![1, 2, 7, 6]];
         assert!(Subdivision::of(25, &mixed).apply_smooth(&mixed, &pos).is_none());
+    }
+
+    #[test]
+    fn the_curved_subdivision_keeps_the_lr_vertices_and_puts_midpoints_on_the_cylinder() {
+        // A tube of 12 × 3 quads on a cylinder of radius 1: its LR vertices stay, its edge
+        // midpoints and quad centres come within a tenth of the chord's distance to the
+        // cylinder; on a plane it is the linear subdivision.
+        let (around, rows) = (12u32, 3u32);
+        let pos: Vec<[f32; 3]> = (0..rows)
+            .flat_map(|j| {
+                (0..around).map(move |i| {
+                    let t = std::f32::consts::TAU * i as f32 / around as f32;
+                    [t.cos(), 0.3 * j as f32, t.sin()]
+                })
+            })
+            .collect();
+        let normals: Vec<[f32; 3]> = pos.iter().map(|p| [p[0], 0.0, p[2]]).collect();
+        let v = |i: u32, j: u32| j * around + i % around;
+        let quads: Vec<Vec<u32>> = (0..rows - 1)
+            .flat_map(|j| (0..around).map(move |i| vec![v(i, j), v(i + 1, j), v(i + 1, j + 1), v(i, j + 1)]))
+            .collect();
+        let s = Subdivision::of(pos.len(), &quads);
+        let (lin, curved) = (s.apply(&pos), s.apply_curved(&pos, &normals));
+        assert_eq!(&curved[..pos.len()], &pos[..]);
+        let off = |p: &[f32; 3]| ((p[0] * p[0] + p[2] * p[2]).sqrt() - 1.0).abs();
+        let mut cut = 0;
+        for (c, l) in curved.iter().zip(&lin).skip(pos.len()) {
+            // Edges along the axis lie on the cylinder: their midpoints stay there.
+            cut += (off(l) > 0.03) as usize;
+            assert!(off(c) <= 0.1 * off(l) + 1e-6, "curved {} against linear {}", off(c), off(l));
+        }
+        assert_eq!(cut, 3 * 12 + 2 * 12, "edges around and quad centres cut through the cylinder");
+        let flat: Vec<[f32; 3]> = pos.iter().map(|p| [p[0], p[1], 0.0]).collect();
+        assert_eq!(s.apply_curved(&flat, &vec![[0.0, 0.0, 1.0]; flat.len()]), s.apply(&flat));
     }
 
     #[test]

@@ -99,7 +99,7 @@ pub fn mesh_run_windows(
     let t = run.lr.frames.len();
     let detail: Vec<Vec<[f32; 3]>> = (0..t)
         .map(|f| {
-            let s = layout.sub.apply(&run.lr.frames[f]);
+            let s = layout.base(&run.lr.frames[f]);
             run.hr[f].iter().zip(&s).map(|(h, s)| [h[0] - s[0], h[1] - s[1], h[2] - s[2]]).collect()
         })
         .collect();
