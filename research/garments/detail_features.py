@@ -51,9 +51,10 @@ def normals(x, faces):
 def topology(n, faces):
     sub = subdivision(n, faces)
     edges = np.array([w for w in sub[n:] if len(w) == 2])
-    quads = np.array([w for w in sub[n:] if len(w) == 4]).reshape(-1, 4)
+    quads = np.array([w for w in sub[n:] if len(w) == 4], dtype=np.int64).reshape(-1, 4)
     index = {tuple(sorted(e)): i for i, e in enumerate(map(tuple, edges))}
-    quad_edges = np.array([[index[tuple(sorted((q[i], q[(i + 1) % 4])))] for i in range(4)] for q in quads]).reshape(-1, 4)
+    quad_edges = np.array([[index[tuple(sorted((q[i], q[(i + 1) % 4])))] for i in range(4)] for q in quads],
+                          dtype=np.int64).reshape(-1, 4)
     return edges, quads, quad_edges
 
 
