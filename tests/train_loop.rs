@@ -1,5 +1,6 @@
 //! The training loop: bit-identical resume, overfitting a single pair, the NaN/Inf guard,
-//! refusal to resume with other options, patch alignment, and `--net all` bundles.
+//! refusal to resume with other options, fine-tuning from given weights, patch alignment, and
+//! `--net all` bundles.
 
 use anisocb::nn::weights::load_net;
 use anisocb::nn::{AnisoCb, NetConfig, NetKind};
@@ -74,6 +75,7 @@ fn tiny_opts(out: PathBuf, steps: u64) -> TrainOptions {
         // Mirrored samples: resuming must reproduce the sampler's mirrors too.
         mirror: true,
         resume: false,
+        init: None,
         out,
     }
 }
@@ -131,6 +133,39 @@ fn tiny_geometry_net_overfits_a_single_pair() {
     let last = r.last_train_loss;
     println!("overfit: loss {first:.3e} → {last:.3e}");
     assert!(last < 1e-5 && last < first * 1e-3, "loss {first} → {last}");
+}
+
+#[test]
+fn init_starts_from_the_given_weights_and_refuses_another_net() {
+    let data = synthetic(1, 6, 6);
+    let pair = |out: &str, steps, init| TrainOptions {
+        batch: 1,
+        patch: 6,
+        val_frac: 0.0,
+        adam: AdamParams { lr: 3e-3, ..AdamParams::default() },
+        init,
+        ..tiny_opts(tmp(out), steps)
+    };
+    let a = pair("init-a", 300, None);
+    let first = train(&Cpu, &data, NetKind::Geometry, &a, &mut |_| {}).unwrap();
+    let weights = a.out.join("weights.npz");
+    anisocb::nn::weights::save_net(&weights, &first.trunk).unwrap();
+    // One more step from those weights starts where the 300 steps ended, far below a fresh start.
+    let tuned = train(&Cpu, &data, NetKind::Geometry, &pair("init-b", 1, Some(weights.clone())), &mut |_| {})
+        .unwrap();
+    let fresh = train(&Cpu, &data, NetKind::Geometry, &pair("init-c", 1, None), &mut |_| {}).unwrap();
+    let (start, ended, cold) = (tuned.history[0].train, first.last_train_loss, fresh.history[0].train);
+    println!("init: fresh {cold:.3e}, after 300 steps {ended:.3e}, from those weights {start:.3e}");
+    assert!(start < 2.0 * ended && start < 0.1 * cold, "{cold} {ended} {start}");
+    // Weights of another net, or of another configuration, are refused with the file named.
+    let err = train(&Cpu, &data, NetKind::Enhance, &pair("init-d", 1, Some(weights.clone())), &mut |_| {})
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("weights.npz") && err.contains("geometry weights"), "{err}");
+    let paper =
+        TrainOptions { config: NetConfig::preset("small").unwrap(), ..pair("init-e", 1, Some(weights)) };
+    let err = train(&Cpu, &data, NetKind::Geometry, &paper, &mut |_| {}).unwrap_err().to_string();
+    assert!(err.contains("another configuration"), "{err}");
 }
 
 #[test]

@@ -116,6 +116,11 @@ pub struct Args {
     /// OUT/geometry for `--net all`).
     #[arg(long)]
     pub resume: bool,
+    /// Start from these weights instead of a random init, to fine-tune them on this data: a
+    /// one-net weights file or a bundle (its first GeometryNet, or its map net of --net), of the
+    /// same --config, --padding, --upsample and input frame. Adam starts afresh.
+    #[arg(long, value_name = "WEIGHTS")]
+    pub init: Option<std::path::PathBuf>,
     /// Where the ops run: cpu, or cuda (feature `cuda`, needs an NVIDIA GPU).
     #[arg(long, default_value = "cpu")]
     pub device: String,
@@ -156,6 +161,7 @@ pub fn run(a: Args) -> Result<()> {
         detail_normal_only: !a.detail_all_components,
         mirror: a.mirror_augment,
         resume: a.resume,
+        init: a.init.clone(),
         out: a.out.clone(),
     };
     opts.check(&data)?;

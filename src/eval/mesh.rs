@@ -1,6 +1,7 @@
 //! `anisocb eval --meshes`: any-mesh cloth (issue 45) against its HR run, for the methods a user
-//! has — the linear subdivision (what anisocb refines), the smooth subdivision (Loop on
-//! triangles, Catmull–Clark on quads) and anisocb — with the metrics of a mesh run:
+//! has — the linear subdivision, the smooth subdivision (Loop on triangles, Catmull–Clark on
+//! quads), the curved subdivision (the base anisocb's nets add their detail to, so the nets' own
+//! part shows as the difference of two rows) and anisocb — with the metrics of a mesh run:
 //!
 //! - vertex RMSE and the largest vertex error (the Hausdorff distance of corresponding
 //!   vertices), mm;
@@ -378,7 +379,7 @@ pub struct MeshRunEval {
     pub hr_faces: Vec<Vec<u32>>,
 }
 
-/// Every method on `run`: the linear and smooth subdivisions and anisocb (`model`, `params`),
+/// Every method on `run`: the linear, smooth and curved subdivisions and anisocb (`model`, `params`),
 /// with `physics` also anisocb's frames through the physics pass (at the run's frame rate, its
 /// collider a mesh collider),
 /// and the truth scored against itself (its detail and flicker are the yardsticks).
@@ -404,6 +405,7 @@ pub fn evaluate_mesh_run(
             if run.lr.faces.iter().all(|f| f.len() == 3) { "Loop subdivision" } else { "Catmull-Clark" };
         frames.push((name.to_string(), s));
     }
+    frames.push(("curved subdivision".to_string(), run.lr.frames.iter().map(|f| layout.base(f)).collect()));
     let ours = upscale_mesh_frames(ops, model, &layout, &run.lr.frames, params)?;
     if let Some(p) = physics {
         // The run's collider (every body of the scene, frame by frame) as a mesh collider.

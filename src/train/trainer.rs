@@ -66,6 +66,10 @@ pub struct TrainOptions {
     pub mirror: bool,
     /// Continue from `out/checkpoint.npz`.
     pub resume: bool,
+    /// Start from these weights instead of a random init (fine-tuning): the net of the trained
+    /// kind and config, read from a one-net weights file or a bundle (its first GeometryNet,
+    /// its BoundaryNet or EnhanceNet). Adam starts afresh.
+    pub init: Option<PathBuf>,
     pub out: PathBuf,
 }
 
@@ -163,6 +167,7 @@ impl Default for TrainOptions {
             detail_normal_only: DetailEnergy::default().normal_only,
             mirror: false,
             resume: false,
+            init: None,
             out: PathBuf::from("out"),
         }
     }
@@ -291,6 +296,10 @@ fn options_json(net: NetKind, o: &TrainOptions, data_fp: u64, step: u64) -> Stri
         .str("data", &format!("{data_fp:016x}"));
     // Written only when on, so checkpoints from before the option still resume.
     let obj = if o.mirror { obj.num("mirror", 1) } else { obj };
+    let obj = match &o.init {
+        Some(p) => obj.str("init", &p.display().to_string()),
+        None => obj,
+    };
     let obj = if o.detail_weight != 0.0 {
         obj.num("detail_weight", o.detail_weight)
             .num("detail_radius", o.detail_radius)
@@ -415,6 +424,32 @@ impl TrainOptions {
     }
 }
 
+/// The `net` of `config` in the weights file `path` ([`TrainOptions::init`]).
+fn init_from(path: &Path, net: NetKind, config: NetConfig) -> Result<Trunk> {
+    let trunk = match crate::nn::weights::load_any(path)? {
+        crate::nn::weights::Weights::Net(t) => *t,
+        crate::nn::weights::Weights::Bundle(b) => {
+            b.named_trunks().into_iter().find(|(_, t)| t.kind == net).map(|(_, t)| t.clone()).ok_or_else(
+                || Error::format(path, format!("the bundle has no {} net to start from", net.name())),
+            )?
+        }
+    };
+    if trunk.kind != net || trunk.config != config {
+        return Err(Error::format(
+            path,
+            format!(
+                "--init: these are {} weights of another configuration ({:?}) than the {} net trained \
+                 here ({:?}): give the same --config, --padding, --upsample and input frame",
+                trunk.kind.name(),
+                trunk.config,
+                net.name(),
+                config
+            ),
+        ));
+    }
+    Ok(trunk)
+}
+
 /// The files [`train`] writes in its folder (`loss.png` by the caller, on each checkpoint).
 pub const TRAIN_FILES: [&str; 4] = ["checkpoint.npz", "loss.csv", "loss.png", "weights.npz"];
 
@@ -453,7 +488,10 @@ pub fn train(
                  into another folder",
             ));
         }
-        let trunk = Trunk::init(net, opts.config, opts.seed);
+        let trunk = match &opts.init {
+            Some(path) => init_from(path, net, opts.config)?,
+            None => Trunk::init(net, opts.config, opts.seed),
+        };
         State { adam: new_adam(&trunk, opts), trunk, step: 0, history: Vec::new() }
     };
     let (train_idx, val_idx) = split(data.len(), opts.val_frac)?;
