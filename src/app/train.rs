@@ -286,6 +286,11 @@ fn ownership(a: &Args) -> Ownership {
         .val("mirror_augment", Value::Bool(a.mirror_augment))
         .num("ridge", a.ridge)
         .str("device", &a.device);
+    // Written only when given, so folders of earlier runs still belong to the same settings.
+    let settings = match &a.init {
+        Some(p) => settings.str("init", &p.display().to_string()),
+        None => settings,
+    };
     let files: Vec<String> = match a.net.as_str() {
         "linear" => vec!["weights.npz".into()],
         "all" => NetKind::ALL

@@ -438,8 +438,8 @@ fn init_from(path: &Path, net: NetKind, config: NetConfig) -> Result<Trunk> {
         return Err(Error::format(
             path,
             format!(
-                "--init: these are {} weights of another configuration ({:?}) than the {} net trained \
-                 here ({:?}): give the same --config, --padding, --upsample and input frame",
+                "--init: these are {} weights of another configuration ({}) than the {} net trained \
+                 here ({}): give the same --config, --padding, --upsample and input frame",
                 trunk.kind.name(),
                 trunk.config,
                 net.name(),
