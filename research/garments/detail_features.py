@@ -106,22 +106,32 @@ def curved_ratio(run):
     return np.sqrt(cur / lin)
 
 
-def main():
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+def ridge(x, y):
+    """A ridge fit of y on standardised x: (predict(x'), weights)."""
+    mu, sd = x.mean(0), x.std(0) + 1e-12
+    z = (x - mu) / sd
+    w = np.linalg.solve(z.T @ z + 1e-3 * len(z) * np.eye(z.shape[1]), z.T @ (y - y.mean()))
+    return lambda q: ((q - mu) / sd) @ w + y.mean(), w
+
+
+def train_val_args():
+    ap = argparse.ArgumentParser(description=sys.modules["__main__"].__doc__.split("\n")[0])
     ap.add_argument("--train", nargs="+", required=True)
     ap.add_argument("--val", nargs="+", required=True)
-    a = ap.parse_args()
+    return ap.parse_args()
+
+
+def main():
+    a = train_val_args()
     tr = [features(r) for r in a.train]
     xt, yt = np.concatenate([t[0] for t in tr]), np.concatenate([t[1] for t in tr])
-    mu, sd = xt.mean(0), xt.std(0) + 1e-12
-    z = (xt - mu) / sd
-    w = np.linalg.solve(z.T @ z + 1e-3 * len(z) * np.eye(z.shape[1]), z.T @ (yt - yt.mean()))
-    print(f"training fit: correlation {np.corrcoef(z @ w + yt.mean(), yt)[0, 1]:+.3f}")
+    predict, w = ridge(xt, yt)
+    print(f"training fit: correlation {np.corrcoef(predict(xt), yt)[0, 1]:+.3f}")
     vals = []
     for r in a.val:
         xv, yv, sv = features(r)
         vals.append((xv, yv))
-        p = ((xv - mu) / sd) @ w + yt.mean()
+        p = predict(xv)
         ratio = np.sqrt((sv - 2 * p * yv + p * p).sum() / sv.sum())
         print(f"{os.path.basename(r.rstrip('/')):16s} correlation {np.corrcoef(p, yv)[0, 1]:+.3f}  midpoints' RMSE ÷ chord's {ratio:.3f}"
               f"  curved subdivision ÷ linear (every vertex) {curved_ratio(r):.3f}")

@@ -16,14 +16,13 @@ each part carries, the fit's correlation on the training runs, and per validatio
 correlation and the drift's RMS left after the fit over the drift's (1 = nothing predicted; the
 last column subtracts only the normal part's fit). Needs NumPy.
 """
-import argparse
 import os
 import sys
 
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from detail_features import frames, normals, topology  # noqa: E402
+from detail_features import frames, normals, ridge, topology, train_val_args  # noqa: E402
 
 NAMES = ["v.n", "a.n", "v.n[-1]", "a.n[-1]", "v.n[-2]", "v.t", "a.t", "v.t[-1]", "a.t[-1]", "v.t[-2]",
          "curv.n", "g.n", "stretch", "bulge.n", "speed"]
@@ -75,24 +74,14 @@ def run_features(run):
     return np.concatenate(xs), np.concatenate(yn), np.concatenate(yt), np.concatenate(sq)
 
 
-def fit(x, y):
-    mu, sd = x.mean(0), x.std(0) + 1e-12
-    z = (x - mu) / sd
-    w = np.linalg.solve(z.T @ z + 1e-3 * len(z) * np.eye(z.shape[1]), z.T @ (y - y.mean()))
-    return lambda q: ((q - mu) / sd) @ w + y.mean(), w
-
-
 def main():
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--train", nargs="+", required=True)
-    ap.add_argument("--val", nargs="+", required=True)
-    a = ap.parse_args()
+    a = train_val_args()
     tr = [run_features(r) for r in a.train]
     x = np.concatenate([t[0] for t in tr])
     fits = {}
     for part, i in (("normal", 1), ("gravity", 2)):
         y = np.concatenate([t[i] for t in tr])
-        f, w = fit(x, y)
+        f, w = ridge(x, y)
         fits[part] = f
         share = (y ** 2).sum() / np.concatenate([t[3] for t in tr]).sum()
         print(f"{part:8s} part: {share:.0%} of the training drift; training fit correlation "
