@@ -159,6 +159,36 @@ fn a_moved_and_turned_mesh_gives_the_same_result_moved_and_turned() {
 }
 
 #[test]
+fn a_scaled_mesh_gives_the_same_result_scaled() {
+    // The same skirt 1.7 times the size (not a power of two, whose scaling is exact in floats)
+    // is another shot (its chart and texel come from its own first frame); its HR frames are the
+    // first shot's, scaled, as on a grid.
+    let dir = TempDir::new("any-mesh-scaled");
+    let m = meshes::skirt(20, 6);
+    let frames = [m.clone(), m.rippled(0.01, 0.5)];
+    let big = |f: &Mesh| Mesh { pos: f.pos.iter().map(|p| p.map(|c| 1.7 * c)).collect(), ..f.clone() };
+    let small_in = write_frames(&dir.join("small"), &frames);
+    let big_in = write_frames(&dir.join("big"), &frames.iter().map(big).collect::<Vec<_>>());
+    run(UpscaleJob::new(vec![small_in], dir.join("small/out"))).unwrap();
+    run(UpscaleJob::new(vec![big_in], dir.join("big/out"))).unwrap();
+    for k in 0..2 {
+        let a = read(&dir.join(format!("small/out/f_{k:04}.obj")));
+        let b = read(&dir.join(format!("big/out/f_{k:04}.obj")));
+        let worst = a
+            .pos
+            .iter()
+            .zip(&b.pos)
+            .map(|(p, q)| (0..3).map(|c| (1.7 * p[c] - q[c]).abs()).fold(0.0, f32::max))
+            .fold(0.0, f32::max);
+        println!("frame {k}: {worst:e} m");
+        assert!(
+            worst < 3.4e-4,
+            "frame {k}: the scaled skirt's HR frame is {worst} m from the first's scaled"
+        );
+    }
+}
+
+#[test]
 fn a_point_cache_of_a_mesh_gives_the_obj_sequences_vertices() {
     let dir = TempDir::new("any-mesh-cache");
     let m = meshes::tablecloth(20, 5, 0.4);
