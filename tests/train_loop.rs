@@ -161,7 +161,7 @@ fn init_starts_from_the_given_weights_and_refuses_another_net() {
     let err = train(&Cpu, &data, NetKind::Enhance, &pair("init-d", 1, Some(weights.clone())), &mut |_| {})
         .unwrap_err()
         .to_string();
-    assert!(err.contains("weights.npz") && err.contains("geometry weights"), "{err}");
+    assert!(err.contains("weights.npz") && err.contains("these are geometry weights"), "{err}");
     let paper =
         TrainOptions { config: NetConfig::preset("small").unwrap(), ..pair("init-e", 1, Some(weights)) };
     let err = train(&Cpu, &data, NetKind::Geometry, &paper, &mut |_| {}).unwrap_err().to_string();

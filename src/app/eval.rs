@@ -55,8 +55,8 @@ pub struct Args {
     /// Held-out runs of meshes that are not grids (garments): each DIR holds `lr/` and `hr/`
     /// OBJ frames (the HR run is the LR mesh subdivided once, simulated on its own) and
     /// optionally `collider/` (a closed mesh per frame). Compares the linear, smooth and curved
-    /// (the base of anisocb's detail) subdivisions with anisocb (vertex errors, normals, wrinkle detail and its flicker
-    /// against the HR run's, penetration): `meshes.md`, `meshes.json`
+    /// (the base of anisocb's detail) subdivisions with anisocb (vertex errors, normals, wrinkle
+    /// detail and its flicker against the HR run's, penetration): `meshes.md`, `meshes.json`
     /// (research/blender/make_garments.py makes such runs with Blender's cloth).
     #[arg(long, num_args = 1..)]
     pub meshes: Vec<PathBuf>,

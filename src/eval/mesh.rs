@@ -379,10 +379,10 @@ pub struct MeshRunEval {
     pub hr_faces: Vec<Vec<u32>>,
 }
 
-/// Every method on `run`: the linear, smooth and curved subdivisions and anisocb (`model`, `params`),
-/// with `physics` also anisocb's frames through the physics pass (at the run's frame rate, its
-/// collider a mesh collider),
-/// and the truth scored against itself (its detail and flicker are the yardsticks).
+/// Every method on `run`: the linear, smooth and curved subdivisions and anisocb (`model`,
+/// `params`), with `physics` also anisocb's frames through the physics pass (at the run's frame
+/// rate, its collider a mesh collider), and the truth scored against itself (its detail and
+/// flicker are the yardsticks).
 pub fn evaluate_mesh_run(
     ops: &dyn Ops,
     model: &AnisoCb,

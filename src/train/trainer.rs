@@ -434,15 +434,25 @@ fn init_from(path: &Path, net: NetKind, config: NetConfig) -> Result<Trunk> {
             )?
         }
     };
-    if trunk.kind != net || trunk.config != config {
+    if trunk.kind != net {
         return Err(Error::format(
             path,
             format!(
-                "--init: these are {} weights of another configuration ({}) than the {} net trained \
-                 here ({}): give the same --config, --padding, --upsample and input frame",
+                "--init: these are {} weights; the {} net trained here needs {} weights (a bundle holds all three)",
                 trunk.kind.name(),
-                trunk.config,
                 net.name(),
+                net.name()
+            ),
+        ));
+    }
+    if trunk.config != config {
+        return Err(Error::format(
+            path,
+            format!(
+                "--init: these {} weights are of another configuration ({}) than the net trained here \
+                 ({}): give the same --config, --padding, --upsample and input frame",
+                net.name(),
+                trunk.config,
                 config
             ),
         ));
