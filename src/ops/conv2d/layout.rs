@@ -15,13 +15,20 @@ impl SyncPtr {
     }
 }
 
-/// A zero-filled f32 buffer taken from a small per-thread pool and returned to it on drop, so
-/// repeated calls do not pay for fresh pages (page faults cost about as much as the
-/// arithmetic on small images). The per-task buffers of the kernels come from here too: with
-/// the tensors pooled ([`crate::pool`]) glibc no longer sees large frees, keeps its mmap
-/// threshold at 128 KiB and would map and unmap every per-task buffer above it (a
-/// 1×64×128×128 conv took 190 000 page faults and 1.4× the time until they were pooled).
-pub(super) struct Scratch(pub(super) Vec<f32>);
+/// An f32 buffer taken from a small per-thread pool and returned to it on drop, so repeated
+/// calls do not pay for fresh pages (page faults cost about as much as the arithmetic on small
+/// images). The per-task buffers of the kernels come from here too: with the tensors pooled
+/// ([`crate::pool`]) glibc no longer sees large frees, keeps its mmap threshold at 128 KiB and
+/// would map and unmap every per-task buffer above it (a 1×64×128×128 conv took 190 000 page
+/// faults and 1.4× the time until they were pooled).
+///
+/// The vector's own length is the most it has ever held (every float of it initialised); the
+/// buffer is its first `len` floats. So a pooled buffer used by turns for a small and a large
+/// layer is zeroed where it grows only once, not on every turn ([`Scratch::overwritten`]).
+pub(super) struct Scratch {
+    v: Vec<f32>,
+    len: usize,
+}
 
 thread_local! {
     static POOL: std::cell::RefCell<Vec<Vec<f32>>> = const { std::cell::RefCell::new(Vec::new()) };
@@ -32,37 +39,40 @@ pub(super) const POOL_KEEP: usize = 8;
 pub(super) const POOL_MAX_LEN: usize = 1 << 24;
 
 impl Scratch {
-    /// A pooled buffer for `len` floats, as it was left (its length and values are stale).
-    pub(super) fn take(len: usize) -> Vec<f32> {
-        let v = POOL.with(|p| {
-            let mut p = p.borrow_mut();
-            // Prefer the smallest pooled buffer that fits, else the largest one (grown).
-            let best = (0..p.len()).filter(|&i| p[i].capacity() >= len).min_by_key(|&i| p[i].capacity());
-            let pick = best.or_else(|| (0..p.len()).max_by_key(|&i| p[i].capacity()));
-            pick.map(|i| p.swap_remove(i))
-        });
-        v.unwrap_or_default()
+    /// A pooled vector with room for `len` floats, as it was left (stale values), at least
+    /// `len` long (grown with zeros where it was shorter).
+    fn take(len: usize) -> Vec<f32> {
+        let mut v = POOL
+            .with(|p| {
+                let mut p = p.borrow_mut();
+                // Prefer the smallest pooled buffer that fits, else the largest one (grown).
+                let best = (0..p.len()).filter(|&i| p[i].capacity() >= len).min_by_key(|&i| p[i].capacity());
+                let pick = best.or_else(|| (0..p.len()).max_by_key(|&i| p[i].capacity()));
+                pick.map(|i| p.swap_remove(i))
+            })
+            .unwrap_or_default();
+        if v.len() < len {
+            v.resize(len, 0.0);
+        }
+        v
     }
 
     pub(super) fn zeroed(len: usize) -> Scratch {
         let mut v = Scratch::take(len);
-        v.clear();
-        v.resize(len, 0.0);
-        Scratch(v)
+        v[..len].fill(0.0);
+        Scratch { v, len }
     }
 
     /// `len` floats with unspecified values (stale ones from the pool, zeros where it grew):
     /// for callers that write every element before reading it, and skip the zeroing pass.
     pub(super) fn overwritten(len: usize) -> Scratch {
-        let mut v = Scratch::take(len);
-        v.resize(len, 0.0);
-        Scratch(v)
+        Scratch { v: Scratch::take(len), len }
     }
 }
 
 impl Drop for Scratch {
     fn drop(&mut self) {
-        let v = std::mem::take(&mut self.0);
+        let v = std::mem::take(&mut self.v);
         if v.capacity() <= POOL_MAX_LEN {
             POOL.with(|p| {
                 let mut p = p.borrow_mut();
@@ -77,13 +87,13 @@ impl Drop for Scratch {
 impl std::ops::Deref for Scratch {
     type Target = [f32];
     fn deref(&self) -> &[f32] {
-        &self.0
+        &self.v[..self.len]
     }
 }
 
 impl std::ops::DerefMut for Scratch {
     fn deref_mut(&mut self) -> &mut [f32] {
-        &mut self.0
+        &mut self.v[..self.len]
     }
 }
 
