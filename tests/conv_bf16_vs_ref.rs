@@ -15,7 +15,8 @@ use anisocb::nn::config::{NetConfig, NetKind};
 use anisocb::nn::layers::Trunk;
 use anisocb::ops::conv2d::amx::{self, bf16, conv2d_bf16_ref, conv_act, f32_of_bf16, Act, ActEpilogue};
 use anisocb::ops::conv2d::{
-    conv2d, conv2d_packed, conv2d_ref, conv_act_nchw, Epilogue, PackedConv, Precision,
+    conv2d, conv2d_packed, conv2d_ref, conv_act_nchw, conv_act_relu_small_out, Epilogue, PackedConv,
+    Precision,
 };
 use anisocb::ops::pixel_shuffle::pixel_shuffle;
 use anisocb::ops::{activation, Padding};
@@ -234,6 +235,38 @@ fn bf16_activation_chain_matches_the_twin_with_its_skip_relu_shuffle_and_borders
             let y = conv_act_nchw(&up, &p3, Some(&b1), Epilogue::RELU);
             let want_y = activation::relu(&conv2d_ref(&up.to_nchw(), &rounded(&w1), Some(&b1), pad));
             assert_close(&format!("conv to nchw {what}"), &y, &want_y, 1e-5 * 288.0, 0.0);
+        }
+    }
+}
+
+#[test]
+fn tile_conv_stored_into_the_last_convs_input_gives_the_bits_of_the_two_convs_apart() {
+    // A trunk's last two convs fused (the tile conv's ReLU'd f32 output written straight into the
+    // padded planar input of the ≤ 4-output conv, its border filled after) against the same two
+    // convs through an NCHW tensor: the same bits, on widths on and off the 16-pixel vectors,
+    // both paddings, 3×3 / 1×1 / 5×3 last kernels, 1, 3 and 4 outputs, a batch of two, single
+    // and split input; and a last conv of 8 outputs (not the small-output kernel) goes the long way.
+    if !tiles_here() {
+        return;
+    }
+    let mut rng = Rng::new(29);
+    for split in [false, true] {
+        for (pad, h, w) in [(Padding::Replicate, 9, 37), (Padding::Zero, 6, 15), (Padding::Replicate, 5, 32)]
+        {
+            for (o, kh, kw) in [(3, 3, 3), (1, 1, 1), (4, 5, 3), (8, 3, 3)] {
+                let what = format!("{pad:?} {h}x{w} split={split} last {o}x{kh}x{kw}");
+                let a = Act::from_nchw(&rng.tensor(&[2, 32, h, w], -1.0, 1.0), pad, split);
+                let (w1, b1) = (rng.tensor(&[32, 32, 3, 3], -0.2, 0.2), rng.tensor(&[32], -0.5, 0.5));
+                let (w2, b2) = (rng.tensor(&[o, 32, kh, kw], -0.2, 0.2), rng.tensor(&[o], -0.5, 0.5));
+                let p1 = PackedConv::for_chain(&w1, Precision::Bf16, 1, split);
+                let p2 = PackedConv::with_precision(&w2, Precision::Bf16);
+                let apart = conv_act_nchw(&a, &p1, Some(&b1), Epilogue::RELU);
+                let want = conv2d_packed(&apart, &p2, Some(&b2), pad, Epilogue::NONE);
+                let got = conv_act_relu_small_out(&a, &p1, Some(&b1), &p2, Some(&b2), pad);
+                assert_eq!(got.shape, want.shape, "{what}");
+                let same = got.data.iter().zip(&want.data).all(|(g, w)| g.to_bits() == w.to_bits());
+                assert!(same, "{what}: the fused convs differ from the two apart");
+            }
         }
     }
 }

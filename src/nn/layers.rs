@@ -11,7 +11,7 @@
 
 use super::config::{NetConfig, NetKind, IN_CHANNELS, KERNEL, TAIL_CONVS};
 use crate::ops::conv2d::amx::{conv_act, Act, ActEpilogue};
-use crate::ops::conv2d::{conv_act_nchw, Epilogue, PackedConv};
+use crate::ops::conv2d::{conv_act_relu_small_out, Epilogue, PackedConv};
 use crate::ops::Precision;
 use crate::ops::{Ops, Padding};
 use crate::rng::{mix_seed, Rng};
@@ -317,7 +317,7 @@ impl Trunk {
         assert_eq!(c, IN_CHANNELS, "trunk input must have {IN_CHANNELS} channels");
         let mut a = self.conv_in.forward_packed(ops, x, pad, at(Layer::ConvIn), Epilogue::NONE);
         if at(Layer::Upscale).is_bf16() {
-            return self.forward_bf16(ops, &a, packed);
+            return self.forward_bf16(&a, packed);
         }
         for (k, b) in self.blocks.iter().enumerate() {
             let r1 = b.conv1.forward_packed(ops, &a, pad, at(Layer::Conv1(k)), Epilogue::RELU);
@@ -343,9 +343,10 @@ impl Trunk {
     /// bf16 tiles ([`Precision::Bf16`]): every conv but the first and the last (the ones with
     /// 32·k input channels: all of them when any is) reads and writes bf16 activations in the
     /// tiles' padded channels-last layout ([`Act`]), the residual adds, ReLUs and the pixel
-    /// shuffle fused into the stores; the last tail conv gets f32 NCHW again. CPU only: the
-    /// pipelines pack for the tiles only for the CPU table ([`Precision::for_ops`]).
-    fn forward_bf16(&self, ops: &dyn Ops, a: &Tensor, packed: &[PackedConv]) -> Tensor {
+    /// shuffle fused into the stores; the tail's last tile conv stores f32 straight into the
+    /// padded input of the last conv ([`conv_act_relu_small_out`]). CPU only: the pipelines
+    /// pack for the tiles only for the CPU table ([`Precision::for_ops`]).
+    fn forward_bf16(&self, a: &Tensor, packed: &[PackedConv]) -> Tensor {
         let (nb, last) = (self.blocks.len(), self.tail.len() - 1);
         let at = |l: Layer| &packed[l.index(nb)];
         let mut a = Act::from_nchw(a, self.config.padding, at(Layer::Conv1(0)).is_split());
@@ -384,8 +385,14 @@ impl Trunk {
                 at(Layer::Tail(i + 1)).is_split(),
             );
         }
-        let z = conv_act_nchw(&z, at(Layer::Tail(last - 1)), Some(&self.tail[last - 1].bias), Epilogue::RELU);
-        self.tail[last].forward_packed(ops, &z, self.config.padding, at(Layer::Tail(last)), Epilogue::NONE)
+        conv_act_relu_small_out(
+            &z,
+            at(Layer::Tail(last - 1)),
+            Some(&self.tail[last - 1].bias),
+            at(Layer::Tail(last)),
+            Some(&self.tail[last].bias),
+            self.config.padding,
+        )
     }
 
     /// Training forward: the output and the activations [`Trunk::backward`] needs.

@@ -255,15 +255,43 @@ fn nchw_store<'a>(
     if let Some(s) = epi.skip {
         assert_eq!(s.shape, y.shape, "conv2d: the skip tensor is not the output's shape");
     }
-    let yp = SyncPtr(y.data.as_mut_ptr());
+    let at = Planes { o, wd, image: o * h * wd, plane: h * wd, row: wd, origin: 0 };
+    planes_store(&mut y.data, at, opad, epi)
+}
+
+/// Where [`planes_store`] puts an image's O output planes: row (n, yy) of plane j at
+/// n·image + j·plane + yy·row + origin, `wd` floats.
+#[derive(Clone, Copy)]
+struct Planes {
+    o: usize,
+    wd: usize,
+    image: usize,
+    plane: usize,
+    row: usize,
+    origin: usize,
+}
+
+/// [`nchw_store`] into any layout of planes: NCHW, or [`small_out`]'s padded planar input. A
+/// skip is read at the output's own offsets, so it needs the NCHW layout (a tensor of y's shape).
+fn planes_store<'a>(
+    dst: &'a mut [f32],
+    at: Planes,
+    opad: usize,
+    epi: Epilogue<'a>,
+) -> impl Fn(usize, usize, &[f32]) + Sync + 'a {
+    let Planes { o, wd, image, plane, row, origin } = at;
+    assert!(plane >= row && row >= wd && image >= o * plane && dst.len().is_multiple_of(image));
+    assert!(epi.skip.is_none() || (origin == 0 && row == wd && plane * o == image));
+    let n = dst.len() / image;
+    let yp = SyncPtr(dst.as_mut_ptr());
     let skip = epi.skip.map(|s| s.data.as_ptr() as usize);
     let relu = epi.relu;
-    move |ni: usize, yy: usize, row: &[f32]| {
-        assert!(row.len() >= wd * opad);
-        let base = (ni * o * h + yy) * wd;
+    move |ni: usize, yy: usize, src: &[f32]| {
+        assert!(src.len() >= wd * opad && ni < n && origin + yy * row + wd <= plane);
+        let base = ni * image + yy * row + origin;
         // SAFETY: row (ni, yy) of every plane is written by this task only; the row holds wd
-        // pixels of opad ≥ o floats (asserted); the skip tensor has y's shape (asserted), so
-        // the offsets of y's row are in it too.
+        // pixels of opad ≥ o floats, and (ni, yy) is inside dst (asserted); a skip tensor has
+        // y's shape and layout (asserted), so the offsets of y's row are in it too.
         unsafe {
             let sp = skip.map(|p| (p as *const f32).add(base));
             let f = |mut v: f32x8, at: usize| {
@@ -285,7 +313,7 @@ fn nchw_store<'a>(
                 }
                 v
             };
-            transpose_map(row.as_ptr(), opad, wd, o, yp.get().add(base), h * wd, f, g)
+            transpose_map(src.as_ptr(), opad, wd, o, yp.get().add(base), plane, f, g)
         };
     }
 }
@@ -310,6 +338,49 @@ pub fn conv_act_nchw(x: &amx::Act, packed: &PackedConv, b: Option<&Tensor>, epi:
     amx::correlate(x.padded(), n, h + 2, wd + 2, ak, bias.as_deref(), h, wd, &sink);
     drop(sink);
     y
+}
+
+/// A trunk's last two convs on the tiles' output: [`conv_act_nchw`] with ReLU, then `last`, a
+/// conv of ≤ [`SMALL_OUT_MAX`] outputs, as [`conv2d_packed`] without epilogue. The same bits,
+/// without the NCHW tensor between them: the tile conv stores straight into the padded planar
+/// input of the small-output kernel, whose border is filled after.
+pub fn conv_act_relu_small_out(
+    x: &amx::Act,
+    packed: &PackedConv,
+    b: Option<&Tensor>,
+    last: &PackedConv,
+    b_last: Option<&Tensor>,
+    pad: Padding,
+) -> Tensor {
+    let PackedKind::SmallOut(wk) = &last.kind else {
+        let z = conv_act_nchw(x, packed, b, Epilogue::RELU);
+        return conv2d_packed(&z, last, b_last, pad, Epilogue::NONE);
+    };
+    let PackedKind::Amx(ak) = &packed.kind else {
+        panic!("conv_act_relu_small_out: weights not packed for the tiles")
+    };
+    assert_eq!(ak.shuffle, 1, "conv_act_relu_small_out: weights packed for a fused pixel shuffle");
+    assert_eq!(x.is_split(), ak.split, "conv_act_relu_small_out: the input is not in the weights' bf16 form");
+    let [n, c, h, wd] = x.shape;
+    let [o, c2, kh, kw] = packed.shape;
+    let [o2, c3, kh2, kw2] = last.shape;
+    assert!(c == c2 && kh == 3 && kw == 3, "conv_act_relu_small_out: a 3×3 conv of {c2} channels on {c}");
+    assert_eq!(c3, o, "conv_act_relu_small_out: the last conv takes {c3} channels, the one before gives {o}");
+    let bias = b.map(|b| {
+        let mut v = Scratch::zeroed(ak.opad);
+        v[..o].copy_from_slice(&b.data[..o]);
+        v
+    });
+    let (ph, pw, wq) = (kh2 / 2, kw2 / 2, planar_width(wd, kw2));
+    let hp = h + 2 * ph;
+    // Every element is written: the interior by the tile conv's store, the rest by the border fill.
+    let mut zp = Scratch::overwritten(n * o * hp * wq);
+    let at = Planes { o, wd, image: o * hp * wq, plane: hp * wq, row: wq, origin: ph * wq + pw };
+    let sink = planes_store(&mut zp, at, ak.opad, Epilogue::RELU);
+    amx::correlate(x.padded(), n, h + 2, wd + 2, ak, bias.as_deref(), h, wd, &sink);
+    drop(sink);
+    zp.par_chunks_mut(hp * wq).for_each(|p| fill_plane_border(p, [h, wd], [ph, pw], wq, pad));
+    small_out_planar(&zp, [n, o, h, wd], wq, wk, [o2, kh2, kw2], b_last)
 }
 
 /// Fast backward (same contract as [`conv2d_backward_ref`]).

@@ -12,6 +12,12 @@ pub const SMALL_OUT_MAX: usize = 4;
 /// Vectors of 16 pixels per register tile of the pixel-vector path.
 pub(super) const SMALL_P: usize = 4;
 
+/// Row length of the padded planar input for rows of `w` outputs under a `kw`-wide kernel:
+/// whole vectors of 16 pixels plus the kernel's overhang.
+pub(super) fn planar_width(w: usize, kw: usize) -> usize {
+    w.div_ceil(L) * L + kw - 1
+}
+
 /// Padded planar copy of `x` (N, C, H, W): plane (n, c) at (n·C + c)·hp·wq, rows of `wq` ≥ W + 2pw
 /// floats, pixel (Y, X) holding x[n, c, Y−ph, X−pw] with `pad` applied (0 beyond W + 2pw).
 pub(super) fn pad_planar(x: &Tensor, ph: usize, pw: usize, pad: Padding, wq: usize) -> (Scratch, usize) {
@@ -22,20 +28,37 @@ pub(super) fn pad_planar(x: &Tensor, ph: usize, pw: usize, pad: Padding, wq: usi
     let mut out = Scratch::overwritten(n * c * hp * wq);
     out.par_chunks_mut(hp * wq).enumerate().for_each(|(plane, dst)| {
         let src = &x.data[plane * h * w..][..h * w];
-        for (yy, drow) in dst.chunks_exact_mut(wq).enumerate() {
-            let Some(sy) = pad_index(yy as isize - ph as isize, h, pad) else {
-                drow.fill(0.0);
-                continue;
-            };
-            let srow = &src[sy * w..][..w];
-            drow[pw..pw + w].copy_from_slice(srow);
-            for xx in (0..pw).chain(pw + w..w + 2 * pw) {
-                drow[xx] = pad_index(xx as isize - pw as isize, w, pad).map_or(0.0, |sx| srow[sx]);
-            }
-            drow[w + 2 * pw..].fill(0.0);
+        for (y, srow) in src.chunks_exact(w).enumerate() {
+            dst[(y + ph) * wq + pw..][..w].copy_from_slice(srow);
         }
+        fill_plane_border(dst, [h, w], [ph, pw], wq, pad);
     });
     (out, hp)
+}
+
+/// The border of one plane of [`pad_planar`]'s layout (hp·wq floats) whose interior, rows
+/// ph..ph+h × columns pw..pw+w, is written: the columns around each interior row, then the rows
+/// above and below, as `pad` says (0 beyond W + 2pw).
+pub(super) fn fill_plane_border(
+    dst: &mut [f32],
+    [h, w]: [usize; 2],
+    [ph, pw]: [usize; 2],
+    wq: usize,
+    pad: Padding,
+) {
+    assert!(dst.len() == (h + 2 * ph) * wq && wq >= w + 2 * pw);
+    for row in dst[ph * wq..(ph + h) * wq].chunks_exact_mut(wq) {
+        for xx in (0..pw).chain(pw + w..w + 2 * pw) {
+            row[xx] = pad_index(xx as isize - pw as isize, w, pad).map_or(0.0, |sx| row[pw + sx]);
+        }
+        row[w + 2 * pw..].fill(0.0);
+    }
+    for yy in (0..ph).chain(ph + h..h + 2 * ph) {
+        match pad_index(yy as isize - ph as isize, h, pad) {
+            Some(sy) => dst.copy_within((sy + ph) * wq..(sy + ph + 1) * wq, yy * wq),
+            None => dst[yy * wq..][..wq].fill(0.0),
+        }
+    }
 }
 
 /// Pixel-vector micro-kernel: O output channels × P vectors (16 pixels each) of one output row.
@@ -110,11 +133,25 @@ pub(super) fn conv2d_small_out(
     pad: Padding,
 ) -> Tensor {
     let (n, c, h, wd) = x.dims4();
+    let wq = planar_width(wd, kw);
+    let (xp, _) = pad_planar(x, kh / 2, kw / 2, pad, wq);
+    small_out_planar(&xp, [n, c, h, wd], wq, wk, [o, kh, kw], b)
+}
+
+/// [`conv2d_small_out`] on its input already padded: `xp` in [`pad_planar`]'s layout of an
+/// (N, C, H, W) input, rows of `wq` = [`planar_width`] floats.
+pub(super) fn small_out_planar(
+    xp: &[f32],
+    [n, c, h, wd]: [usize; 4],
+    wq: usize,
+    wk: &[f32],
+    [o, kh, kw]: [usize; 3],
+    b: Option<&Tensor>,
+) -> Tensor {
     assert!((1..=SMALL_OUT_MAX).contains(&o) && wk.len() == c * kh * kw * o);
-    let (ph, pw) = (kh / 2, kw / 2);
+    let hp = h + 2 * (kh / 2);
+    assert!(wq == planar_width(wd, kw) && xp.len() >= n * c * hp * wq);
     let nv = wd.div_ceil(L); // vectors per output row
-    let wq = nv * L + kw - 1;
-    let (xp, hp) = pad_planar(x, ph, pw, pad, wq);
     let mut y = Tensor::for_overwrite(&[n, o, h, wd]);
     let yp = SyncPtr(y.data.as_mut_ptr());
     let row_len = nv * L;
