@@ -7,17 +7,19 @@
 use openusd::sdf::{self, Value};
 use openusd::usd::Stage;
 use std::fmt::Write as _;
-use std::path::{Path, PathBuf};
+use std::path::Path;
+
+#[path = "common/tempdir.rs"]
+mod tempdir;
+use tempdir::TempDir;
 
 fn anisocb(args: &[&str]) -> std::process::Output {
     std::process::Command::new(env!("CARGO_BIN_EXE_anisocb")).args(args).output().unwrap()
 }
 
-fn tmp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("anisocb-usd-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
+/// A scratch folder removed when the test ends (pass or fail).
+fn tmp(name: &str) -> TempDir {
+    TempDir::new(&format!("usd-{name}"))
 }
 
 const TIMES: [f64; 4] = [1.0, 2.0, 3.0, 4.0];

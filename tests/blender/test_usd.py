@@ -27,6 +27,7 @@ Usage:
 
 import argparse
 import os
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -92,6 +93,15 @@ def main():
     a = ap.parse_args(sys.argv[sys.argv.index("--") + 1 :] if "--" in sys.argv else sys.argv[1:])
     work = a.keep or tempfile.mkdtemp(prefix="anisocb-usd-")
     os.makedirs(work, exist_ok=True)
+    try:
+        run(a, work)
+    finally:
+        if not a.keep:
+            shutil.rmtree(work, ignore_errors=True)
+
+
+def run(a, work):
+    """Build the shot in WORK, upscale it, and check what comes back."""
     disk = scene()
     n_lr, f_lr = len(disk.data.vertices), len(disk.data.polygons)
     edges = len(disk.data.edges)
