@@ -371,15 +371,25 @@ pub fn conv_act_relu_small_out(
         v[..o].copy_from_slice(&b.data[..o]);
         v
     });
-    let (ph, pw, wq) = (kh2 / 2, kw2 / 2, planar_width(wd, kw2));
-    let hp = h + 2 * ph;
-    // Every element is written: the interior by the tile conv's store, the rest by the border fill.
-    let mut zp = Scratch::overwritten(n * o * hp * wq);
-    let at = Planes { o, wd, image: o * hp * wq, plane: hp * wq, row: wq, origin: ph * wq + pw };
-    let sink = planes_store(&mut zp, at, ak.opad, Epilogue::RELU);
+    let wq = planar_width(wd, kw2);
+    let border = PlanarBorder { h, w: wd, ph: kh2 / 2, pw: kw2 / 2, wq, pad };
+    let plane = border.plane();
+    // Every element is written: the interior by the tile conv's store, the border by the sink
+    // after it, row by row while the row is in cache.
+    let mut zp = Scratch::overwritten(n * o * plane);
+    let zptr = SyncPtr(zp.as_mut_ptr());
+    let at = Planes { o, wd, image: o * plane, plane, row: wq, origin: border.ph * wq + border.pw };
+    let store = planes_store(&mut zp, at, ak.opad, Epilogue::RELU);
+    let sink = |ni: usize, yy: usize, row: &[f32]| {
+        store(ni, yy, row);
+        for j in 0..o {
+            // SAFETY: plane (ni, j) lies in zp (the store asserted ni < n), and row yy with the
+            // pad rows it stands for is this task's alone, as in the store.
+            unsafe { border.fill_row(zptr.get().add((ni * o + j) * plane), yy) };
+        }
+    };
     amx::correlate(x.padded(), n, h + 2, wd + 2, ak, bias.as_deref(), h, wd, &sink);
-    drop(sink);
-    zp.par_chunks_mut(hp * wq).for_each(|p| fill_plane_border(p, [h, wd], [ph, pw], wq, pad));
+    drop(store);
     small_out_planar(&zp, [n, o, h, wd], wq, wk, [o2, kh2, kw2], b_last)
 }
 

@@ -22,41 +22,73 @@ pub(super) fn planar_width(w: usize, kw: usize) -> usize {
 /// floats, pixel (Y, X) holding x[n, c, Y−ph, X−pw] with `pad` applied (0 beyond W + 2pw).
 pub(super) fn pad_planar(x: &Tensor, ph: usize, pw: usize, pad: Padding, wq: usize) -> (Scratch, usize) {
     let (n, c, h, w) = x.dims4();
-    let hp = h + 2 * ph;
+    let border = PlanarBorder { h, w, ph, pw, wq, pad };
     // Every element is written below (no pass of zeros first: on the HR tail's 128² planes
     // that pass cost as much as the copy).
-    let mut out = Scratch::overwritten(n * c * hp * wq);
-    out.par_chunks_mut(hp * wq).enumerate().for_each(|(plane, dst)| {
+    let mut out = Scratch::overwritten(n * c * border.plane());
+    out.par_chunks_mut(border.plane()).enumerate().for_each(|(plane, dst)| {
         let src = &x.data[plane * h * w..][..h * w];
         for (y, srow) in src.chunks_exact(w).enumerate() {
             dst[(y + ph) * wq + pw..][..w].copy_from_slice(srow);
+            // SAFETY: dst is this task's whole plane, and its row y is written.
+            unsafe { border.fill_row(dst.as_mut_ptr(), y) };
         }
-        fill_plane_border(dst, [h, w], [ph, pw], wq, pad);
     });
-    (out, hp)
+    (out, h + 2 * ph)
 }
 
-/// The border of one plane of [`pad_planar`]'s layout (hp·wq floats) whose interior, rows
-/// ph..ph+h × columns pw..pw+w, is written: the columns around each interior row, then the rows
-/// above and below, as `pad` says (0 beyond W + 2pw).
-pub(super) fn fill_plane_border(
-    dst: &mut [f32],
-    [h, w]: [usize; 2],
-    [ph, pw]: [usize; 2],
-    wq: usize,
-    pad: Padding,
-) {
-    assert!(dst.len() == (h + 2 * ph) * wq && wq >= w + 2 * pw);
-    for row in dst[ph * wq..(ph + h) * wq].chunks_exact_mut(wq) {
-        for xx in (0..pw).chain(pw + w..w + 2 * pw) {
-            row[xx] = pad_index(xx as isize - pw as isize, w, pad).map_or(0.0, |sx| row[pw + sx]);
-        }
-        row[w + 2 * pw..].fill(0.0);
+/// The border of [`pad_planar`]'s layout: planes of hp × wq floats (hp = h + 2ph, wq ≥ w + 2pw)
+/// whose interior, rows ph..ph+h × columns pw..pw+w, holds the image.
+#[derive(Clone, Copy)]
+pub(super) struct PlanarBorder {
+    pub h: usize,
+    pub w: usize,
+    pub ph: usize,
+    pub pw: usize,
+    pub wq: usize,
+    pub pad: Padding,
+}
+
+impl PlanarBorder {
+    /// Floats a plane.
+    pub fn plane(&self) -> usize {
+        (self.h + 2 * self.ph) * self.wq
     }
-    for yy in (0..ph).chain(ph + h..h + 2 * ph) {
-        match pad_index(yy as isize - ph as isize, h, pad) {
-            Some(sy) => dst.copy_within((sy + ph) * wq..(sy + ph + 1) * wq, yy * wq),
-            None => dst[yy * wq..][..wq].fill(0.0),
+
+    /// With image row `y` of a plane written: the columns around it as `pad` says (0 beyond
+    /// w + 2pw), and, for the first and the last row, the pad rows above or below (copies of
+    /// it, or 0). Row by row, so a store can fill the border while the row is in cache.
+    ///
+    /// # Safety
+    /// `plane` points at a whole plane ([`PlanarBorder::plane`] floats); nothing else touches
+    /// row ph + y, nor the pad rows above (y = 0) or below (y = h − 1), while this runs.
+    pub unsafe fn fill_row(&self, plane: *mut f32, y: usize) {
+        let Self { h, w, ph, pw, wq, pad } = *self;
+        assert!(y < h && wq >= w + 2 * pw);
+        // SAFETY: row ph + y and the pad rows are inside the plane and this call's alone (the
+        // caller's contract); the slices made here do not overlap one another.
+        unsafe {
+            let row = std::slice::from_raw_parts_mut(plane.add((ph + y) * wq), wq);
+            for xx in (0..pw).chain(pw + w..w + 2 * pw) {
+                row[xx] = pad_index(xx as isize - pw as isize, w, pad).map_or(0.0, |sx| row[pw + sx]);
+            }
+            row[w + 2 * pw..].fill(0.0);
+            let outside = match (y == 0, y + 1 == h) {
+                (true, true) => (0..ph).chain(ph + h..h + 2 * ph),
+                (true, false) => (0..ph).chain(0..0),
+                (false, true) => (0..0).chain(ph + h..h + 2 * ph),
+                (false, false) => (0..0).chain(0..0),
+            };
+            for yy in outside {
+                let dst = std::slice::from_raw_parts_mut(plane.add(yy * wq), wq);
+                match pad_index(yy as isize - ph as isize, h, pad) {
+                    Some(sy) => {
+                        debug_assert_eq!(sy, y);
+                        dst.copy_from_slice(row)
+                    }
+                    None => dst.fill(0.0),
+                }
+            }
         }
     }
 }
