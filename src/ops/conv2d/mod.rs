@@ -343,7 +343,7 @@ pub fn conv_act_nchw(x: &amx::Act, packed: &PackedConv, b: Option<&Tensor>, epi:
 /// A trunk's last two convs on the tiles' output: [`conv_act_nchw`] with ReLU, then `last`, a
 /// conv of ≤ [`SMALL_OUT_MAX`] outputs, as [`conv2d_packed`] without epilogue. The same bits,
 /// without the NCHW tensor between them: the tile conv stores straight into the padded planar
-/// input of the small-output kernel, whose border is filled after.
+/// input of the small-output kernel, filling each row's border as it stores the row.
 pub fn conv_act_relu_small_out(
     x: &amx::Act,
     packed: &PackedConv,
