@@ -102,8 +102,9 @@ check-features:
 bench:
 	$(CARGO) run --release -- bench
 
-## anisocb vs ONNX Runtime and JAX/XLA, interleaved rounds, medians and ratios (needs Python and
-## pip; not part of `make test`; ≈ 2 min on 2 cores after the build). Writes target/bench-peers.md.
+## anisocb vs ONNX Runtime, OpenVINO (the nets) and JAX/XLA, interleaved rounds, medians and
+## ratios (needs Python and pip; not part of `make test`; ≈ 4 min on 2 cores after the build).
+## Writes target/bench-peers.md.
 bench-peers:
 	test -x .venv-peers/bin/python || python3 -m venv .venv-peers
 	.venv-peers/bin/pip install -q -r benches/peers/requirements.txt

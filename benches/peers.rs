@@ -1,5 +1,6 @@
 //! anisocb's side of `make bench-peers` (benches/peers/run.py): the rows that
-//! benches/peers/ort_bench.py (ONNX Runtime) and benches/peers/jax_bench.py (JAX/XLA) time
+//! benches/peers/ort_bench.py (ONNX Runtime), benches/peers/ov_bench.py (OpenVINO, nets only) and
+//! benches/peers/jax_bench.py (JAX/XLA) time
 //! too, same shapes, same work, one JSON line per row: `{"row": NAME, "ms": MEDIAN}`.
 //!
 //! `cargo bench --bench peers [-- conv|nets|train ...]` (no argument: every group).
@@ -8,8 +9,10 @@
 //!          `{"row": "fma peak", "gflops": G}`; ort_bench.py's MLAS SGEMM is the cross-check
 //!   conv   3×3 conv forward, zero padding, with bias, N×C×H×W → N×O×H×W (weights packed once,
 //!          the call entered into the op table)
-//!   nets   the three nets (GeometryNet, BoundaryNet, EnhanceNet) on one 32×32 frame → 64×64,
-//!          small and paper configs (weights random: time does not depend on their values)
+//!   nets   the three nets (GeometryNet, BoundaryNet, EnhanceNet) on one 32×32 and one 64×64
+//!          frame, small and paper configs (weights random: time does not depend on their
+//!          values), in fp32 and at the default precision (`upscale --precision auto`: bf16 on
+//!          AMX tiles where the CPU has them), each line naming the precision that ran
 //!   train  one GeometryNet training step (forward, backward, Adam) on 32 LR 16×16 patches
 
 use anisocb::nn::{AnisoCb, GeometryNet, NetConfig};
@@ -55,6 +58,11 @@ fn emit(row: &str, ms: f64) {
     println!("{{\"row\": \"{row}\", \"ms\": {ms:.5}}}");
 }
 
+/// [`emit`] for a row that names the precision that ran.
+fn emit_precision(row: &str, ms: f64, precision: Precision) {
+    println!("{{\"row\": \"{row}\", \"ms\": {ms:.5}, \"precision\": \"{}\"}}", precision.name());
+}
+
 /// (N, C, O, H, W) of the conv rows: the three 64-channel shapes, then the shapes of
 /// the shipped small config (C = 32: LR trunk 32², HR tail 64², the C → 3 and C → 1 tails).
 const CONVS: [(usize, usize, usize, usize, usize); 7] = [
@@ -88,26 +96,32 @@ fn configs() -> [(&'static str, NetConfig); 2] {
     [("small", NetConfig::small()), ("paper", NetConfig::paper())]
 }
 
+/// Frame sizes of the nets rows (benches/peers/rows.py `NET_SIZES`).
+const NET_SIZES: [usize; 2] = [32, 64];
+
 fn net_rows() {
+    // The default is what `upscale --precision auto` runs on this CPU: bf16 on AMX tiles where
+    // they are, else fp32.
+    let default = Precision::fastest_cpu();
     for (name, cfg) in configs() {
         let bundle = AnisoCb::new(cfg, 5);
-        let frame = random(&[1, 3, 32, 32], 4);
         // Packed once, as `upscale` does (and ONNX Runtime when it loads the model).
-        let nets = bundle.packed();
-        let ms = median_ms(10, 1.0, &mut || {
-            drop(std::hint::black_box(nets.forward_with(&Cpu, &frame, true).unwrap()))
-        });
-        emit(&format!("nets {name} 1x3x32x32"), ms);
-        // bf16 on the AMX tiles where the CPU has them (`upscale --precision bf16`), at 32² and 64².
-        if Precision::Bf16.runs_on_cpu() {
-            let nets = bundle.packed_as(Precision::Bf16);
-            for s in [32usize, 64] {
-                let frame = random(&[1, 3, s, s], 4);
-                let ms = median_ms(10, 1.0, &mut || {
+        let fp32 = bundle.packed();
+        let fast = (default != Precision::Fp32).then(|| bundle.packed_as(default));
+        for s in NET_SIZES {
+            let frame = random(&[1, 3, s, s], 4);
+            let row = |p: &str| format!("nets {name} 1x3x{s}x{s} [{p}]");
+            let ms = median_ms(10, 1.0, &mut || {
+                drop(std::hint::black_box(fp32.forward_with(&Cpu, &frame, true).unwrap()))
+            });
+            emit_precision(&row("fp32"), ms, Precision::Fp32);
+            let ms = match &fast {
+                Some(nets) => median_ms(10, 1.0, &mut || {
                     drop(std::hint::black_box(nets.forward_with(&Cpu, &frame, true).unwrap()))
-                });
-                emit(&format!("nets {name} bf16 1x3x{s}x{s}"), ms);
-            }
+                }),
+                None => ms,
+            };
+            emit_precision(&row("default"), ms, default);
         }
     }
 }

@@ -40,17 +40,19 @@ def main():
         g.C, g.B = c, nb
         params = {k: {n: jnp.asarray(v) for n, v in g.init(k, rng).items()} for k in ("geometry", "boundary", "enhance")}
         if "nets" in want:
-            mh = jnp.asarray(g.cubic_matrix(32, 64, -0.5), jnp.float32)
+            for size in rows.NET_SIZES:
+                mh = jnp.asarray(g.cubic_matrix(size, 2 * size, -0.5), jnp.float32)
 
-            @jax.jit
-            def nets(p, x):
-                u = jnp.einsum("oh,nchw,pw->ncop", mh, x, mh)
-                return (u, g.forward(p["geometry"], x, "geometry", "zero"),
-                        jax.nn.sigmoid(g.forward(p["boundary"], x, "boundary", "zero")),
-                        jax.nn.sigmoid(g.forward(p["enhance"], x, "enhance", "zero")))
+                @jax.jit
+                def nets(p, x, mh=mh):
+                    u = jnp.einsum("oh,nchw,pw->ncop", mh, x, mh)
+                    return (u, g.forward(p["geometry"], x, "geometry", "zero"),
+                            jax.nn.sigmoid(g.forward(p["boundary"], x, "boundary", "zero")),
+                            jax.nn.sigmoid(g.forward(p["enhance"], x, "enhance", "zero")))
 
-            x = jnp.asarray(rng.uniform(0, 1, (1, 3, 32, 32)), jnp.float32)
-            rows.emit(rows.nets_row(name), rows.median_ms(block(lambda: nets(params, x))))
+                x = jnp.asarray(rng.uniform(0, 1, (1, 3, size, size)), jnp.float32)
+                ms = rows.median_ms(block(lambda: nets(params, x)))
+                rows.emit(rows.nets_row(name, size), ms, precision="fp32")
         if "train" in want:
             bsz, p = rows.TRAIN_BATCH, rows.TRAIN_PATCH
             x = jnp.asarray(rng.uniform(size=(bsz, 3, p, p)), jnp.float32)

@@ -7,7 +7,8 @@ The same ONNX graph as ort_bench.py (GeometryNet + BoundaryNet + EnhanceNet + th
 random weights of the small and paper configs), read by OpenVINO and compiled for the CPU
 with its defaults: no precision hint, so OpenVINO picks its own inference precision (bf16 on
 a CPU with AMX or AVX512_BF16, fp32 elsewhere), which the row names. The "fp32" rows force
-INFERENCE_PRECISION_HINT f32. Threads: the machine's cores (as anisocb's rayon pool).
+INFERENCE_PRECISION_HINT f32. Frames of rows.NET_SIZES. Threads: the machine's cores (as anisocb's
+rayon pool). `make bench-peers` (run.py) runs it in turn with the other sides.
 """
 import os
 import sys
@@ -30,18 +31,18 @@ def main():
     rng = np.random.default_rng(0)
     if "nets" in want:
         for name, (c, b) in rows.CONFIGS.items():
-            model = core.read_model(nets_model(c, b, rng).SerializeToString(), b"")
-            for hint in [None, "f32"]:
-                cfg = {"INFERENCE_NUM_THREADS": threads}
-                if hint:
-                    cfg["INFERENCE_PRECISION_HINT"] = hint
-                compiled = core.compile_model(model, "CPU", cfg)
-                precision = compiled.get_property("INFERENCE_PRECISION_HINT").get_type_name()
-                req = compiled.create_infer_request()
-                x = rng.uniform(0, 1, (1, 3, 32, 32)).astype(np.float32)
-                label = "default" if hint is None else "forced"
-                rows.emit(f"{rows.nets_row(name)} [{label}: {precision}]", rows.median_ms(lambda: req.infer({0: x})))
-
+            for size in rows.NET_SIZES:
+                model = core.read_model(nets_model(c, b, rng, size).SerializeToString(), b"")
+                for hint in [None, "f32"]:
+                    cfg = {"INFERENCE_NUM_THREADS": threads}
+                    if hint:
+                        cfg["INFERENCE_PRECISION_HINT"] = hint
+                    compiled = core.compile_model(model, "CPU", cfg)
+                    precision = compiled.get_property("INFERENCE_PRECISION_HINT").get_type_name()
+                    req = compiled.create_infer_request()
+                    x = rng.uniform(0, 1, (1, 3, size, size)).astype(np.float32)
+                    row = rows.nets_row(name, size, "default" if hint is None else "fp32")
+                    rows.emit(row, rows.median_ms(lambda: req.infer({0: x})), precision=precision)
 
 if __name__ == "__main__":
     main()

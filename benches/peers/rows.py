@@ -26,8 +26,14 @@ def conv_row(n, c, o, h, w):
     return f"conv {c}->{o} {n}x{c}x{h}x{w}"
 
 
-def nets_row(name):
-    return f"nets {name} 1x3x32x32"
+# Frame sizes of the nets rows (LR side; the nets output twice that).
+NET_SIZES = [32, 64]
+
+
+def nets_row(name, size, precision="default"):
+    """The three nets on one size x size frame. precision "default": as the side runs them
+    without being told (its JSON line names the precision that ran); "fp32": forced to fp32."""
+    return f"nets {name} 1x3x{size}x{size} [{precision}]"
 
 
 def train_row(name):
@@ -54,12 +60,14 @@ def median_ms(fn, min_calls=10, min_secs=1.0):
     return t[len(t) // 2]
 
 
-def emit(row, ms=None, gflops=None):
+def emit(row, ms=None, gflops=None, precision=None):
     d = {"row": row}
     if ms is not None:
         d["ms"] = round(ms, 5)
     if gflops is not None:
         d["gflops"] = round(gflops, 1)
+    if precision is not None:
+        d["precision"] = precision
     print(json.dumps(d), flush=True)
 
 

@@ -1,14 +1,17 @@
 #!/usr/bin/env python3
-"""`make bench-peers`: anisocb, ONNX Runtime and JAX/XLA timed side by side, interleaved.
+"""`make bench-peers`: anisocb, ONNX Runtime, OpenVINO and JAX/XLA timed side by side, interleaved.
 
     python benches/peers/run.py [--rounds 3] [--out target/bench-peers.md] [GROUP ...]
 
 GROUP: peak, conv, nets, train (default: all). Each round runs anisocb (cargo bench --bench
-peers), then ONNX Runtime (ort_bench.py), then JAX (jax_bench.py), each a fresh process timing
-every row (median of its calls); rounds repeat A B C A B C ... so the three see the same
-machine state. The table gives, per row, the median over rounds and the range, and the ratio
-peer time / anisocb time (> 1: anisocb is faster). Training rows are samples/s (32 per step),
-ratio anisocb samples/s / peer samples/s (the same sense). Nothing else should run meanwhile.
+peers), then ONNX Runtime (ort_bench.py), then OpenVINO (ov_bench.py, the nets only), then JAX
+(jax_bench.py), each a fresh process timing every row (median of its calls); rounds repeat
+A B C D A B C D ... so all see the same machine state. The tables give, per row, the median over
+rounds and the range, and the ratio peer time / anisocb time (> 1: anisocb is faster). Training
+rows are samples/s (32 per step), ratio anisocb samples/s / peer samples/s (the same sense).
+The nets table compares each side as it runs without being told (its default precision, named
+in each cell: anisocb and OpenVINO pick bf16 on a CPU with AMX) and, apart, both forced to fp32.
+Nothing else should run meanwhile.
 """
 import argparse
 import datetime
@@ -27,6 +30,7 @@ import rows  # noqa: E402
 SIDES = {
     "anisocb": lambda g: ["cargo", "bench", "-q", "--bench", "peers", "--"] + g,
     "onnxruntime": lambda g: [sys.executable, os.path.join(HERE, "ort_bench.py")] + [x for x in g if x != "train"],
+    "openvino": lambda g: [sys.executable, os.path.join(HERE, "ov_bench.py")] + ["nets"] if "nets" in g else None,
     "jax": lambda g: [sys.executable, os.path.join(HERE, "jax_bench.py")] + [x for x in g if x != "peak"],
 }
 
@@ -54,6 +58,39 @@ def cpu_name():
     return platform.processor() or "unknown CPU"
 
 
+def nets_table(got, series, cell):
+    """The three nets per frame: each side at its default precision, the ratios to anisocb's
+    default (taken round by round: each peer ran right after anisocb), and anisocb and OpenVINO
+    forced to fp32."""
+    out = ["| nets, one frame | anisocb default | OpenVINO default | ONNX Runtime | JAX/XLA | "
+           "OpenVINO ÷ anisocb | ONNX Runtime ÷ anisocb | anisocb fp32 | OpenVINO fp32 |",
+           "|---|---:|---:|---:|---:|---:|---:|---:|---:|"]
+
+    def side(s, row):
+        ms, prec = series(s, row, "ms"), series(s, row, "precision")
+        text = cell(ms, lambda x: f"{x:.2f}") + (" ms" if ms else "")
+        return text + (f" {'/'.join(sorted(set(prec)))}" if prec else "")
+
+    for name in rows.CONFIGS:
+        for size in rows.NET_SIZES:
+            d, f = rows.nets_row(name, size), rows.nets_row(name, size, "fp32")
+            txt = {s: side(s, d) for s in ("anisocb", "openvino", "onnxruntime", "jax")}
+            fp = {s: side(s, f) for s in ("anisocb", "openvino")}
+
+            def ratio(peer):
+                # Round by round (the two ran one after the other), then the median and range.
+                pairs = [p[d]["ms"] / a[d]["ms"] for a, p in zip(got["anisocb"], got[peer]) if d in a and d in p]
+                if not pairs:
+                    return "—"
+                m = statistics.median(pairs)
+                return f"**{m:.2f}×**" + (f" ({min(pairs):.2f}–{max(pairs):.2f})" if len(pairs) > 1 else "")
+
+            out.append(f"| {name} {size}² → {2 * size}² | {txt['anisocb']} | {txt['openvino']} | "
+                       f"{txt['onnxruntime']} | {txt['jax']} | {ratio('openvino')} | {ratio('onnxruntime')} | "
+                       f"{fp['anisocb']} | {fp['openvino']} |")
+    return out
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--rounds", type=int, default=3)
@@ -64,6 +101,8 @@ def main():
     got = {s: [] for s in SIDES}  # side -> [ {row: dict} per round ]
     for r in range(a.rounds):
         for side, cmd in SIDES.items():
+            if cmd(groups) is None:
+                continue
             print(f"round {r + 1}/{a.rounds}: {side} …", file=sys.stderr, flush=True)
             got[side].append(run_side(cmd(groups)))
 
@@ -78,7 +117,7 @@ def main():
 
     lines = [
         f"anisocb vs peers — {datetime.date.today().isoformat()}, {cpu_name()}, {os.cpu_count()} cores, "
-        f"{a.rounds} interleaved rounds (anisocb, ONNX Runtime, JAX), medians (range)",
+        f"{a.rounds} interleaved rounds (anisocb, ONNX Runtime, OpenVINO, JAX), medians (range)",
         "",
     ]
     if "peak" in groups:
@@ -93,8 +132,6 @@ def main():
     names = []
     if "conv" in groups:
         names += [(rows.conv_row(*s), "ms", s) for s in rows.CONVS]
-    if "nets" in groups:
-        names += [(rows.nets_row(n), "ms", None) for n in rows.CONFIGS]
     if "train" in groups:
         names += [(rows.train_row(n), "train", None) for n in rows.CONFIGS]
     pk = statistics.median(series("anisocb", "fma peak", "gflops") or [0]) or None
@@ -124,6 +161,10 @@ def main():
         table += ["", "% peak: a direct 3×3 convolution's 2·N·C·O·9·H·W FLOPs per second over the probe. "
                   "anisocb's Winograd F(2×2, 3×3) path (C_in a multiple of 16, C_out > 4) does 16 "
                   "multiply-adds per 2×2 outputs instead of 36, so its figure can pass 100 %."]
+    if not names:
+        table = []
+    if "nets" in groups:
+        table += ([""] if table else []) + nets_table(got, series, cell)
     text = "\n".join(lines + table) + "\n"
     print(text)
     os.makedirs(os.path.dirname(a.out), exist_ok=True)
