@@ -774,22 +774,31 @@ pub fn conv_act(x: &Act, packed: &PackedConv, b: Option<&Tensor>, epi: ActEpilog
                 }
             }
         }
+        // The top and bottom border rows, by the task that wrote the row next to them, while
+        // that row is in cache: padded row 0 after HR row 0 (LR row 0), row ho + 1 after HR
+        // row ho − 1 (LR row h − 1).
+        let row = (wo + 2) * os;
+        for (to, from, at) in [(0, 1, 0), (ho + 1, ho, h.saturating_sub(1))] {
+            if y != at {
+                continue;
+            }
+            let img = ni * (ho + 2) * row;
+            // SAFETY: rows `to` and `from` of image ni lie inside the buffer (as the lines
+            // above); `to` is written by this task only, and `from` was written just above.
+            unsafe {
+                let d = dst.add(img + to * row);
+                match x.pad {
+                    Padding::Replicate => std::ptr::copy_nonoverlapping(dst.add(img + from * row), d, row),
+                    Padding::Zero => std::ptr::write_bytes(d, 0, row),
+                }
+            }
+        }
     };
     // The bias is added in the store (`init` None here): the same (sum + bias) + skip as ever.
     correlate(x.padded(), n, h + 2, w + 2, pk, None, h, w, &sink);
-    // The top and bottom border rows, and the slack.
+    // The slack after the last image.
     let v: &mut [u16] = bytemuck::cast_slice_mut(&mut data[..]);
-    let row = (wo + 2) * os;
-    for ni in 0..n {
-        let img = ni * (ho + 2) * row;
-        for (to, from) in [(0, 1), (ho + 1, ho)] {
-            match x.pad {
-                Padding::Replicate => v.copy_within(img + from * row..img + (from + 1) * row, img + to * row),
-                Padding::Zero => v[img + to * row..img + (to + 1) * row].fill(0),
-            }
-        }
-    }
-    v[n * (ho + 2) * row..].fill(0);
+    v[n * (ho + 2) * (wo + 2) * os..].fill(0);
     Act { data, shape: [n, oc, ho, wo], pad: x.pad, split }
 }
 
