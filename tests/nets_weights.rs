@@ -4,7 +4,7 @@
 use anisocb::io::{read_npz, write_npz};
 use anisocb::nn::weights::{load_any, load_net, save_net, Weights};
 use anisocb::nn::{AnisoCb, NetConfig, NetKind, Trunk};
-use anisocb::ops::{Cpu, Padding};
+use anisocb::ops::{Cpu, Padding, Precision};
 use anisocb::Tensor;
 use std::path::PathBuf;
 
@@ -148,6 +148,45 @@ fn packed_bundle_gives_the_bits_of_the_plain_bundle() {
             ] {
                 let bits = |t: &Tensor| t.data.iter().map(|v| v.to_bits()).collect::<Vec<u32>>();
                 assert_eq!(bits(p), bits(q), "{what} differs (batch {n}, enhance {enhance})");
+            }
+        }
+    }
+}
+
+#[test]
+fn frames_beyond_one_cpu_pass_give_the_bits_of_each_frame_alone() {
+    // On the CPU the nets take CPU_PASS_BYTES' worth of frames a pass (their widest activation,
+    // C·r²·H·W floats a frame): the small config at 64² (2 MiB a frame) runs 2 a pass, at 32²
+    // 8. Five 64² frames (passes of 2, 2, 1), fp32 and bf16, EnhanceNet on and off, give each
+    // frame's outputs as that frame run alone.
+    let cfg = NetConfig::small();
+    let m = AnisoCb::new(cfg, 5);
+    let mut rng = anisocb::rng::Rng::new(7);
+    let mut x = Tensor::zeros(&[5, 3, 64, 64]);
+    x.data.iter_mut().for_each(|v| *v = rng.uniform() - 0.5);
+    assert_eq!(m.frames_per_pass(&Cpu, &x), 2);
+    assert_eq!(m.frames_per_pass(&Cpu, &Tensor::zeros(&[1, 3, 32, 32])), 8);
+    for precision in [Precision::Fp32, Precision::Bf16] {
+        let nets = m.packed_as(precision);
+        for enhance in [true, false] {
+            let all = nets.forward_with(&Cpu, &x, enhance).unwrap();
+            for f in 0..5 {
+                let one = nets.forward_with(&Cpu, &x.slice_batch(f, 1), enhance).unwrap();
+                for (what, p, q) in [
+                    ("U", &all.interpolated, &one.interpolated),
+                    ("R", &all.residual, &one.residual),
+                    ("Γb", &all.boundary, &one.boundary),
+                    ("Γe", &all.enhance, &one.enhance),
+                ] {
+                    assert_eq!(p.shape[0], 5, "{what}: frames");
+                    let bits = |t: &[f32]| t.iter().map(|v| v.to_bits()).collect::<Vec<u32>>();
+                    let per = q.data.len();
+                    assert_eq!(
+                        bits(&p.data[f * per..][..per]),
+                        bits(&q.data),
+                        "{what} of frame {f} differs ({precision:?}, enhance {enhance})"
+                    );
+                }
             }
         }
     }

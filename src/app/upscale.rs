@@ -121,7 +121,9 @@ pub struct Args {
     /// Weights file (.npz bundle of the three nets) instead of the embedded ×2 model.
     #[arg(help_heading = "Model and engine", long)]
     pub weights: Option<PathBuf>,
-    /// Frames per network pass (more = faster, more memory).
+    /// Frames handed to the nets at a time (the streaming chunk). On a GPU the chunk is one
+    /// batch (more = faster, more memory); on the CPU the nets run it in passes that stay near
+    /// the caches (2 frames at 64², 8 at 32²).
     #[arg(help_heading = "Model and engine", long, default_value_t = 8)]
     pub batch: usize,
     /// Worker threads, 1 to 1024 (default: all cores).

@@ -12,6 +12,13 @@ use crate::ops::Precision;
 use crate::tensor::Tensor;
 use std::sync::OnceLock;
 
+/// The widest activation (bytes) of one CPU pass of the nets over several frames; more frames
+/// run in further passes. Activations that stay near the cores' caches run faster: `upscale`
+/// of a 64² flag took 0.86–0.91× the time in passes of 2 frames (4 MiB) as in passes of 8
+/// (16 MiB), bf16 and fp32, while at 32² passes of 1 frame (0.5 MiB) took 1.16× the time of 8
+/// (per-pass costs dominate there): docs/performance.md.
+pub const CPU_PASS_BYTES: usize = 4 << 20;
+
 /// GeometryNet, BoundaryNet and EnhanceNet. All three must share the upscale factor.
 #[derive(Clone, Debug, PartialEq)]
 pub struct AnisoCb {
@@ -174,7 +181,9 @@ impl AnisoCb {
         PackedAnisoCb { model: self, packed: Packing::Lent(packed), checksum: Checksum::Lent(checksum) }
     }
 
-    /// `packed`: [`Trunk::pack`] of every net, in [`AnisoCb::named_trunks`] order.
+    /// `packed`: [`Trunk::pack`] of every net, in [`AnisoCb::named_trunks`] order. On the CPU
+    /// the frames run [`AnisoCb::frames_per_pass`] at a time (the same bits: each frame's
+    /// outputs depend on that frame alone).
     fn run(
         &self,
         ops: &dyn Ops,
@@ -183,6 +192,45 @@ impl AnisoCb {
         packed: Option<&[Vec<PackedConv>]>,
     ) -> Result<NetsOutput> {
         check_input(lr, "AnisoCb input")?;
+        let (n, per) = (lr.shape[0], self.frames_per_pass(ops, lr));
+        if n <= per {
+            return self.run_pass(ops, lr, enhance, packed);
+        }
+        let mut out = self.run_pass(ops, &lr.slice_batch(0, per), enhance, packed)?;
+        for n0 in (per..n).step_by(per) {
+            let part = self.run_pass(ops, &lr.slice_batch(n0, per.min(n - n0)), enhance, packed)?;
+            out.interpolated.append_batch(&part.interpolated);
+            out.residual.append_batch(&part.residual);
+            out.boundary.append_batch(&part.boundary);
+            out.enhance.append_batch(&part.enhance);
+        }
+        Ok(out)
+    }
+
+    /// Frames of `lr` (N, 3, H, W) one pass of the nets takes on the CPU: as many as keep the
+    /// widest activation (C channels at r·H × r·W, f32) within [`CPU_PASS_BYTES`], at least one;
+    /// all of them on a GPU.
+    pub fn frames_per_pass(&self, ops: &dyn Ops, lr: &Tensor) -> usize {
+        if ops.as_cuda().is_some() {
+            return usize::MAX;
+        }
+        let (_, _, h, w) = lr.dims4();
+        // The nets one by one (not `named_trunks`, whose names would allocate on every call).
+        let more = self.more_geometry.iter().map(|g| &g.trunk);
+        let nets = [&self.geometry.trunk, &self.boundary.trunk, &self.enhance.trunk].into_iter().chain(more);
+        let c = nets.map(|t| t.config.channels).max().unwrap_or(1);
+        let widest = c * self.scale() * self.scale() * h * w * std::mem::size_of::<f32>();
+        (CPU_PASS_BYTES / widest.max(1)).max(1)
+    }
+
+    /// [`AnisoCb::run`] on every frame of `lr` at once.
+    fn run_pass(
+        &self,
+        ops: &dyn Ops,
+        lr: &Tensor,
+        enhance: bool,
+        packed: Option<&[Vec<PackedConv>]>,
+    ) -> Result<NetsOutput> {
         let pk = |k: usize| packed.map(|p| p[k].as_slice());
         let ng = 1 + self.more_geometry.len();
         crate::ops::entered(ops, || {

@@ -89,7 +89,9 @@ pub struct UpscaleParams {
     /// Run EnhanceNet even at η = 0: for its map Γe, or to compose other η later
     /// ([`super::upscale::Upscaled::with_eta`]).
     pub enhance_map: bool,
-    /// Frames per network forward (memory ≈ batch · 2·C·r²·H·W floats at the widest layer).
+    /// Frames handed to the nets at a time (memory ≈ batch · 2·C·r²·H·W floats at the widest
+    /// layer): one batch on a GPU; on the CPU, passes of [`crate::nn::bundle::CPU_PASS_BYTES`]
+    /// ([`crate::nn::AnisoCb::frames_per_pass`]).
     pub batch: usize,
     /// Set Γb = 1 on the grid's border pixels, so the border keeps the interpolated input
     /// whatever BoundaryNet says there (the outline is U's by construction). Off by default
