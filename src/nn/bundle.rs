@@ -196,15 +196,32 @@ impl AnisoCb {
         if n <= per {
             return self.run_pass(ops, lr, enhance, packed);
         }
-        let mut out = self.run_pass(ops, &lr.slice_batch(0, per), enhance, packed)?;
-        for n0 in (per..n).step_by(per) {
+        // Each pass's outputs copied into place in tensors of all n frames (one copy, no growth).
+        let whole = |t: &Tensor| {
+            let mut shape = t.shape.to_vec();
+            shape[0] = n;
+            Tensor::for_overwrite(&shape)
+        };
+        let mut out: Option<NetsOutput> = None;
+        for n0 in (0..n).step_by(per) {
             let part = self.run_pass(ops, &lr.slice_batch(n0, per.min(n - n0)), enhance, packed)?;
-            out.interpolated.append_batch(&part.interpolated);
-            out.residual.append_batch(&part.residual);
-            out.boundary.append_batch(&part.boundary);
-            out.enhance.append_batch(&part.enhance);
+            let o = out.get_or_insert_with(|| NetsOutput {
+                interpolated: whole(&part.interpolated),
+                residual: whole(&part.residual),
+                boundary: whole(&part.boundary),
+                enhance: whole(&part.enhance),
+            });
+            for (to, from) in [
+                (&mut o.interpolated, &part.interpolated),
+                (&mut o.residual, &part.residual),
+                (&mut o.boundary, &part.boundary),
+                (&mut o.enhance, &part.enhance),
+            ] {
+                let at = n0 * from.len() / from.shape[0];
+                to.data[at..at + from.len()].copy_from_slice(&from.data);
+            }
         }
-        Ok(out)
+        Ok(out.expect("n > per ≥ 1: at least one pass"))
     }
 
     /// Frames of `lr` (N, 3, H, W) one pass of the nets takes on the CPU: as many as keep the
