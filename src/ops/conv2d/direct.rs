@@ -77,7 +77,9 @@ pub(super) fn pack_weights(
 
 /// Micro-kernel: P pixels × OV vectors of output channels of one output row.
 /// `xp` points at input pixel (Y = y, X = x0) of the padded NHWC buffer (row stride `wp`
-/// pixels, `c` channels); `wk` at the block's packed weights; `acc_out` at the row scratch
+/// pixels, `c` channels); `wk` at the tile's first output channel in the block's packed
+/// weights, whose rows (one per tap and input channel) are `wstride` ≥ OV·16 floats apart
+/// (the block's width: a tile may take part of a block, see [`ov_tile`]); `acc_out` at the row scratch
 /// (pixel stride `opad`) and receives the sum, added to what it holds if `accumulate` (else
 /// the tile is overwritten: the caller need not zero it).
 ///
@@ -92,6 +94,7 @@ pub(super) unsafe fn micro<const OV: usize, const P: usize>(
     kh: usize,
     kw: usize,
     wk: *const f32,
+    wstride: usize,
     acc_out: *mut f32,
     opad: usize,
     accumulate: bool,
@@ -104,7 +107,6 @@ pub(super) unsafe fn micro<const OV: usize, const P: usize>(
             }
         }
     }
-    let wstride = OV * L;
     for ky in 0..kh {
         for kx in 0..kw {
             let xb = xp.add((ky * wp + kx) * c);
@@ -184,13 +186,44 @@ pub(super) fn tiles(total: usize, max: usize) -> impl Iterator<Item = (usize, us
     })
 }
 
-/// Max pixels per tile for OV vectors (keeps P·OV + OV + 1 ≤ 32 registers).
+/// Vectors of output channels per register tile in a weight block of `ov` vectors: the whole
+/// block with AVX-512; one without it, where six pixels × one vector (12 ymm accumulators) keep
+/// more multiply-adds in flight than two pixels × two vectors (8). Same bits either way.
+pub(super) fn ov_tile(ov: usize) -> usize {
+    if cfg!(target_feature = "avx512f") {
+        ov
+    } else {
+        1
+    }
+}
+
+/// The register tiles of one weight block of `ov` vectors over `n` pixels (or input channels):
+/// (first pixel, pixels, first vector, vectors), pixels outer.
+pub(super) fn reg_tiles(n: usize, ov: usize) -> impl Iterator<Item = (usize, usize, usize, usize)> {
+    let ot = ov_tile(ov);
+    tiles(n, pmax(ot)).flat_map(move |(x0, np)| (0..ov).step_by(ot).map(move |j0| (x0, np, j0, ot)))
+}
+
+/// Max pixels per tile for OV vectors: the P·OV accumulators, the OV weight vectors and the
+/// broadcast pixel stay in registers. With AVX-512 an f32x16 is one of 32 zmm registers
+/// (P·OV + OV + 1 ≤ 32); without it `wide` makes it two of 16 ymm registers
+/// (2·P·OV + 2·OV + 1 ≤ 16, or one over at OV = 4), and the AVX-512 tiles would spill most of
+/// their accumulators to the stack on every multiply-add. The tile size changes which outputs
+/// a call computes, not the order of any output's sum: the bits are the same.
 pub(super) fn pmax(ov: usize) -> usize {
-    match ov {
-        4 => PMAX,
-        3 => 7,
-        2 => 10,
-        _ => 12,
+    if cfg!(target_feature = "avx512f") {
+        match ov {
+            4 => PMAX,
+            3 => 7,
+            2 => 10,
+            _ => 12,
+        }
+    } else {
+        match ov {
+            1 => 6,
+            2 => 2,
+            _ => 1,
+        }
     }
 }
 
@@ -237,18 +270,19 @@ pub(super) fn correlate_rows(
             }
             let xrow = ((ni * hp + y) * wp) * c;
             for (bi, &(off, ov)) in pk.blocks.iter().enumerate() {
-                for (x0, np) in tiles(out_w, pmax(ov)) {
+                for (x0, np, j0, ot) in reg_tiles(out_w, ov) {
                     // SAFETY: rows y..y+kh ≤ hp and columns x0..x0+np+kw−1 ≤ wp of image ni
-                    // (asserted above); the row scratch has out_w × opad floats.
+                    // (asserted above); the row scratch has out_w × opad floats; vectors
+                    // j0..j0+ot of the block's ov.
                     unsafe {
                         let xptr = xp.as_ptr().add(xrow + x0 * c);
-                        let wptr = pk.data.as_ptr().add(off);
-                        let aptr = row.as_mut_ptr().add(x0 * opad + bi * OB);
-                        match ov {
-                            4 => dispatch_p!(micro, 4, np, xptr, wp, c, kh, kw, wptr, aptr, opad, true),
-                            3 => dispatch_p!(micro, 3, np, xptr, wp, c, kh, kw, wptr, aptr, opad, true),
-                            2 => dispatch_p!(micro, 2, np, xptr, wp, c, kh, kw, wptr, aptr, opad, true),
-                            _ => dispatch_p!(micro, 1, np, xptr, wp, c, kh, kw, wptr, aptr, opad, true),
+                        let (wptr, ws) = (pk.data.as_ptr().add(off + j0 * L), ov * L);
+                        let aptr = row.as_mut_ptr().add(x0 * opad + bi * OB + j0 * L);
+                        match ot {
+                            4 => dispatch_p!(micro, 4, np, xptr, wp, c, kh, kw, wptr, ws, aptr, opad, true),
+                            3 => dispatch_p!(micro, 3, np, xptr, wp, c, kh, kw, wptr, ws, aptr, opad, true),
+                            2 => dispatch_p!(micro, 2, np, xptr, wp, c, kh, kw, wptr, ws, aptr, opad, true),
+                            _ => dispatch_p!(micro, 1, np, xptr, wp, c, kh, kw, wptr, ws, aptr, opad, true),
                         }
                     }
                 }

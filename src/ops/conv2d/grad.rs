@@ -290,15 +290,15 @@ pub fn conv2d_weight_grad(x: &Tensor, dy: &Tensor, pad: Padding, dw: &mut Tensor
                 for t in 0..taps {
                     let off = (t / kw) * wp + t % kw;
                     for &(ob, ov) in &oblocks {
-                        for (c0, np) in tiles(c, pmax(ov)) {
+                        for (c0, np, j0, ot) in reg_tiles(c, ov) {
                             // SAFETY: pixels g0+off .. g0+off+len of xp (len ≤ N·Hp·Wp + extra
                             // by construction), pixels g0 .. g0+len of dyg, and channels
-                            // c0..c0+np, ob..ob+16·ov of the partial are in bounds.
+                            // c0..c0+np, ob+16·j0..ob+16·(j0+ot) of the partial are in bounds.
                             unsafe {
                                 let xptr = xp.as_ptr().add((g0 + off) * c + c0);
-                                let dptr = dyg.as_ptr().add(g0 * opad + ob);
-                                let aptr = part.as_mut_ptr().add((t * c + c0) * opad + ob);
-                                match ov {
+                                let dptr = dyg.as_ptr().add(g0 * opad + ob + j0 * L);
+                                let aptr = part.as_mut_ptr().add((t * c + c0) * opad + ob + j0 * L);
+                                match ot {
                                     4 => dispatch_p!(micro_dw, 4, np, xptr, c, dptr, opad, len, aptr, opad),
                                     3 => dispatch_p!(micro_dw, 3, np, xptr, c, dptr, opad, len, aptr, opad),
                                     2 => dispatch_p!(micro_dw, 2, np, xptr, c, dptr, opad, len, aptr, opad),

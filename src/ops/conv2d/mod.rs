@@ -17,15 +17,17 @@
 // materialised once. Weights are packed per block of up to 64 output channels as
 // [tap][c_in][64]. The micro-kernel keeps P pixels × OV·16 output channels of one output row in
 // f32x16 accumulators (P·OV ≤ 24 registers), and for every (tap, c_in) loads OV weight vectors
-// and broadcasts P input values: P·OV FMAs per P+OV loads. Each output row is one rayon task;
-// the row is accumulated in a small NHWC scratch and scattered to NCHW at the end (no extra
-// pass over memory). The input gradient is the same kernel with flipped, transposed weights on
-// the padded dy ("full" correlation + fold of the border for replicate padding). The weight
-// gradient accumulates dW_tap += dY · X_shift per tap with the `micro_dw` kernel (P input
-// channels × OV·16 output channels in registers, summed over pixels), on the padded pixel grid
-// so that X_shift is a plain strided view; the pixels are cut into fixed chunks (independent
-// of the thread count) whose partial sums are added in a fixed order, so results are
-// deterministic.
+// and broadcasts P input values: P·OV FMAs per P+OV loads. Without AVX-512 (16 ymm registers,
+// two per f32x16) a tile is 6 pixels × one vector of a block (`direct::reg_tiles`); the tile
+// size never changes the order of an output's sum, so the bits are those of any build. Each
+// output row is one rayon task; the row is accumulated in a small NHWC scratch and scattered to
+// NCHW at the end (no extra pass over memory). The input gradient is the same kernel with
+// flipped, transposed weights on the padded dy ("full" correlation + fold of the border for
+// replicate padding). The weight gradient accumulates dW_tap += dY · X_shift per tap with the
+// `micro_dw` kernel (P input channels × OV·16 output channels in registers, summed over
+// pixels), on the padded pixel grid so that X_shift is a plain strided view; the pixels are cut
+// into fixed chunks (independent of the thread count) whose partial sums are added in a fixed
+// order, so results are deterministic.
 // ---------------------------------------------------------------------------------------------
 
 use super::activation::relu1;

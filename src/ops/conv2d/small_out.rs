@@ -9,8 +9,10 @@ use super::*;
 
 /// Output channels up to which [`conv2d`] takes the pixel-vector path.
 pub const SMALL_OUT_MAX: usize = 4;
-/// Vectors of 16 pixels per register tile of the pixel-vector path.
-pub(super) const SMALL_P: usize = 4;
+/// Vectors of 16 pixels per register tile of the pixel-vector path: O·P accumulators and P
+/// input vectors, in 32 zmm registers with AVX-512; without it each f32x16 takes two of 16 ymm
+/// registers, and 2 keeps the tile (nearly) out of the stack. Same bits either way.
+pub(super) const SMALL_P: usize = if cfg!(target_feature = "avx512f") { 4 } else { 2 };
 
 /// Row length of the padded planar input for rows of `w` outputs under a `kw`-wide kernel:
 /// whole vectors of 16 pixels plus the kernel's overhang.

@@ -22,8 +22,8 @@
 //! not depend on the thread count.
 
 use super::{
-    micro, micro_dw, pad_nhwc_to, pad_row_nhwc, pmax, sum_partials, tiles, Packed, Padding, Scratch, SyncPtr,
-    L, OB, SMALL_OUT_MAX,
+    micro, micro_dw, pad_nhwc_to, pad_row_nhwc, reg_tiles, sum_partials, tiles, Packed, Padding, Scratch,
+    SyncPtr, L, OB, SMALL_OUT_MAX,
 };
 use crate::tensor::Tensor;
 use rayon::prelude::*;
@@ -232,19 +232,29 @@ pub(super) fn correlate(
                 // M[pos][tile][o] = Σ_c V[pos][tile][c] · U[pos][c][o] (every element written).
                 for pos in 0..POS {
                     for (bi, &(off, ov)) in pk.blocks.iter().enumerate() {
-                        for (x0, np) in tiles(ntw, pmax(ov)) {
+                        for (x0, np, j0, ot) in reg_tiles(ntw, ov) {
                             // SAFETY: tiles x0..x0+np < ntw of position pos in V (c floats each)
                             // and in M (opad floats each, channels bi·64..bi·64+ov·16 ≤ opad);
-                            // the block's position pos holds c rows of ov·16 weights.
+                            // the block's position pos holds c rows of ov·16 weights, of which
+                            // the tile takes vectors j0..j0+ot.
                             unsafe {
                                 let xptr = v.as_ptr().add(pos * vs + x0 * c);
-                                let wptr = pk.data.as_ptr().add(off + pos * c * ov * L);
-                                let aptr = m.as_mut_ptr().add(pos * ms + x0 * opad + bi * OB);
-                                match ov {
-                                    4 => dispatch_p!(micro, 4, np, xptr, 0, c, 1, 1, wptr, aptr, opad, false),
-                                    3 => dispatch_p!(micro, 3, np, xptr, 0, c, 1, 1, wptr, aptr, opad, false),
-                                    2 => dispatch_p!(micro, 2, np, xptr, 0, c, 1, 1, wptr, aptr, opad, false),
-                                    _ => dispatch_p!(micro, 1, np, xptr, 0, c, 1, 1, wptr, aptr, opad, false),
+                                let wptr = pk.data.as_ptr().add(off + pos * c * ov * L + j0 * L);
+                                let ws = ov * L;
+                                let aptr = m.as_mut_ptr().add(pos * ms + x0 * opad + bi * OB + j0 * L);
+                                match ot {
+                                    4 => dispatch_p!(
+                                        micro, 4, np, xptr, 0, c, 1, 1, wptr, ws, aptr, opad, false
+                                    ),
+                                    3 => dispatch_p!(
+                                        micro, 3, np, xptr, 0, c, 1, 1, wptr, ws, aptr, opad, false
+                                    ),
+                                    2 => dispatch_p!(
+                                        micro, 2, np, xptr, 0, c, 1, 1, wptr, ws, aptr, opad, false
+                                    ),
+                                    _ => dispatch_p!(
+                                        micro, 1, np, xptr, 0, c, 1, 1, wptr, ws, aptr, opad, false
+                                    ),
                                 }
                             }
                         }
@@ -352,14 +362,14 @@ pub(super) fn weight_grad(x: &Tensor, dy: &Tensor, pad: Padding, dw: &mut Tensor
             let mut du = Scratch::zeroed(POS * c * o);
             for pos in 0..POS {
                 for &(ob, ov) in &oblocks {
-                    for (c0, np) in tiles(c, pmax(ov)) {
+                    for (c0, np, j0, ot) in reg_tiles(c, ov) {
                         // SAFETY: nt tiles of V (stride c) and Z (stride o) at position pos,
-                        // channels c0..c0+np of V, ob..ob+16·ov ≤ o of Z and of dU.
+                        // channels c0..c0+np of V, ob+16·j0..ob+16·(j0+ot) ≤ o of Z and of dU.
                         unsafe {
                             let xptr = v.as_ptr().add(pos * vs + c0);
-                            let dptr = z.as_ptr().add(pos * zs + ob);
-                            let aptr = du.as_mut_ptr().add((pos * c + c0) * o + ob);
-                            match ov {
+                            let dptr = z.as_ptr().add(pos * zs + ob + j0 * L);
+                            let aptr = du.as_mut_ptr().add((pos * c + c0) * o + ob + j0 * L);
+                            match ot {
                                 4 => dispatch_p!(micro_dw, 4, np, xptr, c, dptr, o, nt, aptr, o),
                                 3 => dispatch_p!(micro_dw, 3, np, xptr, c, dptr, o, nt, aptr, o),
                                 2 => dispatch_p!(micro_dw, 2, np, xptr, c, dptr, o, nt, aptr, o),
