@@ -317,3 +317,29 @@ impl RowGroups<'_> {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every (pixel, vector) of a weight block is in exactly one register tile, and no tile is
+    /// wider than its kernel's registers allow (`pmax`): a tile left out or taken twice would
+    /// leave outputs unwritten or summed twice on one instruction set and not the other.
+    #[test]
+    fn register_tiles_cover_each_pixel_and_vector_once() {
+        for ov in 1..=OB / L {
+            for n in 1..50 {
+                let mut seen = vec![0u8; n * ov];
+                for (x0, np, j0, ot) in reg_tiles(n, ov) {
+                    assert!((1..=pmax(ot)).contains(&np) && (1..=ov).contains(&ot), "n {n} ov {ov}");
+                    for x in x0..x0 + np {
+                        for j in j0..j0 + ot {
+                            seen[x * ov + j] += 1;
+                        }
+                    }
+                }
+                assert!(seen.iter().all(|&k| k == 1), "n {n} ov {ov}: {seen:?}");
+            }
+        }
+    }
+}
