@@ -8,9 +8,12 @@ use anisocb::rng::Rng;
 use close::assert_close;
 #[path = "common/random.rs"]
 mod random;
+use anisocb::ops::conv2d::amx::ActEpilogue;
+use anisocb::ops::conv2d::chain::{conv_f32_act, conv_f32_act_relu_small_out, conv_to_f32_act, F32Act};
 use anisocb::ops::conv2d::{
     conv2d, conv2d_backward, conv2d_backward_ref, conv2d_packed, conv2d_ref, Epilogue, PackedConv,
 };
+use anisocb::ops::pixel_shuffle::pixel_shuffle;
 use anisocb::ops::{activation, Padding};
 use anisocb::Tensor;
 use random::TestData;
@@ -229,6 +232,74 @@ fn packed_weights_and_fused_epilogues_give_the_bits_of_the_separate_ops() {
                 "{what} skip, relu"
             );
         }
+    }
+}
+
+#[test]
+fn fp32_chain_gives_the_bits_of_the_convs_one_by_one() {
+    // The fp32 chain (what the CPU runs a trunk's convs on: padded channels-last activations
+    // from conv to conv, epilogues and the pixel shuffle fused into the stores) against
+    // conv2d_packed on NCHW tensors with the same epilogues and the pixel_shuffle op, step by
+    // step and bit for bit: odd and even sizes, both paddings, 16·k channels (32 and 48), a
+    // residual block, shuffles by 2 and 3, the last two convs into a 1-, 3- and 4-output conv of
+    // 3×3 or 1×1, and the same bits on one thread.
+    let bits = |t: &Tensor| t.data.iter().map(|v| v.to_bits()).collect::<Vec<u32>>();
+    let mut rng = Rng::new(12);
+    let cases = [
+        (2, 13, 37, 32, 2, 3, 3, Padding::Replicate),
+        (1, 8, 6, 48, 3, 1, 3, Padding::Zero),
+        (1, 5, 9, 16, 2, 4, 1, Padding::Replicate),
+        (3, 1, 1, 32, 2, 3, 3, Padding::Zero),
+    ];
+    for (n, h, w, c, r, o_last, k_last, pad) in cases {
+        let what =
+            format!("{n}×{h}×{w}, {c} channels, shuffle {r}, last {o_last} {k_last}×{k_last}, {pad:?}");
+        let conv = |rng: &mut Rng, o: usize, ci: usize, k: usize| {
+            let wt = rng.tensor(&[o, ci, k, k], -0.5, 0.5);
+            (PackedConv::new(&wt), rng.tensor(&[o], -0.5, 0.5))
+        };
+        let (p_in, b_in) = conv(&mut rng, c, 3, 3);
+        let (p1, b1) = conv(&mut rng, c, c, 3);
+        let (p2, b2) = conv(&mut rng, c, c, 3);
+        let (pu, bu) = conv(&mut rng, c * r * r, c, 3);
+        let (pt, bt) = conv(&mut rng, c, c, 3);
+        let (pl, bl) = conv(&mut rng, o_last, c, k_last);
+        assert!(p1.is_winograd() && pu.is_winograd() && pl.is_small_out(), "{what}");
+        let x = rng.tensor(&[n, 3, h, w], -1.0, 1.0);
+        let run = || {
+            let mut steps = Vec::new();
+            let a = conv_to_f32_act(&x, &p_in, Some(&b_in), pad);
+            steps.push(a.to_nchw());
+            let r1 = conv_f32_act(&a, &p1, Some(&b1), ActEpilogue { skip: None, relu: true }, 1);
+            steps.push(r1.to_nchw());
+            let a = conv_f32_act(&r1, &p2, Some(&b2), ActEpilogue { skip: Some(&a), relu: false }, 1);
+            steps.push(a.to_nchw());
+            let z = conv_f32_act(&a, &pu, Some(&bu), ActEpilogue::default(), r);
+            assert_eq!(z.shape, [n, c, r * h, r * w], "{what}");
+            steps.push(z.to_nchw());
+            steps.push(conv_f32_act_relu_small_out(&z, &pt, Some(&bt), &pl, Some(&bl)));
+            steps
+        };
+        let chain = run();
+        // The same convs on NCHW tensors, one by one.
+        let a = conv2d_packed(&x, &p_in, Some(&b_in), pad, Epilogue::NONE);
+        let r1 = conv2d_packed(&a, &p1, Some(&b1), pad, Epilogue::RELU);
+        let a2 = conv2d_packed(&r1, &p2, Some(&b2), pad, Epilogue { skip: Some(&a), relu: false });
+        let z = pixel_shuffle(&conv2d_packed(&a2, &pu, Some(&bu), pad, Epilogue::NONE), r);
+        let t = conv2d_packed(&z, &pt, Some(&bt), pad, Epilogue::RELU);
+        let y = conv2d_packed(&t, &pl, Some(&bl), pad, Epilogue::NONE);
+        assert!(y.data.iter().all(|v| v.is_finite()) && r1.data.contains(&0.0), "{what}");
+        for (step, (got, want)) in ["conv_in", "conv1 + relu", "conv2 + skip", "upscale + shuffle", "tail"]
+            .iter()
+            .zip(chain.iter().zip([&a, &r1, &a2, &z, &y]))
+        {
+            assert_eq!(got.shape, want.shape, "{what}: {step}");
+            assert_eq!(bits(got), bits(want), "{what}: {step}");
+        }
+        let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
+        assert_eq!(bits(&one.install(run)[4]), bits(&y), "{what}: one thread");
+        // The round trip through the chain's layout.
+        assert_eq!(bits(&F32Act::from_nchw(&a2, pad).to_nchw()), bits(&a2), "{what}: from_nchw");
     }
 }
 

@@ -11,6 +11,7 @@
 
 use super::config::{NetConfig, NetKind, IN_CHANNELS, KERNEL, TAIL_CONVS};
 use crate::ops::conv2d::amx::{conv_act, Act, ActEpilogue};
+use crate::ops::conv2d::chain::{conv_f32_act, conv_f32_act_relu_small_out, conv_to_f32_act};
 use crate::ops::conv2d::{conv_act_relu_small_out, Epilogue, PackedConv};
 use crate::ops::Precision;
 use crate::ops::{Ops, Padding};
@@ -315,6 +316,9 @@ impl Trunk {
         let pad = self.config.padding;
         let (_, c, _, _) = x.dims4();
         assert_eq!(c, IN_CHANNELS, "trunk input must have {IN_CHANNELS} channels");
+        if ops.runs_chains() && self.fits_f32_chain(packed) {
+            return self.forward_f32_chain(x, packed);
+        }
         let mut a = self.conv_in.forward_packed(ops, x, pad, at(Layer::ConvIn), Epilogue::NONE);
         if at(Layer::Upscale).is_bf16() {
             return self.forward_bf16(&a, packed);
@@ -337,6 +341,44 @@ impl Trunk {
             );
         }
         z
+    }
+
+    /// Whether `packed` (fp32) takes the fp32 chain: every conv after the first on the Winograd
+    /// kernel but the last, which is a small-output one.
+    fn fits_f32_chain(&self, packed: &[PackedConv]) -> bool {
+        let (first, rest) = packed.split_first().expect("a trunk has convs");
+        let (last, inner) = rest.split_last().expect("a trunk has convs");
+        !first.is_bf16()
+            && !first.is_small_out()
+            && inner.iter().all(|p| p.is_winograd())
+            && last.is_small_out()
+    }
+
+    /// [`Trunk::forward_packed`] on the fp32 chain ([`conv_f32_act`]): conv_in stores straight
+    /// into the padded channels-last layout the Winograd kernel reads, every conv after it reads
+    /// and writes that layout, the residual adds, ReLUs and the pixel shuffle fused into the
+    /// stores, and the tail's last Winograd conv stores into the padded planar input of the last
+    /// conv. The same bits as the convs one by one on NCHW tensors, without the transposes
+    /// between them. CPU only ([`Ops::runs_chains`]).
+    fn forward_f32_chain(&self, x: &Tensor, packed: &[PackedConv]) -> Tensor {
+        let (nb, last) = (self.blocks.len(), self.tail.len() - 1);
+        let at = |l: Layer| &packed[l.index(nb)];
+        let relu = ActEpilogue { skip: None, relu: true };
+        let mut a = conv_to_f32_act(x, at(Layer::ConvIn), Some(&self.conv_in.bias), self.config.padding);
+        for (k, b) in self.blocks.iter().enumerate() {
+            let r1 = conv_f32_act(&a, at(Layer::Conv1(k)), Some(&b.conv1.bias), relu, 1);
+            let skip = self.kind.residual().then_some(&a);
+            let epi = ActEpilogue { skip, relu: false };
+            a = conv_f32_act(&r1, at(Layer::Conv2(k)), Some(&b.conv2.bias), epi, 1);
+        }
+        let up = at(Layer::Upscale);
+        let mut z = conv_f32_act(&a, up, Some(&self.upscale.bias), ActEpilogue::default(), self.config.scale);
+        drop(a);
+        for (i, conv) in self.tail[..last - 1].iter().enumerate() {
+            z = conv_f32_act(&z, at(Layer::Tail(i)), Some(&conv.bias), relu, 1);
+        }
+        let (t, tl) = (Layer::Tail(last - 1), Layer::Tail(last));
+        conv_f32_act_relu_small_out(&z, at(t), Some(&self.conv(t).bias), at(tl), Some(&self.conv(tl).bias))
     }
 
     /// [`Trunk::forward_packed`] from conv_in's output `a` on, with the weights packed for the

@@ -20,7 +20,7 @@ impl Ops for Cpu {
     fn name(&self) -> &'static str {
         "cpu"
     }
-    fn runs_bf16_tiles(&self) -> bool {
+    fn runs_chains(&self) -> bool {
         true
     }
     fn conv2d(&self, x: &Tensor, w: &Tensor, b: Option<&Tensor>, pad: Padding) -> Tensor {

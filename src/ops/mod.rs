@@ -164,11 +164,12 @@ pub trait Ops: Sync {
     fn as_cuda(&self) -> Option<&crate::cuda::Cuda> {
         None
     }
-    /// Whether nets run through this table may take the CPU's bf16 tile chain
-    /// ([`Precision::Bf16`]), which runs the trunks' inner convs itself instead of through the
-    /// table. Only [`Cpu`]: another table (a GPU, a wrapper that counts or fails convs) gets
-    /// every conv. Default: no.
-    fn runs_bf16_tiles(&self) -> bool {
+    /// Whether nets run through this table may take the CPU kernels' chains, which run the
+    /// trunks' inner convs themselves instead of through the table, activations kept in the
+    /// kernels' own layout between convs: the bf16 tiles' ([`Precision::Bf16`]) and the fp32
+    /// one ([`conv2d::chain`]). Only [`Cpu`]: another table (a GPU, a wrapper that counts or
+    /// fails convs) gets every conv. Default: no.
+    fn runs_chains(&self) -> bool {
         false
     }
 }

@@ -44,10 +44,10 @@ impl Precision {
     }
 
     /// The precision the nets are packed in for `ops`: bf16 only on a table that runs the
-    /// tiles ([`Ops::runs_bf16_tiles`]), fp32 elsewhere.
+    /// CPU kernels' chains, the tiles' among them ([`Ops::runs_chains`]), fp32 elsewhere.
     pub fn for_ops(self, ops: &dyn Ops) -> Precision {
         match self {
-            Precision::Bf16 if !ops.runs_bf16_tiles() => Precision::Fp32,
+            Precision::Bf16 if !ops.runs_chains() => Precision::Fp32,
             p => p,
         }
     }

@@ -558,7 +558,7 @@ pub(super) fn correlate(
     init: Option<&[f32]>,
     out_h: usize,
     out_w: usize,
-    sink: &(dyn Fn(usize, usize, &[f32]) + Sync),
+    sink: &RowSink,
 ) {
     assert!(available(), "amx: bf16 kernels used on a CPU without AVX512_BF16");
     let tiles = tiles();
@@ -692,11 +692,25 @@ impl Act {
 }
 
 /// What [`conv_act`] does to conv(x) + b as it stores it: add `skip` (an [`Act`] of the
-/// output's shape), ReLU, then the pixel shuffle the weights were packed for.
-#[derive(Clone, Copy, Default)]
-pub struct ActEpilogue<'a> {
-    pub skip: Option<&'a Act>,
+/// output's shape), ReLU, then the pixel shuffle the weights were packed for. The fp32 chain
+/// ([`super::chain::conv_f32_act`]) takes the same with its own activations (`A`).
+pub struct ActEpilogue<'a, A = Act> {
+    pub skip: Option<&'a A>,
     pub relu: bool,
+}
+
+impl<A> Clone for ActEpilogue<'_, A> {
+    fn clone(&self) -> Self {
+        *self
+    }
+}
+
+impl<A> Copy for ActEpilogue<'_, A> {}
+
+impl<A> Default for ActEpilogue<'_, A> {
+    fn default() -> Self {
+        ActEpilogue { skip: None, relu: false }
+    }
 }
 
 /// A 3×3 conv from one [`Act`] to the next, on the tiles: `packed` must be bf16

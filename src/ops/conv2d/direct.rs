@@ -246,7 +246,7 @@ pub(super) fn correlate_rows(
     out_h: usize,
     out_w: usize,
     groups: RowGroups,
-    sink: &(dyn Fn(usize, usize, &[f32]) + Sync),
+    sink: &RowSink,
 ) {
     assert!(out_h + kh - 1 <= hp && out_w + kw - 1 <= wp);
     assert!(xp.len() >= n * hp * wp * c);

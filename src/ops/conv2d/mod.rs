@@ -72,6 +72,7 @@ macro_rules! dispatch_px {
 }
 
 pub mod amx;
+pub mod chain;
 mod direct;
 mod grad;
 mod layout;
@@ -89,6 +90,11 @@ use layout::*;
 pub use reference::{conv2d_backward_ref, conv2d_ref, pad_index, Padding};
 pub use small_out::SMALL_OUT_MAX;
 use small_out::*;
+
+/// Where the fast kernels put their output: `sink(n, y, row)` gets output row y of image n as
+/// NHWC scratch (the output's width or more pixels, pixel stride the packing's `opad`), once per
+/// row, from any thread.
+type RowSink<'a> = dyn Fn(usize, usize, &[f32]) + Sync + 'a;
 
 /// A convolution's weights packed for the fast forward, once: inference runs the same weights
 /// on every frame and mirror view, and packing them (the Winograd kernel transform) costs about
@@ -158,6 +164,16 @@ impl PackedConv {
         matches!(self.kind, PackedKind::Amx(_))
     }
 
+    /// Whether these weights run on the Winograd kernel (the fp32 chain's convs, [`chain`]).
+    pub fn is_winograd(&self) -> bool {
+        matches!(self.kind, PackedKind::Winograd(_))
+    }
+
+    /// Whether these weights run on the small-output kernel (≤ [`SMALL_OUT_MAX`] outputs).
+    pub fn is_small_out(&self) -> bool {
+        matches!(self.kind, PackedKind::SmallOut(_))
+    }
+
     /// On the bf16 tiles: whether the inputs are hi + lo pairs ([`amx::Act`]'s split form).
     pub fn is_split(&self) -> bool {
         matches!(&self.kind, PackedKind::Amx(a) if a.split)
@@ -184,66 +200,60 @@ pub fn conv2d_packed(
     if let Some(s) = epi.skip {
         assert_eq!(s.shape, [n, o, h, wd], "conv2d: the skip tensor is not the output's shape");
     }
-    let (pk, wino) = match &packed.kind {
-        PackedKind::SmallOut(wk) => {
-            let mut y = conv2d_small_out(x, wk, [o, kh, kw], b, pad);
-            epi.apply(&mut y);
-            return y;
-        }
-        PackedKind::Winograd(pk) => (Some(pk), true),
-        PackedKind::Direct(pk) => (Some(pk), false),
+    if let PackedKind::SmallOut(wk) = &packed.kind {
+        let mut y = conv2d_small_out(x, wk, [o, kh, kw], b, pad);
+        epi.apply(&mut y);
+        return y;
+    }
+    let opad = match &packed.kind {
         PackedKind::Amx(ak) => {
             assert_eq!(
                 ak.shuffle, 1,
                 "conv2d: weights packed for a fused pixel shuffle (amx::conv_act only)"
             );
-            (None, false)
+            ak.opad
         }
+        PackedKind::Winograd(pk) | PackedKind::Direct(pk) => pk.opad,
+        PackedKind::SmallOut(_) => unreachable!(),
     };
-    let opad = match &packed.kind {
-        PackedKind::Amx(ak) => ak.opad,
-        _ => pk.map_or(0, |p| p.opad),
-    };
-    let (ph, pw) = (kh / 2, kw / 2);
-    // The padded channels-last input, except for small Winograd convs, whose tasks pad their own
-    // rows, and the bf16 tiles, which pad to bf16.
-    let padded = if pk.is_none() {
-        None
-    } else if !wino {
-        Some(pad_nhwc(x, ph, pw, pad, 0))
-    } else if x.len() > winograd::FUSE_PAD_MAX {
-        Some(winograd::pad_input(x, pad))
-    } else {
-        None
-    };
-    // The bias padded to opad channels (a pooled buffer: this runs for every conv of a frame).
-    let bias = b.map(|b| {
-        let mut v = Tensor::zeros(&[opad]);
-        v.data[..o].copy_from_slice(&b.data[..o]);
-        v
-    });
-    let bias = bias.as_ref().map(|v| v.data.as_slice());
     let mut y = Tensor::for_overwrite(&[n, o, h, wd]);
     let sink = nchw_store(&mut y, opad, epi);
-    let Some(pk) = pk else {
-        let PackedKind::Amx(ak) = &packed.kind else { unreachable!() };
-        let (xp, hp, wp) = amx::pad_input(x, ph, pw, pad, ak.split);
-        amx::correlate(&xp, n, hp, wp, ak, bias, h, wd, &sink);
-        drop(sink);
-        return y;
-    };
-    match (&padded, wino) {
-        (Some((xp, hp, wp)), false) => {
-            correlate_rows(xp, n, *hp, *wp, c, kh, kw, pk, bias, h, wd, RowGroups::Single(h), &sink)
-        }
-        (Some((xp, hp, wp)), true) => {
-            let input = winograd::Input::Padded { xp, hp: *hp, wp: *wp };
-            winograd::correlate(&input, n, c, pk, bias, h, wd, &sink)
-        }
-        (None, _) => winograd::correlate(&winograd::Input::Nchw { x, pad }, n, c, pk, bias, h, wd, &sink),
-    }
+    correlate_packed(x, packed, b, pad, &sink);
     drop(sink);
     y
+}
+
+/// The conv of `x` (N, C, H, W) with `packed` (any kernel but the small-output one) and bias
+/// `b`: every output row (n, yy) to `sink` as the kernels' NHWC scratch (W or more pixels, pixel
+/// stride the packing's `opad`). What [`conv2d_packed`] and the fp32 chain's first conv
+/// ([`chain::conv_to_f32_act`]) store.
+fn correlate_packed(x: &Tensor, packed: &PackedConv, b: Option<&Tensor>, pad: Padding, sink: &RowSink) {
+    let (n, c, h, wd) = x.dims4();
+    let [_, _, kh, kw] = packed.shape;
+    let (ph, pw) = (kh / 2, kw / 2);
+    match &packed.kind {
+        PackedKind::Amx(ak) => {
+            let bias = chain::padded_bias(b, ak.opad);
+            let (xp, hp, wp) = amx::pad_input(x, ph, pw, pad, ak.split);
+            amx::correlate(&xp, n, hp, wp, ak, bias.as_deref(), h, wd, sink);
+        }
+        PackedKind::Direct(pk) => {
+            let bias = chain::padded_bias(b, pk.opad);
+            let (xp, hp, wp) = pad_nhwc(x, ph, pw, pad, 0);
+            correlate_rows(&xp, n, hp, wp, c, kh, kw, pk, bias.as_deref(), h, wd, RowGroups::Single(h), sink)
+        }
+        // Small inputs are padded row by row inside the tasks.
+        PackedKind::Winograd(pk) => {
+            let bias = chain::padded_bias(b, pk.opad);
+            let padded = (x.len() > winograd::FUSE_PAD_MAX).then(|| winograd::pad_input(x, pad));
+            let input = match &padded {
+                Some((xp, hp, wp)) => winograd::Input::Padded { xp, hp: *hp, wp: *wp },
+                None => winograd::Input::Nchw { x, pad },
+            };
+            winograd::correlate(&input, n, c, pk, bias.as_deref(), h, wd, sink)
+        }
+        PackedKind::SmallOut(_) => panic!("correlate_packed: the small-output kernel has no row sink"),
+    }
 }
 
 /// The store of the fast kernels: row (n, yy) of their NHWC scratch (wd pixels, pixel stride
@@ -330,11 +340,7 @@ pub fn conv_act_nchw(x: &amx::Act, packed: &PackedConv, b: Option<&Tensor>, epi:
     let [n, c, h, wd] = x.shape;
     let [o, c2, kh, kw] = packed.shape;
     assert!(c == c2 && kh == 3 && kw == 3, "conv_act_nchw: a 3×3 conv of {c2} channels on {c}");
-    let bias = b.map(|b| {
-        let mut v = Scratch::zeroed(ak.opad);
-        v[..o].copy_from_slice(&b.data[..o]);
-        v
-    });
+    let bias = chain::padded_bias(b, ak.opad);
     let mut y = Tensor::for_overwrite(&[n, o, h, wd]);
     let sink = nchw_store(&mut y, ak.opad, epi);
     amx::correlate(x.padded(), n, h + 2, wd + 2, ak, bias.as_deref(), h, wd, &sink);
@@ -344,8 +350,7 @@ pub fn conv_act_nchw(x: &amx::Act, packed: &PackedConv, b: Option<&Tensor>, epi:
 
 /// A trunk's last two convs on the tiles' output: [`conv_act_nchw`] with ReLU, then `last`, a
 /// conv of ≤ [`SMALL_OUT_MAX`] outputs, as [`conv2d_packed`] without epilogue. The same bits,
-/// without the NCHW tensor between them: the tile conv stores straight into the padded planar
-/// input of the small-output kernel, filling each row's border as it stores the row.
+/// without the NCHW tensor between them ([`relu_into_small_out`]).
 pub fn conv_act_relu_small_out(
     x: &amx::Act,
     packed: &PackedConv,
@@ -354,10 +359,10 @@ pub fn conv_act_relu_small_out(
     b_last: Option<&Tensor>,
     pad: Padding,
 ) -> Tensor {
-    let PackedKind::SmallOut(wk) = &last.kind else {
+    if !matches!(last.kind, PackedKind::SmallOut(_)) {
         let z = conv_act_nchw(x, packed, b, Epilogue::RELU);
         return conv2d_packed(&z, last, b_last, pad, Epilogue::NONE);
-    };
+    }
     let PackedKind::Amx(ak) = &packed.kind else {
         panic!("conv_act_relu_small_out: weights not packed for the tiles")
     };
@@ -365,23 +370,39 @@ pub fn conv_act_relu_small_out(
     assert_eq!(x.is_split(), ak.split, "conv_act_relu_small_out: the input is not in the weights' bf16 form");
     let [n, c, h, wd] = x.shape;
     let [o, c2, kh, kw] = packed.shape;
-    let [o2, c3, kh2, kw2] = last.shape;
     assert!(c == c2 && kh == 3 && kw == 3, "conv_act_relu_small_out: a 3×3 conv of {c2} channels on {c}");
-    assert_eq!(c3, o, "conv_act_relu_small_out: the last conv takes {c3} channels, the one before gives {o}");
-    let bias = b.map(|b| {
-        let mut v = Scratch::zeroed(ak.opad);
-        v[..o].copy_from_slice(&b.data[..o]);
-        v
-    });
+    let bias = chain::padded_bias(b, ak.opad);
+    relu_into_small_out([n, o, h, wd], ak.opad, last, b_last, pad, &|sink| {
+        amx::correlate(x.padded(), n, h + 2, wd + 2, ak, bias.as_deref(), h, wd, sink)
+    })
+}
+
+/// The second half of a trunk's last two convs: `run` is the first (o outputs on an H × W
+/// image, pixel stride `opad` in the rows it gives its sink); its rows, ReLU'd, go straight into
+/// the padded planar input of `last` (≤ [`SMALL_OUT_MAX`] outputs, [`small_out_planar`]), each
+/// row's border filled as it is stored, so no NCHW tensor lies between the two.
+fn relu_into_small_out(
+    [n, o, h, wd]: [usize; 4],
+    opad: usize,
+    last: &PackedConv,
+    b_last: Option<&Tensor>,
+    pad: Padding,
+    run: &dyn Fn(&RowSink),
+) -> Tensor {
+    let PackedKind::SmallOut(wk) = &last.kind else {
+        panic!("relu_into_small_out: the last conv is not small")
+    };
+    let [o2, c3, kh2, kw2] = last.shape;
+    assert_eq!(c3, o, "relu_into_small_out: the last conv takes {c3} channels, the one before gives {o}");
     let wq = planar_width(wd, kw2);
     let border = PlanarBorder { h, w: wd, ph: kh2 / 2, pw: kw2 / 2, wq, pad };
     let plane = border.plane();
-    // Every element is written: the interior by the tile conv's store, the border by the sink
-    // after it, row by row while the row is in cache.
+    // Every element is written: the interior by the conv's store, the border by the sink after
+    // it, row by row while the row is in cache.
     let mut zp = Scratch::overwritten(n * o * plane);
     let zptr = SyncPtr(zp.as_mut_ptr());
     let at = Planes { o, wd, image: o * plane, plane, row: wq, origin: border.ph * wq + border.pw };
-    let store = planes_store(&mut zp, at, ak.opad, Epilogue::RELU);
+    let store = planes_store(&mut zp, at, opad, Epilogue::RELU);
     let sink = |ni: usize, yy: usize, row: &[f32]| {
         store(ni, yy, row);
         for j in 0..o {
@@ -390,7 +411,7 @@ pub fn conv_act_relu_small_out(
             unsafe { border.fill_row(zptr.get().add((ni * o + j) * plane), yy) };
         }
     };
-    amx::correlate(x.padded(), n, h + 2, wd + 2, ak, bias.as_deref(), h, wd, &sink);
+    run(&sink);
     drop(store);
     small_out_planar(&zp, [n, o, h, wd], wq, wk, [o2, kh2, kw2], b_last)
 }

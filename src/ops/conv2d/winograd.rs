@@ -22,8 +22,8 @@
 //! not depend on the thread count.
 
 use super::{
-    micro, micro_dw, pad_nhwc_to, pad_row_nhwc, reg_tiles, sum_partials, tiles, Packed, Padding, Scratch,
-    SyncPtr, L, OB, SMALL_OUT_MAX,
+    micro, micro_dw, pad_nhwc_to, pad_row_nhwc, reg_tiles, sum_partials, tiles, Packed, Padding, RowSink,
+    Scratch, SyncPtr, L, OB, SMALL_OUT_MAX,
 };
 use crate::tensor::Tensor;
 use rayon::prelude::*;
@@ -176,7 +176,7 @@ pub(super) fn correlate(
     init: Option<&[f32]>,
     out_h: usize,
     out_w: usize,
-    sink: &(dyn Fn(usize, usize, &[f32]) + Sync),
+    sink: &RowSink,
 ) {
     let (th, tw) = (out_h.div_ceil(2), out_w.div_ceil(2));
     let (hp, wp) = match *input {
