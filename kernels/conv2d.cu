@@ -4,12 +4,14 @@
 //
 // Layouts (row-major): x (N, C, H, W), w (O, C, KH, KW) (OIHW), b (O), y / dy (N, O, H, W).
 //
-// All three products are implicit GEMMs on 64x64 output tiles: 256 threads, each owning a 4x4
-// micro-tile (rows ty + 16*i, columns tx + 16*j), reduction slices of BK = 16 staged in shared
-// memory. Every kernel writes each output once and reduces in a fixed order: results are
-// bit-for-bit reproducible run to run (no atomics).
+// All three products are implicit GEMMs on (16*MI) x 64 output tiles: 256 threads, each owning
+// an MI x 4 micro-tile (rows ty + 16*i, columns tx + 16*j), reduction slices of BK = 16 staged in
+// shared memory. Each kernel comes in two tile heights: MI = 4 (64 rows; `conv2d_fwd`, ...) and
+// MI = 2 (32 rows; `..._m32`, for GEMMs of at most 32 rows, where half a 64-row tile would be
+// zeros); both give the same bits (every output is summed in the same order). Every kernel
+// writes each output once and reduces in a fixed order: results are bit-for-bit reproducible
+// run to run (no atomics).
 
-#define BM 64
 #define BN 64
 #define BK 16
 #define NT 256
@@ -22,36 +24,45 @@ __device__ __forceinline__ int pad_idx(int p, int n, int mode) {
 }
 
 // acc[i][j] += sum_kk As[kk][ty + 16 i] * Bs[kk][tx + 16 j]
-__device__ __forceinline__ void mma_tile(float (*As)[BM + 1], float (*Bs)[BN],
-                                         float acc[4][4], int tx, int ty) {
+template <int MI>
+__device__ __forceinline__ void mma_tile(float (*As)[16 * MI + 1], float (*Bs)[BN],
+                                         float acc[MI][4], int tx, int ty) {
 #pragma unroll
     for (int kk = 0; kk < BK; ++kk) {
-        float a[4], b[4];
+        float a[MI], b[4];
 #pragma unroll
-        for (int i = 0; i < 4; ++i) a[i] = As[kk][ty + 16 * i];
+        for (int i = 0; i < MI; ++i) a[i] = As[kk][ty + 16 * i];
 #pragma unroll
         for (int j = 0; j < 4; ++j) b[j] = Bs[kk][tx + 16 * j];
 #pragma unroll
-        for (int i = 0; i < 4; ++i)
+        for (int i = 0; i < MI; ++i)
 #pragma unroll
             for (int j = 0; j < 4; ++j) acc[i][j] = fmaf(a[i], b[j], acc[i][j]);
     }
 }
 
+// Zeroed accumulators of an MI x 4 micro-tile.
+#define ACC_ZERO(acc) float acc[MI][4] = {};
+
 // Forward. GEMM y[o, p] = b[o] + sum_k w[o, k] * im2col[k, p], with
 //   o < O (tile rows, blockIdx.y), p = (n, yy, xx) < N*H*W (tile columns, blockIdx.x),
 //   k = (c*KH + ky)*KW + kx < C*KH*KW, im2col[k, p] = x[n, c, pad(yy + ky - KH/2), pad(xx + kx - KW/2)].
-// grid (ceil(N*H*W / 64), ceil(O / 64)), block 256.
-extern "C" __global__ void conv2d_fwd(const float* __restrict__ x, const float* __restrict__ w,
-                                      const float* __restrict__ bias, float* __restrict__ y,
-                                      int N, int C, int H, int W, int O, int KH, int KW,
-                                      int pad_mode, int has_bias) {
-    __shared__ float As[BK][BM + 1];
+// grid (ceil(N*H*W / 64), ceil(O / (16*MI))), block 256.
+// dgrad = 1: the input gradient of a zero-padded conv as this forward, y += conv(dy, w'): x is
+// that conv's dy (C here = its O), w its own weight (C x O x KH x KW, here O = its C) read as
+// w'[o, c, ky, kx] = w[c, o, KH-1-ky, KW-1-kx], no bias, and y (its dx) accumulated.
+template <int MI>
+__device__ __forceinline__ void conv2d_fwd_t(const float* __restrict__ x, const float* __restrict__ w,
+                                             const float* __restrict__ bias, float* __restrict__ y,
+                                             int N, int C, int H, int W, int O, int KH, int KW,
+                                             int pad_mode, int has_bias, int dgrad) {
+    constexpr int BMv = 16 * MI;
+    __shared__ float As[BK][BMv + 1];
     __shared__ float Bs[BK][BN];
     const int tid = threadIdx.x, tx = tid & 15, ty = tid >> 4;
     const int HW = H * W, P = N * HW, KK = KH * KW, K = C * KK;
     const int ph = KH / 2, pw = KW / 2;
-    const int m0 = blockIdx.y * BM, n0 = blockIdx.x * BN;
+    const int m0 = blockIdx.y * BMv, n0 = blockIdx.x * BN;
 
     // B loader: this thread always fills column bn (one pixel) of the tile.
     const int bn = tid & (BN - 1);
@@ -66,20 +77,25 @@ extern "C" __global__ void conv2d_fwd(const float* __restrict__ x, const float* 
     }
     const float* xn = x + (long long)pn * C * HW;
 
-    float acc[4][4];
-#pragma unroll
-    for (int i = 0; i < 4; ++i)
-#pragma unroll
-        for (int j = 0; j < 4; ++j) acc[i][j] = 0.f;
+    ACC_ZERO(acc)
 
     for (int k0 = 0; k0 < K; k0 += BK) {
-        // A tile (64 x 16): As[kk][mm] = w[m0 + mm, k0 + kk]
+        // A tile (16*MI x 16): As[kk][mm] = w[m0 + mm, k0 + kk] (w' with dgrad)
 #pragma unroll
-        for (int i = 0; i < 4; ++i) {
+        for (int i = 0; i < MI; ++i) {
             const int e = tid + NT * i;
             const int mm = e / BK, kk = e % BK;
             const int m = m0 + mm, k = k0 + kk;
-            As[kk][mm] = (m < O && k < K) ? w[(long long)m * K + k] : 0.f;
+            float v = 0.f;
+            if (m < O && k < K) {
+                if (dgrad) {
+                    const int c = k / KK;
+                    v = w[((long long)c * O + m) * KK + (KK - 1 - (k - c * KK))];
+                } else {
+                    v = w[(long long)m * K + k];
+                }
+            }
+            As[kk][mm] = v;
         }
         // B tile (16 x 64): Bs[kk][bn] = im2col[k0 + kk, p]
 #pragma unroll
@@ -98,12 +114,12 @@ extern "C" __global__ void conv2d_fwd(const float* __restrict__ x, const float* 
             Bs[kk][bn] = v;
         }
         __syncthreads();
-        mma_tile(As, Bs, acc, tx, ty);
+        mma_tile<MI>(As, Bs, acc, tx, ty);
         __syncthreads();
     }
 
 #pragma unroll
-    for (int i = 0; i < 4; ++i) {
+    for (int i = 0; i < MI; ++i) {
         const int m = m0 + ty + 16 * i;
         if (m >= O) continue;
         const float b = has_bias ? bias[m] : 0.f;
@@ -113,24 +129,39 @@ extern "C" __global__ void conv2d_fwd(const float* __restrict__ x, const float* 
             if (q >= P) continue;
             const int qn = q / HW;
             const int r = q - qn * HW;
-            y[((long long)qn * O + m) * HW + r] = acc[i][j] + b;
+            float* dst = y + ((long long)qn * O + m) * HW + r;
+            if (dgrad) *dst += acc[i][j];
+            else *dst = acc[i][j] + b;
         }
     }
+}
+
+#define CONV2D_FWD_ARGS                                                                             \
+    const float *__restrict__ x, const float *__restrict__ w, const float *__restrict__ bias,       \
+        float *__restrict__ y, int N, int C, int H, int W, int O, int KH, int KW, int pad_mode, \
+        int has_bias, int dgrad
+extern "C" __global__ void conv2d_fwd(CONV2D_FWD_ARGS) {
+    conv2d_fwd_t<4>(x, w, bias, y, N, C, H, W, O, KH, KW, pad_mode, has_bias, dgrad);
+}
+extern "C" __global__ void conv2d_fwd_m32(CONV2D_FWD_ARGS) {
+    conv2d_fwd_t<2>(x, w, bias, y, N, C, H, W, O, KH, KW, pad_mode, has_bias, dgrad);
 }
 
 // Weight gradient, split over the reduction: for reduction chunk z (pixels [z*chunk, (z+1)*chunk)),
 //   part[z, o, k] = sum_p dy[n, o, yy, xx] * im2col[k, p]        (p = (n, yy, xx), k as in conv2d_fwd)
 // Tile rows o < O (blockIdx.y), columns k < C*KH*KW (blockIdx.x), chunk index blockIdx.z.
 // `chunk` is a multiple of BK. part: (Z, O, C*KH*KW). Summed by conv2d_wgrad_reduce.
-extern "C" __global__ void conv2d_wgrad(const float* __restrict__ x, const float* __restrict__ dy,
-                                        float* __restrict__ part, int N, int C, int H, int W,
-                                        int O, int KH, int KW, int pad_mode, int chunk) {
-    __shared__ float As[BK][BM + 1];
+template <int MI>
+__device__ __forceinline__ void conv2d_wgrad_t(const float* __restrict__ x, const float* __restrict__ dy,
+                                               float* __restrict__ part, int N, int C, int H, int W,
+                                               int O, int KH, int KW, int pad_mode, int chunk) {
+    constexpr int BMv = 16 * MI;
+    __shared__ float As[BK][BMv + 1];
     __shared__ float Bs[BK][BN];
     const int tid = threadIdx.x, tx = tid & 15, ty = tid >> 4;
     const int HW = H * W, P = N * HW, KK = KH * KW, K = C * KK;
     const int ph = KH / 2, pw = KW / 2;
-    const int m0 = blockIdx.y * BM, n0 = blockIdx.x * BN;
+    const int m0 = blockIdx.y * BMv, n0 = blockIdx.x * BN;
     const int pbeg = blockIdx.z * chunk;
     const int pend = pbeg + chunk < P ? pbeg + chunk : P;
 
@@ -146,16 +177,12 @@ extern "C" __global__ void conv2d_wgrad(const float* __restrict__ x, const float
         bkx = t - bky * KW;
     }
 
-    float acc[4][4];
-#pragma unroll
-    for (int i = 0; i < 4; ++i)
-#pragma unroll
-        for (int j = 0; j < 4; ++j) acc[i][j] = 0.f;
+    ACC_ZERO(acc)
 
     for (int p0 = pbeg; p0 < pend; p0 += BK) {
         // A tile: As[kk][mm] = dy[o = m0 + mm, p = p0 + kk]
 #pragma unroll
-        for (int i = 0; i < 4; ++i) {
+        for (int i = 0; i < MI; ++i) {
             const int e = tid + NT * i;
             const int mm = e / BK, kk = e % BK;
             const int m = m0 + mm, pp = p0 + kk;
@@ -184,13 +211,13 @@ extern "C" __global__ void conv2d_wgrad(const float* __restrict__ x, const float
             Bs[kk][bn] = v;
         }
         __syncthreads();
-        mma_tile(As, Bs, acc, tx, ty);
+        mma_tile<MI>(As, Bs, acc, tx, ty);
         __syncthreads();
     }
 
     float* pz = part + (long long)blockIdx.z * O * K;
 #pragma unroll
-    for (int i = 0; i < 4; ++i) {
+    for (int i = 0; i < MI; ++i) {
         const int m = m0 + ty + 16 * i;
         if (m >= O) continue;
 #pragma unroll
@@ -199,6 +226,16 @@ extern "C" __global__ void conv2d_wgrad(const float* __restrict__ x, const float
             if (k < K) pz[(long long)m * K + k] = acc[i][j];
         }
     }
+}
+
+#define CONV2D_WGRAD_ARGS                                                                        \
+    const float *__restrict__ x, const float *__restrict__ dy, float *__restrict__ part, int N, \
+        int C, int H, int W, int O, int KH, int KW, int pad_mode, int chunk
+extern "C" __global__ void conv2d_wgrad(CONV2D_WGRAD_ARGS) {
+    conv2d_wgrad_t<4>(x, dy, part, N, C, H, W, O, KH, KW, pad_mode, chunk);
+}
+extern "C" __global__ void conv2d_wgrad_m32(CONV2D_WGRAD_ARGS) {
+    conv2d_wgrad_t<2>(x, dy, part, N, C, H, W, O, KH, KW, pad_mode, chunk);
 }
 
 // dw[i] += sum_{z < Z} part[z, i], i < len (= O*C*KH*KW), summed in z order. 1-D grid-stride.
@@ -215,16 +252,20 @@ extern "C" __global__ void conv2d_wgrad_reduce(const float* __restrict__ part, f
 // Input gradient on the padded grid (Hp = H + KH - 1, Wp = W + KW - 1):
 //   dxp[n, c, py, px] = sum_{o, ky, kx} w[o, c, ky, kx] * dy[n, o, py - ky, px - kx]   (dy is 0 outside)
 // GEMM rows c < C (blockIdx.y), columns q = (n, py, px) < N*Hp*Wp (blockIdx.x),
-// reduction k = (o*KH + ky)*KW + kx < O*KH*KW. conv2d_dgrad_fold folds dxp onto dx.
-extern "C" __global__ void conv2d_dgrad_padded(const float* __restrict__ w, const float* __restrict__ dy,
-                                               float* __restrict__ dxp, int N, int C, int H, int W,
-                                               int O, int KH, int KW) {
-    __shared__ float As[BK][BM + 1];
+// reduction k = (o*KH + ky)*KW + kx < O*KH*KW. conv2d_dgrad_fold folds dxp onto dx. (Replicate
+// padding; a zero-padded conv's input gradient is conv2d_fwd with dgrad = 1.)
+template <int MI>
+__device__ __forceinline__ void conv2d_dgrad_padded_t(const float* __restrict__ w,
+                                                      const float* __restrict__ dy,
+                                                      float* __restrict__ dxp, int N, int C, int H,
+                                                      int W, int O, int KH, int KW) {
+    constexpr int BMv = 16 * MI;
+    __shared__ float As[BK][BMv + 1];
     __shared__ float Bs[BK][BN];
     const int tid = threadIdx.x, tx = tid & 15, ty = tid >> 4;
     const int HW = H * W, KK = KH * KW, K = O * KK;
     const int Hp = H + KH - 1, Wp = W + KW - 1, HWp = Hp * Wp, P = N * HWp;
-    const int m0 = blockIdx.y * BM, n0 = blockIdx.x * BN;
+    const int m0 = blockIdx.y * BMv, n0 = blockIdx.x * BN;
 
     // B loader: this thread always fills column bn (one padded pixel) of the tile.
     const int bn = tid & (BN - 1);
@@ -239,16 +280,12 @@ extern "C" __global__ void conv2d_dgrad_padded(const float* __restrict__ w, cons
     }
     const float* dyn = dy + (long long)qn * O * HW;
 
-    float acc[4][4];
-#pragma unroll
-    for (int i = 0; i < 4; ++i)
-#pragma unroll
-        for (int j = 0; j < 4; ++j) acc[i][j] = 0.f;
+    ACC_ZERO(acc)
 
     for (int k0 = 0; k0 < K; k0 += BK) {
         // A tile: As[kk][mm] = w[o, c = m0 + mm, t] with k0 + kk = o*KK + t
 #pragma unroll
-        for (int i = 0; i < 4; ++i) {
+        for (int i = 0; i < MI; ++i) {
             const int e = tid + NT * i;
             const int mm = e / BK, kk = e % BK;
             const int c = m0 + mm, k = k0 + kk;
@@ -276,12 +313,12 @@ extern "C" __global__ void conv2d_dgrad_padded(const float* __restrict__ w, cons
             Bs[kk][bn] = v;
         }
         __syncthreads();
-        mma_tile(As, Bs, acc, tx, ty);
+        mma_tile<MI>(As, Bs, acc, tx, ty);
         __syncthreads();
     }
 
 #pragma unroll
-    for (int i = 0; i < 4; ++i) {
+    for (int i = 0; i < MI; ++i) {
         const int c = m0 + ty + 16 * i;
         if (c >= C) continue;
 #pragma unroll
@@ -293,6 +330,16 @@ extern "C" __global__ void conv2d_dgrad_padded(const float* __restrict__ w, cons
             dxp[((long long)nn * C + c) * HWp + r] = acc[i][j];
         }
     }
+}
+
+#define CONV2D_DGRAD_ARGS                                                                          \
+    const float *__restrict__ w, const float *__restrict__ dy, float *__restrict__ dxp, int N, int C, \
+        int H, int W, int O, int KH, int KW
+extern "C" __global__ void conv2d_dgrad_padded(CONV2D_DGRAD_ARGS) {
+    conv2d_dgrad_padded_t<4>(w, dy, dxp, N, C, H, W, O, KH, KW);
+}
+extern "C" __global__ void conv2d_dgrad_padded_m32(CONV2D_DGRAD_ARGS) {
+    conv2d_dgrad_padded_t<2>(w, dy, dxp, N, C, H, W, O, KH, KW);
 }
 
 // dx[nc, sy, sx] += sum dxp[nc, py, px] over the padded pixels that read (sy, sx):

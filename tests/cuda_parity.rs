@@ -12,7 +12,7 @@ use close::{assert_close, assert_close_f32};
 mod random;
 use anisocb::cuda::{ops_for_device, DeviceTrainer, MirrorView, StepLoss};
 use anisocb::geom::cloth_frame::{mirror_net_images, mirrored_axes, InputFrame, GRID_MIRRORS};
-use anisocb::nn::geometry_net::{geometry_loss, GeometryLoss};
+use anisocb::nn::geometry_net::{estimate_loss, geometry_loss, GeometryLoss};
 use anisocb::nn::map_net::map_loss;
 use anisocb::nn::{AnisoCb, NetConfig, NetKind, Trunk};
 use anisocb::ops::conv2d::{conv2d_backward_ref, conv2d_ref};
@@ -450,10 +450,47 @@ fn cuda_whole_bundle_on_the_device_matches_cpu() {
 
 // ------------------------------------------------------ device-resident training (cuda::train)
 
+/// GeometryNet's loss on the device (`kernels/loss.cu` geometry_loss: MSE + edge-vector +
+/// edge-length terms) against [`estimate_loss`] on the CPU: the gradient bit for bit (the kernel
+/// gathers each term in the order the CPU scatters it), the loss to the rounding of its f64
+/// sums' order; shapes one pixel wide or tall, edges of zero length in the prediction, terms
+/// of weight 0. The Laplacian and wrinkle-energy terms have no kernel: `None`.
+#[test]
+fn cuda_geometry_loss_kernel_gives_the_cpus_gradient_bits() {
+    let Some(dev) = device() else { return };
+    let Some(cuda) = dev.as_cuda() else { return };
+    let mut rng = Rng::new(0x6e0);
+    let weights = [
+        GeometryLoss::default(),
+        GeometryLoss { edge: 1.0, ..GeometryLoss::default() },
+        GeometryLoss { edge: 1.0, length: 4.0, ..GeometryLoss::default() },
+        GeometryLoss { length: 2.0, ..GeometryLoss::default() },
+    ];
+    for shape in [[2, 3, 5, 7], [1, 3, 1, 6], [3, 3, 4, 1], [32, 3, 32, 32], [1, 2, 9, 8]] {
+        let (mut p, t) = (rng.tensor(&shape, -1.0, 1.0), rng.tensor(&shape, -1.0, 1.0));
+        let plane = shape[2] * shape[3];
+        for ch in 0..shape[1] {
+            p.data[ch * plane] = 0.25; // the first two pixels coincide: an edge of zero length
+            p.data[ch * plane + 1] = 0.25;
+        }
+        for w in weights {
+            let tag = format!("{shape:?} {w:?}");
+            let (lg, gg) = cuda.geometry_loss(&p, &t, w).expect("a kernel for these terms");
+            assert!(dev.take_error().is_none(), "a driver failure");
+            let (lc, gc) = estimate_loss(&Cpu, &p, &t, (shape[2].div_ceil(2), shape[3].div_ceil(2)), w);
+            assert_close_f32(&format!("{tag} loss"), lg, lc, 1e-9, 1e-6);
+            let bits = |t: &Tensor| t.data.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+            assert!(bits(&gg) == bits(&gc), "{tag}: the gradient differs from the CPU's bits");
+        }
+        let lap = GeometryLoss { laplacian: 1.0, ..GeometryLoss::default() };
+        assert!(cuda.geometry_loss(&p, &t, lap).is_none(), "no kernel for the Laplacian");
+    }
+}
+
 /// Ten steps of the device-resident trainer (the trunk, its gradients and Adam's moments kept
 /// on the GPU) against the CPU's op-by-op steps: GeometryNet with the paper's MSE, GeometryNet
-/// with an edge term (computed on the host from the downloaded estimate), and BoundaryNet's
-/// BCE; the losses of every step, a validation loss (forward only), then the weights and
+/// with the edge and edge-length terms (on the device), GeometryNet with a Laplacian term
+/// (computed on the host from the downloaded estimate), and BoundaryNet's BCE; the losses of every step, a validation loss (forward only), then the weights and
 /// moments it stores back. Tolerances as
 /// the op table's training parity above (fp32 on both sides, different summation orders).
 #[test]
@@ -461,10 +498,12 @@ fn cuda_device_resident_training_matches_cpu() {
     let Some(dev) = device() else { return };
     let Some(cuda) = dev.as_cuda() else { return };
     let mut rng = Rng::new(0x7a12);
-    let edge = GeometryLoss { edge: 0.5, ..GeometryLoss::default() };
+    let edges = GeometryLoss { edge: 0.5, length: 4.0, ..GeometryLoss::default() };
+    let laplacian = GeometryLoss { edge: 0.5, laplacian: 0.25, ..GeometryLoss::default() };
     let cases = [
         (NetKind::Geometry, StepLoss::Geometry(GeometryLoss::default())),
-        (NetKind::Geometry, StepLoss::Geometry(edge)),
+        (NetKind::Geometry, StepLoss::Geometry(edges)),
+        (NetKind::Geometry, StepLoss::Geometry(laplacian)),
         (NetKind::Boundary, StepLoss::Map { pos_weight: 2.0 }),
     ];
     for (kind, loss) in cases {

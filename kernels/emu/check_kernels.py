@@ -95,14 +95,20 @@ def conv_bwd_ref(x, w, dy, mode):
     return dx, dw, db
 
 
-def conv_fwd_dev(x, w, b, mode):
+def tile_rows(rows):
+    """src/cuda/conv2d.rs tile_rows: (kernel name suffix, rows per tile)."""
+    return ("_m32", TILE // 2) if rows <= TILE // 2 else ("", TILE)
+
+
+def conv_fwd_dev(x, w, b, mode, force=None):
     N, C, H, W = x.shape
     O, _, KH, KW = w.shape
     y = np.zeros((N, O, H, W), np.float32)
     bias = b if b is not None else np.zeros(1, np.float32)
     P = N * H * W
-    launch("conv2d_fwd", (-(-P // TILE), -(-O // TILE), 1), THREADS, x, w, bias, y,
-           I(N), I(C), I(H), I(W), I(O), I(KH), I(KW), I(mode), I(b is not None))
+    sfx, bm = force or tile_rows(O)
+    launch("conv2d_fwd" + sfx, (-(-P // TILE), -(-O // bm), 1), THREADS, x, w, bias, y,
+           I(N), I(C), I(H), I(W), I(O), I(KH), I(KW), I(mode), I(b is not None), I(0))
     return y
 
 
@@ -115,21 +121,34 @@ def conv_bwd_dev(x, w, dy, mode, dx, dw, db):
     chunk = max(-(-(-(-P // want_z)) // BK) * BK, 16 * BK)
     Z = -(-P // chunk)
     part = np.zeros(Z * O * KK, np.float32)
-    launch("conv2d_wgrad", (-(-KK // TILE), -(-O // TILE), Z), THREADS, x, dy, part,
+    sfx, bm = tile_rows(O)
+    launch("conv2d_wgrad" + sfx, (-(-KK // TILE), -(-O // bm), Z), THREADS, x, dy, part,
            I(N), I(C), I(H), I(W), I(O), I(KH), I(KW), I(mode), I(chunk))
     launch("conv2d_wgrad_reduce", grid1(O * KK), THREADS, part, dw, I(Z), L(O * KK))
-    Hp, Wp = H + KH - 1, W + KW - 1
-    dxp = np.zeros(N * C * Hp * Wp, np.float32)
-    launch("conv2d_dgrad_padded", (-(-(N * Hp * Wp) // TILE), -(-C // TILE), 1), THREADS, w, dy, dxp,
-           I(N), I(C), I(H), I(W), I(O), I(KH), I(KW))
-    launch("conv2d_dgrad_fold", grid1(N * C * H * W), THREADS, dxp, dx, I(N * C), I(H), I(W), I(KH), I(KW), I(mode))
+    sfx, bm = tile_rows(C)
+    if mode == 0:  # the forward kernel in its dgrad mode: dx += conv(dy, w transposed and flipped)
+        launch("conv2d_fwd" + sfx, (-(-P // TILE), -(-C // bm), 1), THREADS, dy, w, dy, dx,
+               I(N), I(O), I(H), I(W), I(C), I(KH), I(KW), I(0), I(0), I(1))
+    else:
+        Hp, Wp = H + KH - 1, W + KW - 1
+        dxp = np.zeros(N * C * Hp * Wp, np.float32)
+        launch("conv2d_dgrad_padded" + sfx, (-(-(N * Hp * Wp) // TILE), -(-C // bm), 1), THREADS, w, dy, dxp,
+               I(N), I(C), I(H), I(W), I(O), I(KH), I(KW))
+        launch("conv2d_dgrad_fold", grid1(N * C * H * W), THREADS, dxp, dx, I(N * C), I(H), I(W), I(KH), I(KW), I(mode))
     launch("conv2d_bias_grad", (O, 1, 1), THREADS, dy, db, I(N), I(O), I(H * W))
     return Z
 
 
+# The two tile heights give the same bits.
+x, w, b = rnd(2, 5, 9, 7), rnd(30, 5, 3, 3), rnd(30)
+check("conv2d_fwd: 32-row tiles give the 64-row tiles' bits",
+      conv_fwd_dev(x, w, b, 1, ("_m32", TILE // 2)).view(np.uint32),
+      conv_fwd_dev(x, w, b, 1, ("", TILE)).view(np.uint32), 0, 0)
+
 for case, (N, C, H, W, O, KH, KW) in enumerate([
         (1, 3, 5, 7, 4, 3, 3), (2, 5, 9, 6, 70, 3, 3), (1, 70, 4, 5, 3, 3, 3), (2, 3, 1, 9, 5, 5, 3),
-        (1, 2, 11, 2, 3, 1, 5), (3, 4, 13, 17, 66, 3, 3), (1, 1, 1, 1, 1, 3, 3)]):
+        (1, 2, 11, 2, 3, 1, 5), (3, 4, 13, 17, 66, 3, 3), (1, 1, 1, 1, 1, 3, 3), (2, 33, 6, 5, 32, 3, 3),
+        (1, 32, 5, 9, 33, 3, 3)]):
     for mode in (0, 1):
         x, w, b = rnd(N, C, H, W), rnd(O, C, KH, KW), rnd(O)
         tag = f"conv2d {N}x{C}x{H}x{W} w {O}x{C}x{KH}x{KW} {'replicate' if mode else 'zero'}"
@@ -268,6 +287,71 @@ for n in (1, 300, 5000):
     sg = 1 / (1 + np.exp(-z64))
     check(f"bce loss n={n}", part.sum() / n, loss.mean(), 1e-6, 1e-5)
     check(f"bce grad n={n}", g, (pw * tt * (sg - 1) + (1 - tt) * sg) / n, 1e-7, 1e-5)
+
+
+def geometry_loss_ref(p, t, we, wl):
+    """estimate_loss (src/nn/geometry_net.rs) with MSE + we * edge_mse + wl * edge_length_mse,
+    in float32 op for op in the CPU's order (src/ops/loss): the gradient's exact bits; the
+    three f64 sums (d^2, edge errors^2, length errors^2; 0 for a term of weight 0)."""
+    f = np.float32
+    N, C, H, W = p.shape
+    nf, edges = f(p.size), N * (H * (W - 1) + (H - 1) * W)
+    ef, ls = f(max(C * edges, 1)), f(2) / f(max(edges, 1))
+    d = p - t
+    g = f(2) * d / nf
+    er, ed = d[..., 1:] - d[..., :-1], d[:, :, 1:] - d[:, :, :-1]
+    sums = [np.sum(d.astype(np.float64) ** 2), np.sum(er.astype(np.float64) ** 2) + np.sum(ed.astype(np.float64) ** 2)]
+    if we != 0:
+        ge = np.zeros_like(d)
+        ge[:, :, 1:] += f(2) * ed / ef     # the edge from the pixel above
+        ge[..., 1:] += f(2) * er / ef      # from the left
+        ge[..., :-1] -= f(2) * er / ef     # to the right
+        ge[:, :, :-1] -= f(2) * ed / ef    # downwards
+        g = g + f(we) * ge
+    def length(v, ax):
+        s = np.zeros_like(np.take(np.diff(v, axis=ax), 0, axis=1))
+        for ch in range(C):
+            dv = np.diff(v[:, ch], axis=ax - 1)
+            s = s + dv * dv
+        return np.sqrt(s)
+    sl = 0.0
+    gl = np.zeros_like(d)
+    ks = {}
+    for ax in (3, 2):
+        lp, lt = length(p, ax), length(t, ax)
+        el = lp - lt
+        sl += np.sum(el.astype(np.float64) ** 2)
+        on = lp > 0
+        ks[ax] = (np.where(on, ls * el / np.where(on, lp, f(1)), f(0)), on)
+    sums = [sums[0], sums[1] if we != 0 else 0.0, sl if wl != 0 else 0.0]
+    if wl != 0:
+        dp = {3: np.diff(p, axis=3), 2: np.diff(p, axis=2)}
+        for ax, sign, end in ((2, 1, True), (3, 1, True), (3, -1, False), (2, -1, False)):
+            k, on = ks[ax]
+            dd = k[:, None] * dp[ax]
+            tgt = (slice(None), slice(None)) + ((slice(1, None),) if ax == 2 else (slice(None), slice(1, None)))
+            if not end:
+                tgt = (slice(None), slice(None)) + ((slice(None, -1),) if ax == 2 else (slice(None), slice(None, -1)))
+            cur = gl[tgt]
+            gl[tgt] = np.where(on[:, None], cur + dd if sign > 0 else cur - dd, cur)
+        g = g + f(wl) * gl
+    return g, sums
+
+for shape in ((2, 3, 5, 7), (1, 3, 1, 6), (3, 3, 4, 1), (1, 2, 9, 8)):
+    for we, wl in ((0.0, 0.0), (1.0, 0.0), (0.5, 4.0), (0.0, 2.0)):
+        p, t = rnd(*shape), rnd(*shape)
+        p[0, :, 0, :2] = 0.25  # an edge of zero length in pred: no length gradient from it
+        N, C, H, W = shape
+        g = np.zeros(shape, np.float32)
+        cfg = grid1(N * H * W)
+        part = np.zeros(3 * cfg[0], np.float64)
+        edges = N * (H * (W - 1) + (H - 1) * W)
+        launch("geometry_loss", cfg, THREADS, p, t, g, part, I(N), I(C), I(H), I(W), F(p.size),
+               F(max(C * edges, 1)), F(np.float32(2) / np.float32(max(edges, 1))), F(we), F(wl))
+        g_ref, sums = geometry_loss_ref(p, t, we, wl)
+        check(f"geometry_loss grad {shape} we={we} wl={wl} (bits)", g.view(np.uint32), g_ref.view(np.uint32), 0, 0)
+        got = part.reshape(3, -1).sum(axis=1)
+        check(f"geometry_loss sums {shape} we={we} wl={wl}", got, sums, 1e-12, 1e-12)
 
 # ---------------- adam ----------------
 n = 1000

@@ -1,6 +1,8 @@
 //! `kernels/conv2d.cu` on device buffers: implicit-GEMM forward, split-K weight gradient with
-//! an ordered reduction, input gradient (full correlation on the padded grid, then a fold onto
-//! the input for either padding), bias gradient.
+//! an ordered reduction, input gradient (for zero padding the forward kernel on the output
+//! gradient with the weights transposed and flipped; for replicate padding a full correlation
+//! on the padded grid, then a fold onto the input), bias gradient. GEMMs of at most 32 rows
+//! (output channels; input channels for the input gradient) run the kernels' 32-row tiles.
 
 use cudarc::driver::{LaunchConfig, PushKernelArg};
 
@@ -12,6 +14,15 @@ const TILE: usize = 64;
 const BK: usize = 16;
 /// Blocks the weight-gradient kernel aims for (split over the pixel reduction).
 const WGRAD_TARGET_BLOCKS: usize = 1024;
+
+/// The tile height for a GEMM of `rows` rows: (index into the kernel pairs, rows per tile).
+fn tile_rows(rows: usize) -> (usize, usize) {
+    if rows <= TILE / 2 {
+        (1, TILE / 2)
+    } else {
+        (0, TILE)
+    }
+}
 
 fn pad_mode(pad: Padding) -> i32 {
     match pad {
@@ -46,17 +57,19 @@ impl Cuda {
         };
         let (ni, ci, hi, wi, oi, khi, kwi) =
             (n as i32, c as i32, h as i32, wd as i32, o as i32, kh as i32, kw as i32);
-        let (pm, hb) = (pad_mode(pad), b.is_some() as i32);
+        let (pm, hb, dgrad) = (pad_mode(pad), b.is_some() as i32, 0i32);
+        let (kt, bm) = tile_rows(o);
         let cfg = LaunchConfig {
-            grid_dim: (p.div_ceil(TILE) as u32, o.div_ceil(TILE) as u32, 1),
+            grid_dim: (p.div_ceil(TILE) as u32, o.div_ceil(bm) as u32, 1),
             block_dim: (THREADS, 1, 1),
             shared_mem_bytes: 0,
         };
-        let mut l = self.stream.launch_builder(&self.k.conv2d_fwd);
+        let mut l = self.stream.launch_builder(&self.k.conv2d_fwd[kt]);
         l.arg(&x.buf).arg(&w.buf).arg(bias).arg(&mut y.buf);
-        l.arg(&ni).arg(&ci).arg(&hi).arg(&wi).arg(&oi).arg(&khi).arg(&kwi).arg(&pm).arg(&hb);
+        l.arg(&ni).arg(&ci).arg(&hi).arg(&wi).arg(&oi).arg(&khi).arg(&kwi).arg(&pm).arg(&hb).arg(&dgrad);
         // SAFETY: argument list matches conv2d_fwd; buffers hold the sizes the shapes imply.
         unsafe { l.launch(cfg) }?;
+        self.mark(|| format!("conv fwd {c}->{o} {h}x{wd}"));
         Ok(y)
     }
 
@@ -103,43 +116,69 @@ impl Cuda {
             let z = p.div_ceil(chunk);
             let mut part = self.stream.alloc_zeros::<f32>(z * o * kk)?;
             let (chunk_i, z_i, len) = (chunk as i32, z as i32, (o * kk) as i64);
+            let (kt, bm) = tile_rows(o);
             let cfg = LaunchConfig {
-                grid_dim: (kk.div_ceil(TILE) as u32, o.div_ceil(TILE) as u32, z as u32),
+                grid_dim: (kk.div_ceil(TILE) as u32, o.div_ceil(bm) as u32, z as u32),
                 block_dim: (THREADS, 1, 1),
                 shared_mem_bytes: 0,
             };
-            let mut l = self.stream.launch_builder(&self.k.conv2d_wgrad);
+            let mut l = self.stream.launch_builder(&self.k.conv2d_wgrad[kt]);
             l.arg(&x.buf).arg(&dy.buf).arg(&mut part);
             l.arg(&ni).arg(&ci).arg(&hi).arg(&wi).arg(&oi).arg(&khi).arg(&kwi).arg(&pm).arg(&chunk_i);
             // SAFETY: matches conv2d_wgrad; part holds z·O·C·KH·KW values.
             unsafe { l.launch(cfg) }?;
+            self.mark(|| format!("conv wgrad {c}->{o} {h}x{wd} (z {z})"));
             let mut l = self.stream.launch_builder(&self.k.conv2d_wgrad_reduce);
             l.arg(&part).arg(&mut dw.buf).arg(&z_i).arg(&len);
             // SAFETY: matches conv2d_wgrad_reduce; dw holds O·C·KH·KW values.
             unsafe { l.launch(grid1(o * kk)) }?;
+            self.mark(|| format!("conv wgrad reduce {c}->{o}"));
         }
 
-        // Input gradient: full correlation onto the padded grid, then fold onto dx.
-        if let Some(dx) = dx {
-            if c > 0 {
-                let q = n * hp * wp;
-                let mut dxp = self.stream.alloc_zeros::<f32>(n * c * hp * wp)?;
+        // Input gradient. Zero padding: dx += the forward kernel on dy with the weights
+        // transposed and flipped (its `dgrad` mode). Replicate padding: full correlation onto
+        // the padded grid, then fold onto dx.
+        let (kt, bm) = tile_rows(c);
+        match dx {
+            Some(dx) if c > 0 && pad == Padding::Zero => {
+                let (no_bias, no, dgrad) = (0i32, 0i32, 1i32);
                 let cfg = LaunchConfig {
-                    grid_dim: (q.div_ceil(TILE) as u32, c.div_ceil(TILE) as u32, 1),
+                    grid_dim: (p.div_ceil(TILE) as u32, c.div_ceil(bm) as u32, 1),
                     block_dim: (THREADS, 1, 1),
                     shared_mem_bytes: 0,
                 };
-                let mut l = self.stream.launch_builder(&self.k.conv2d_dgrad_padded);
+                let mut l = self.stream.launch_builder(&self.k.conv2d_fwd[kt]);
+                l.arg(&dy.buf).arg(&w.buf).arg(&dy.buf).arg(&mut dx.buf);
+                l.arg(&ni).arg(&oi).arg(&hi).arg(&wi).arg(&ci).arg(&khi).arg(&kwi).arg(&no).arg(&no_bias);
+                l.arg(&dgrad);
+                // SAFETY: matches conv2d_fwd in its dgrad mode (x = dy with O channels, the
+                // weight read as (C, O, KH, KW) transposed, y = dx with C channels; the bias
+                // argument is not read).
+                unsafe { l.launch(cfg) }?;
+                self.mark(|| format!("conv dgrad {c}->{o} {h}x{wd}"));
+            }
+            Some(dx) if c > 0 => {
+                let q = n * hp * wp;
+                let mut dxp = self.stream.alloc_zeros::<f32>(n * c * hp * wp)?;
+                let cfg = LaunchConfig {
+                    grid_dim: (q.div_ceil(TILE) as u32, c.div_ceil(bm) as u32, 1),
+                    block_dim: (THREADS, 1, 1),
+                    shared_mem_bytes: 0,
+                };
+                let mut l = self.stream.launch_builder(&self.k.conv2d_dgrad_padded[kt]);
                 l.arg(&w.buf).arg(&dy.buf).arg(&mut dxp);
                 l.arg(&ni).arg(&ci).arg(&hi).arg(&wi).arg(&oi).arg(&khi).arg(&kwi);
                 // SAFETY: matches conv2d_dgrad_padded; dxp holds N·C·Hp·Wp values.
                 unsafe { l.launch(cfg) }?;
+                self.mark(|| format!("conv dgrad {c}->{o} {h}x{wd}"));
                 let nc = (n * c) as i32;
                 let mut l = self.stream.launch_builder(&self.k.conv2d_dgrad_fold);
                 l.arg(&dxp).arg(&mut dx.buf).arg(&nc).arg(&hi).arg(&wi).arg(&khi).arg(&kwi).arg(&pm);
                 // SAFETY: matches conv2d_dgrad_fold; dx holds N·C·H·W values.
                 unsafe { l.launch(grid1(n * c * h * wd)) }?;
+                self.mark(|| format!("conv dgrad fold {c} {h}x{wd}"));
             }
+            _ => {}
         }
 
         if let Some(db) = db {
@@ -150,6 +189,7 @@ impl Cuda {
             l.arg(&dy.buf).arg(&mut db.buf).arg(&ni).arg(&oi).arg(&hw);
             // SAFETY: matches conv2d_bias_grad (256 threads, one block per output channel).
             unsafe { l.launch(cfg) }?;
+            self.mark(|| format!("conv bias grad {o} {h}x{wd}"));
         }
         Ok(())
     }

@@ -38,10 +38,11 @@ const MAX_BLOCKS: usize = 8192;
 
 /// The loaded kernels, one field per `extern "C" __global__` function.
 pub(super) struct Kernels {
-    pub(super) conv2d_fwd: CudaFunction,
-    pub(super) conv2d_wgrad: CudaFunction,
+    /// The implicit-GEMM conv kernels in their two tile heights: `[64 rows, 32 rows]`.
+    pub(super) conv2d_fwd: [CudaFunction; 2],
+    pub(super) conv2d_wgrad: [CudaFunction; 2],
     pub(super) conv2d_wgrad_reduce: CudaFunction,
-    pub(super) conv2d_dgrad_padded: CudaFunction,
+    pub(super) conv2d_dgrad_padded: [CudaFunction; 2],
     pub(super) conv2d_dgrad_fold: CudaFunction,
     pub(super) conv2d_bias_grad: CudaFunction,
     pub(super) relu_fwd: CudaFunction,
@@ -54,6 +55,7 @@ pub(super) struct Kernels {
     pub(super) resize_bwd: CudaFunction,
     pub(super) mse_loss: CudaFunction,
     pub(super) bce_logits_loss: CudaFunction,
+    pub(super) geometry_loss: CudaFunction,
     pub(super) adam_step: CudaFunction,
 }
 
@@ -87,6 +89,16 @@ pub struct Cuda {
     pub(super) bundle: Mutex<Option<Arc<DeviceBundle>>>,
     /// Whether [`Cuda::nets_views`] may run (`--precision fp32` turns it off).
     pub(super) tensor_cores_on: std::sync::atomic::AtomicBool,
+    /// `ANISOCB_CUDA_PROFILE=1`: the time between [`Cuda::mark`]s, by bucket.
+    profile: Option<Mutex<Profile>>,
+}
+
+/// Wall time charged to named buckets by [`Cuda::mark`] (a developer's tool: each mark waits
+/// for the stream, so a profiled run is slower than a plain one).
+struct Profile {
+    last: std::time::Instant,
+    /// (bucket, seconds, marks), in order of first appearance.
+    rows: Vec<(String, f64, u64)>,
 }
 
 impl std::fmt::Debug for Cuda {
@@ -171,6 +183,7 @@ impl Cuda {
         let ctx = CudaContext::new(ordinal).map_err(|e| driver_err("cannot create a CUDA context", e))?;
         let device_name = ctx.name().unwrap_or_else(|_| format!("CUDA device {ordinal}"));
         let stream = ctx.default_stream();
+        keep_freed_memory_pooled(&ctx);
 
         let mut modules: Vec<Arc<CudaModule>> = Vec::with_capacity(KERNELS.len());
         for (file, src, _) in KERNELS {
@@ -196,10 +209,10 @@ impl Cuda {
             modules[m].load_function(name).map_err(|e| driver_err(&format!("kernel `{name}` missing"), e))
         };
         let k = Kernels {
-            conv2d_fwd: f("conv2d_fwd")?,
-            conv2d_wgrad: f("conv2d_wgrad")?,
+            conv2d_fwd: [f("conv2d_fwd")?, f("conv2d_fwd_m32")?],
+            conv2d_wgrad: [f("conv2d_wgrad")?, f("conv2d_wgrad_m32")?],
             conv2d_wgrad_reduce: f("conv2d_wgrad_reduce")?,
-            conv2d_dgrad_padded: f("conv2d_dgrad_padded")?,
+            conv2d_dgrad_padded: [f("conv2d_dgrad_padded")?, f("conv2d_dgrad_padded_m32")?],
             conv2d_dgrad_fold: f("conv2d_dgrad_fold")?,
             conv2d_bias_grad: f("conv2d_bias_grad")?,
             relu_fwd: f("relu_fwd")?,
@@ -212,6 +225,7 @@ impl Cuda {
             resize_bwd: f("resize_bwd")?,
             mse_loss: f("mse_loss")?,
             bce_logits_loss: f("bce_logits_loss")?,
+            geometry_loss: f("geometry_loss")?,
             adam_step: f("adam_step")?,
         };
         let infer = InferKernels::load(&ctx);
@@ -224,7 +238,41 @@ impl Cuda {
             infer,
             bundle: Mutex::new(None),
             tensor_cores_on: std::sync::atomic::AtomicBool::new(true),
+            profile: std::env::var_os("ANISOCB_CUDA_PROFILE")
+                .is_some_and(|v| v == "1")
+                .then(|| Mutex::new(Profile { last: std::time::Instant::now(), rows: Vec::new() })),
         })
+    }
+
+    /// With `ANISOCB_CUDA_PROFILE=1`: waits for the stream, then charges the wall time since
+    /// the previous mark to `bucket()`. Otherwise nothing (the closure is not called).
+    pub(super) fn mark(&self, bucket: impl FnOnce() -> String) {
+        let Some(p) = &self.profile else { return };
+        let _ = self.stream.synchronize();
+        let mut p = p.lock().unwrap_or_else(|e| e.into_inner());
+        let now = std::time::Instant::now();
+        let dt = (now - p.last).as_secs_f64();
+        p.last = now;
+        let name = bucket();
+        match p.rows.iter_mut().find(|r| r.0 == name) {
+            Some(r) => {
+                r.1 += dt;
+                r.2 += 1;
+            }
+            None => p.rows.push((name, dt, 1)),
+        }
+    }
+
+    /// The profile so far as a table on stderr, then cleared (nothing without a profile).
+    pub(super) fn report_profile(&self, title: &str) {
+        let Some(p) = &self.profile else { return };
+        let mut p = p.lock().unwrap_or_else(|e| e.into_inner());
+        let total: f64 = p.rows.iter().map(|r| r.1).sum();
+        eprintln!("\nCUDA profile: {title} ({:.1} ms in all)", total * 1e3);
+        for (name, s, k) in &p.rows {
+            eprintln!("{:>9.3} ms {:>5.1} % {:>7} × {name}", s * 1e3, 100.0 * s / total.max(1e-12), k);
+        }
+        p.rows.clear();
     }
 
     /// The GPU's name as the driver reports it.
@@ -297,6 +345,24 @@ impl Cuda {
     /// The recorded driver failure, if any (see the module docs).
     pub(super) fn take_failure(&self) -> Option<Error> {
         self.guard().take().map(Error::device)
+    }
+}
+
+/// Buffers come from the device's stream-ordered pool (`cuMemAllocAsync`), which by default
+/// hands freed memory back to the driver at every synchronisation (release threshold 0): then
+/// every training step, which waits for its loss, maps its hundred-odd buffers afresh. With no
+/// threshold the pool keeps what it has (up to the run's high-water mark) for the next step.
+/// Best effort: without a default pool nothing changes but the speed.
+fn keep_freed_memory_pooled(ctx: &CudaContext) {
+    use cudarc::driver::sys;
+    let mut pool: sys::CUmemoryPool = std::ptr::null_mut();
+    // SAFETY: plain driver calls on this context's device; `max` outlives the call that reads it.
+    unsafe {
+        if sys::cuDeviceGetDefaultMemPool(&mut pool, ctx.cu_device()) == sys::CUresult::CUDA_SUCCESS {
+            let mut max = u64::MAX;
+            let attr = sys::CUmemPool_attribute::CU_MEMPOOL_ATTR_RELEASE_THRESHOLD;
+            let _ = sys::cuMemPoolSetAttribute(pool, attr, (&mut max as *mut u64).cast());
+        }
     }
 }
 

@@ -12,6 +12,7 @@ impl Cuda {
         l.arg(a).arg(b).arg(&nn);
         // SAFETY: (const float*, float*, long long) kernels; both buffers hold ≥ n values.
         unsafe { l.launch(grid1(n)) }?;
+        self.mark(|| "element-wise".into());
         Ok(())
     }
 
@@ -44,6 +45,7 @@ impl Cuda {
         l.arg(&x.buf).arg(&dy.buf).arg(&mut dx.buf).arg(&nn);
         // SAFETY: matches relu_bwd; all three buffers hold n values.
         unsafe { l.launch(grid1(n)) }?;
+        self.mark(|| "element-wise".into());
         Ok(())
     }
 
@@ -59,6 +61,7 @@ impl Cuda {
         l.arg(&mut a.buf).arg(&b.buf).arg(&nn);
         // SAFETY: matches add_assign; both buffers hold n values.
         unsafe { l.launch(grid1(n)) }?;
+        self.mark(|| "element-wise".into());
         Ok(())
     }
 }

@@ -85,9 +85,12 @@ pub(crate) const KERNELS: [(&str, &str, &[&str]); 6] = [
         include_str!("../../kernels/conv2d.cu"),
         &[
             "conv2d_fwd",
+            "conv2d_fwd_m32",
             "conv2d_wgrad",
+            "conv2d_wgrad_m32",
             "conv2d_wgrad_reduce",
             "conv2d_dgrad_padded",
+            "conv2d_dgrad_padded_m32",
             "conv2d_dgrad_fold",
             "conv2d_bias_grad",
         ],
@@ -103,7 +106,7 @@ pub(crate) const KERNELS: [(&str, &str, &[&str]); 6] = [
         &["pixel_shuffle", "pixel_unshuffle"],
     ),
     ("resample.cu", include_str!("../../kernels/resample.cu"), &["resize_fwd", "resize_bwd"]),
-    ("loss.cu", include_str!("../../kernels/loss.cu"), &["mse_loss", "bce_logits_loss"]),
+    ("loss.cu", include_str!("../../kernels/loss.cu"), &["mse_loss", "bce_logits_loss", "geometry_loss"]),
     ("adam.cu", include_str!("../../kernels/adam.cu"), &["adam_step"]),
 ];
 

@@ -21,6 +21,7 @@ impl Cuda {
         l.arg(&x.buf).arg(&mut y.buf).arg(&ni).arg(&ci).arg(&hi).arg(&wi).arg(&ri);
         // SAFETY: matches pixel_shuffle (C = output channels).
         unsafe { l.launch(cfg) }?;
+        self.mark(|| "pixel (un)shuffle".into());
         Ok(y)
     }
 
@@ -40,6 +41,7 @@ impl Cuda {
         l.arg(&x.buf).arg(&mut y.buf).arg(&ni).arg(&ci).arg(&hi).arg(&wi).arg(&ri);
         // SAFETY: matches pixel_unshuffle (C = input channels, H, W = output size).
         unsafe { l.launch(cfg) }?;
+        self.mark(|| "pixel (un)shuffle".into());
         Ok(y)
     }
 }

@@ -38,6 +38,16 @@ impl Cuda {
     pub fn use_tensor_cores(&self, _on: bool) {
         match *self {}
     }
+
+    /// GeometryNet's loss on the device: there is none in this build.
+    pub fn geometry_loss(
+        &self,
+        _: &Tensor,
+        _: &Tensor,
+        _: crate::nn::geometry_net::GeometryLoss,
+    ) -> Option<(f32, Tensor)> {
+        match *self {}
+    }
 }
 
 /// Stand-in for the device-resident trainer: it holds a [`Cuda`], which cannot exist here.

@@ -166,9 +166,9 @@ impl Ops for Cuda {
         )
     }
 
-    // The geometry losses have no kernels: the CPU table computes them on the host, as
-    // GeometryNet's loss did before they were ops (their inputs are host tensors already, and
-    // they run once a step, on small HR patches).
+    // The geometry losses have no kernels in the table: the CPU table computes them on the
+    // host (their inputs are host tensors already). Device-resident training does not come
+    // here: its `Cuda::geometry_loss_dev` fuses the MSE, edge and length terms on the GPU.
 
     fn edge_mse(&self, pred: &Tensor, target: &Tensor) -> (f32, Tensor) {
         Cpu.edge_mse(pred, target)

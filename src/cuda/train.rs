@@ -2,18 +2,19 @@
 //! Adam moments live on the GPU for the whole run; a step uploads the batch (LR patches, U and
 //! the target) and downloads the loss. The forward with its tape and the backward mirror
 //! [`Trunk::forward_train`] and [`Trunk::backward`] op for op on the `*_dev` kernels of this
-//! module (the same kernels as the op table, in the same order, so the weights are those of
-//! the op-by-op CUDA path bit for bit: `tests/cuda_parity.rs`). GeometryNet's optional loss
-//! terms (edge, Laplacian, length, wrinkle energy) have no kernels: with a weight other than 0,
-//! the estimate is downloaded, the CPU computes the loss and its gradient, and the gradient is
-//! uploaded ([`estimate_loss`]).
+//! module (the same kernels as the op table, in the same order: `tests/cuda_parity.rs`).
+//! GeometryNet's loss runs on the device with its edge-vector and edge-length terms
+//! ([`Cuda::geometry_loss_dev`], the CPU's gradient to the bit); the Laplacian and
+//! wrinkle-energy terms have no kernels: with a weight other than 0 for either, the estimate is
+//! downloaded, the CPU computes the loss and its gradient, and the gradient is uploaded
+//! ([`estimate_loss`]).
 
 use cudarc::driver::CudaSlice;
 
 use super::device::{Cuda, DResult, DevBuf};
 use super::StepLoss;
 use crate::nn::config::{NetConfig, NetKind};
-use crate::nn::geometry_net::{estimate_loss, GeometryLoss};
+use crate::nn::geometry_net::estimate_loss;
 use crate::nn::layers::{layout, Layer, Trunk};
 use crate::ops::{AdamParams, Cpu};
 use crate::tensor::Tensor;
@@ -31,6 +32,12 @@ pub struct DeviceTrainer<'a> {
     v: Vec<CudaSlice<f32>>,
     step: u64,
     adam: AdamParams,
+}
+
+impl Drop for DeviceTrainer<'_> {
+    fn drop(&mut self) {
+        self.cuda.report_profile(&format!("training the {} net, {} steps", self.kind.name(), self.step));
+    }
 }
 
 /// Activations a training forward keeps for its backward (as [`crate::nn::Tape`]).
@@ -100,12 +107,13 @@ impl<'a> DeviceTrainer<'a> {
         Ok(match loss {
             StepLoss::Geometry(w) => {
                 c.add_assign_dev(&mut y, &c.upload(u)?)?;
-                if w == GeometryLoss::default() {
-                    c.mse_dev(&y, &c.upload(target)?)?
-                } else {
-                    let (_, _, h, wd) = lr.dims4();
-                    let (l, g) = estimate_loss(&Cpu, &c.download(&y)?, target, (h, wd), w);
-                    (l, c.upload(&g)?)
+                match c.geometry_loss_dev(&y, &c.upload(target)?, w)? {
+                    Some(lg) => lg,
+                    None => {
+                        let (_, _, h, wd) = lr.dims4();
+                        let (l, g) = estimate_loss(&Cpu, &c.download(&y)?, target, (h, wd), w);
+                        (l, c.upload(&g)?)
+                    }
                 }
             }
             StepLoss::Map { pos_weight } => c.bce_with_logits_dev(&y, &c.upload(target)?, pos_weight)?,
@@ -114,11 +122,16 @@ impl<'a> DeviceTrainer<'a> {
 
     fn step_dev(&mut self, lr: &Tensor, u: &Tensor, target: &Tensor, loss: StepLoss) -> DResult<f32> {
         let c = self.cuda;
+        c.mark(|| "host: the batch, the loop".into());
         for g in &mut self.grads {
             c.stream.memset_zeros(&mut g.buf)?;
         }
-        let (y, tape) = self.forward_train(c.upload(lr)?)?;
+        c.mark(|| "zero the gradients".into());
+        let x = c.upload(lr)?;
+        c.mark(|| "upload lr".into());
+        let (y, tape) = self.forward_train(x)?;
         let (l, dy) = self.loss_and_grad(y, lr, u, target, loss)?;
+        c.mark(|| "loss (upload u, target; download the loss)".into());
         self.backward(&tape, &dy)?;
         self.step += 1;
         for i in 0..self.params.len() {
@@ -133,6 +146,7 @@ impl<'a> DeviceTrainer<'a> {
                 &self.adam,
             )?;
         }
+        c.mark(|| "adam".into());
         Ok(l)
     }
 

@@ -267,6 +267,29 @@ impl PatchSampler {
         }
         Batch { lr, u: ub, target }
     }
+
+    /// The batches of `steps`, in order, cut on a thread of `scope` one batch ahead of the
+    /// receiver (for a step that runs elsewhere, a GPU's: the host cuts the next batch while
+    /// the device works). The same batches as [`PatchSampler::batch`] step by step; the thread
+    /// ends at the last step or when the receiver is dropped.
+    pub fn ahead<'s>(
+        mut self,
+        scope: &'s std::thread::Scope<'s, '_>,
+        data: &'s TrainingData,
+        u: Option<&'s Tensor>,
+        kind: NetKind,
+        steps: std::ops::Range<u64>,
+    ) -> std::sync::mpsc::Receiver<Batch> {
+        let (tx, rx) = std::sync::mpsc::sync_channel(1);
+        scope.spawn(move || {
+            for step in steps {
+                if tx.send(self.batch(data, u, kind, step)).is_err() {
+                    break;
+                }
+            }
+        });
+        rx
+    }
 }
 
 /// Whole-frame interpolation `U` of every LR frame (N, 3, rH, rW) with `mode`, in chunks.

@@ -535,83 +535,93 @@ pub fn train(
     let t0 = std::time::Instant::now();
     let first = st.step;
     let mut last_val = st.history.iter().rev().find(|r| !r.val.is_nan()).map(|r| r.val);
-    while st.step < opts.steps {
-        let b = sampler.batch(data, u_all.as_ref(), net, st.step);
-        let loss = match device.as_mut() {
-            Some(d) => d.step(&b.lr, &b.u, &b.target, step_loss),
-            None => {
-                grads.fill_zero();
-                crate::ops::entered(ops, || {
-                    batch_loss(ops, &st.trunk, &b.lr, &b.u, &b.target, opts, Some(&mut grads))
-                })?
-            }
-        };
-        // A device failure makes the loss NaN: say what failed, not "try a lower --lr".
-        crate::ops::check_device(ops)?;
-        // (On the device the gradients are not inspected: a non-finite one shows as the loss.)
-        let bad_grad = if device.is_some() {
-            None
-        } else {
-            grads.params().into_iter().find_map(|(n, g)| g.first_non_finite().map(|(_, v)| (n, v)))
-        };
-        if !loss.is_finite() || bad_grad.is_some() {
-            let what = match bad_grad {
-                Some((n, v)) if loss.is_finite() => format!("gradient of {n} is {v}"),
-                _ => format!("loss is {loss}"),
+    std::thread::scope(|scope| -> Result<()> {
+        // On a GPU the host cuts the next batch while the device runs this step's.
+        let ahead = device
+            .is_some()
+            .then(|| sampler.clone().ahead(scope, data, u_all.as_ref(), net, st.step..opts.steps));
+        while st.step < opts.steps {
+            let b = match &ahead {
+                Some(rx) => rx.recv().expect("the batch thread ended early"),
+                None => sampler.batch(data, u_all.as_ref(), net, st.step),
             };
-            let last = if ckpt.exists() {
-                format!("the last good checkpoint is kept at {}", ckpt.display())
-            } else {
-                "no checkpoint was written yet".to_string()
-            };
-            return Err(Error::numeric(format!(
-                "{} net, step {}: {what}; stopped ({last}). Try a lower learning rate or check the data.",
-                net.name(),
-                st.step + 1
-            )));
-        }
-        if device.is_none() {
-            let gs: Vec<&[f32]> = grads.params().into_iter().map(|(_, g)| g.data.as_slice()).collect();
-            let mut ps: Vec<&mut [f32]> =
-                st.trunk.params_mut().into_iter().map(|p| p.data.as_mut_slice()).collect();
-            st.adam.step(ops, &mut ps, &gs);
-            // A GPU table's driver failure (its results are NaN from then on) stops the run here.
-            crate::ops::check_device(ops)?;
-        }
-        st.step += 1;
-        on_event(Event::Step { net, step: st.step, loss });
-        let last_step = st.step == opts.steps;
-        let validate = last_step || (opts.val_every > 0 && st.step % opts.val_every == 0);
-        let checkpoint = !last_step && opts.checkpoint_every > 0 && st.step % opts.checkpoint_every == 0;
-        if let (Some(d), true) = (&device, checkpoint || last_step) {
-            d.store(&mut st.trunk, &mut st.adam)?;
-        }
-        let mut row = LogRow { step: st.step, train: loss, val: f32::NAN };
-        if validate {
-            let on_device = device.as_ref().map(|d| (d, step_loss));
-            if let Some(vl) =
-                validation_loss(ops, &st.trunk, on_device, data, u_all.as_ref(), &val_idx, opts)?
-            {
-                if !vl.is_finite() {
-                    return Err(Error::numeric(format!(
-                        "{} net, step {}: validation loss is {vl}; stopped (last good checkpoint kept at {})",
-                        net.name(),
-                        st.step,
-                        ckpt.display()
-                    )));
+            let loss = match device.as_mut() {
+                Some(d) => d.step(&b.lr, &b.u, &b.target, step_loss),
+                None => {
+                    grads.fill_zero();
+                    crate::ops::entered(ops, || {
+                        batch_loss(ops, &st.trunk, &b.lr, &b.u, &b.target, opts, Some(&mut grads))
+                    })?
                 }
-                row.val = vl;
-                last_val = Some(vl);
-                on_event(Event::Validation { net, step: st.step, loss: vl });
+            };
+            // A device failure makes the loss NaN: say what failed, not "try a lower --lr".
+            crate::ops::check_device(ops)?;
+            // (On the device the gradients are not inspected: a non-finite one shows as the loss.)
+            let bad_grad = if device.is_some() {
+                None
+            } else {
+                grads.params().into_iter().find_map(|(n, g)| g.first_non_finite().map(|(_, v)| (n, v)))
+            };
+            if !loss.is_finite() || bad_grad.is_some() {
+                let what = match bad_grad {
+                    Some((n, v)) if loss.is_finite() => format!("gradient of {n} is {v}"),
+                    _ => format!("loss is {loss}"),
+                };
+                let last = if ckpt.exists() {
+                    format!("the last good checkpoint is kept at {}", ckpt.display())
+                } else {
+                    "no checkpoint was written yet".to_string()
+                };
+                return Err(Error::numeric(format!(
+                    "{} net, step {}: {what}; stopped ({last}). Try a lower learning rate or check the data.",
+                    net.name(),
+                    st.step + 1
+                )));
+            }
+            if device.is_none() {
+                let gs: Vec<&[f32]> = grads.params().into_iter().map(|(_, g)| g.data.as_slice()).collect();
+                let mut ps: Vec<&mut [f32]> =
+                    st.trunk.params_mut().into_iter().map(|p| p.data.as_mut_slice()).collect();
+                st.adam.step(ops, &mut ps, &gs);
+                // A GPU table's driver failure (its results are NaN from then on) stops the run here.
+                crate::ops::check_device(ops)?;
+            }
+            st.step += 1;
+            on_event(Event::Step { net, step: st.step, loss });
+            let last_step = st.step == opts.steps;
+            let validate = last_step || (opts.val_every > 0 && st.step % opts.val_every == 0);
+            let checkpoint = !last_step && opts.checkpoint_every > 0 && st.step % opts.checkpoint_every == 0;
+            if let (Some(d), true) = (&device, checkpoint || last_step) {
+                d.store(&mut st.trunk, &mut st.adam)?;
+            }
+            let mut row = LogRow { step: st.step, train: loss, val: f32::NAN };
+            if validate {
+                let on_device = device.as_ref().map(|d| (d, step_loss));
+                if let Some(vl) =
+                    validation_loss(ops, &st.trunk, on_device, data, u_all.as_ref(), &val_idx, opts)?
+                {
+                    if !vl.is_finite() {
+                        return Err(Error::numeric(format!(
+                            "{} net, step {}: validation loss is {vl}; stopped (last good checkpoint kept at {})",
+                            net.name(),
+                            st.step,
+                            ckpt.display()
+                        )));
+                    }
+                    row.val = vl;
+                    last_val = Some(vl);
+                    on_event(Event::Validation { net, step: st.step, loss: vl });
+                }
+            }
+            st.history.push(row);
+            if checkpoint {
+                write_checkpoint(&ckpt, net, opts, fp, &st)?;
+                write_loss_csv(&opts.out.join("loss.csv"), &st.history)?;
+                on_event(Event::Checkpoint { net, step: st.step, dir: &opts.out, history: &st.history });
             }
         }
-        st.history.push(row);
-        if checkpoint {
-            write_checkpoint(&ckpt, net, opts, fp, &st)?;
-            write_loss_csv(&opts.out.join("loss.csv"), &st.history)?;
-            on_event(Event::Checkpoint { net, step: st.step, dir: &opts.out, history: &st.history });
-        }
-    }
+        Ok(())
+    })?;
     // Always (also when a resumed run had nothing left to do), so that a run killed anywhere
     // after its last step still ends with the same files as an uninterrupted one.
     write_checkpoint(&ckpt, net, opts, fp, &st)?;
