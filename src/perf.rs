@@ -9,8 +9,12 @@ use wide::f32x16;
 use crate::ops::conv2d::{conv2d, conv2d_input_grad, conv2d_ref, conv2d_weight_grad, Padding};
 use crate::tensor::Tensor;
 
-/// Independent FMA chains per thread: enough to cover FMA latency × ports (4 × 2 on AVX-512).
-const CHAINS: usize = 16;
+/// Independent FMA chains (f32x16) per thread: enough to cover FMA latency × ports (4 × 2 on
+/// AVX-512), and few enough to stay in registers. Without AVX-512 an f32x16 is two ymm
+/// registers of 16: 16 chains spilled to the stack and the probe read 28 GFLOP/s a core on a
+/// Zen 3 that does 93 (2026-11-28); 6 chains (12 ymm, 4 cycles × 2 ports × 8 lanes in flight
+/// with room to spare) measure the 93.
+const CHAINS: usize = if cfg!(target_feature = "avx512f") { 16 } else { 6 };
 
 /// One thread's FMA loop: `iters` rounds of CHAINS independent f32x16 FMAs.
 /// Returns a value that depends on every chain, so nothing is optimised away.
