@@ -122,10 +122,6 @@ pub(super) enum Input<'a> {
 /// slower, the transposing twice no longer paid for by the loop saved.
 pub(super) const FUSE_PAD_MAX: usize = 1 << 16;
 
-/// A register tile of a weight block: (block, its offset, its vectors; first tile, tiles, first
-/// vector, vectors), as [`reg_tiles`] lists them.
-type RegTile = (usize, usize, usize, usize, usize, usize, usize);
-
 /// Unaligned vector load / store.
 #[inline(always)]
 unsafe fn ld(p: *const f32) -> f32x16 {
@@ -210,10 +206,9 @@ pub(super) fn correlate(
                 Scratch::overwritten(POS * ms),
                 Scratch::overwritten(2 * row_len),
                 Scratch::overwritten(if matches!(input, Input::Nchw { .. }) { 4 * wp * c } else { 0 }),
-                Vec::new(),
             )
         },
-        |(v, m, out, strip, tiles_of): &mut (Scratch, Scratch, Scratch, Scratch, Vec<RegTile>), task| {
+        |(v, m, out, strip): &mut (Scratch, Scratch, Scratch, Scratch), task| {
             let (ni, ty) = (task / th, task % th);
             // The task's four padded input rows: in the padded buffer, or padded here.
             let (rows, r0) = match *input {
@@ -234,29 +229,33 @@ pub(super) fn correlate(
                     let xb = rows.as_ptr().add(r0 + 2 * tx0 * c);
                     input_tiles(xb, wp, c, ntw, v.as_mut_ptr(), vs)
                 };
-                // The register tiles of the chunk, listed once for its 16 positions (walking
-                // `reg_tiles` at every position, with its divisions, was 1–2 % of `upscale`).
-                tiles_of.clear();
-                for (bi, &(off, ov)) in pk.blocks.iter().enumerate() {
-                    tiles_of.extend(reg_tiles(ntw, ov).map(|(x0, np, j0, ot)| (bi, off, ov, x0, np, j0, ot)));
-                }
                 // M[pos][tile][o] = Σ_c V[pos][tile][c] · U[pos][c][o] (every element written).
                 for pos in 0..POS {
-                    for &(bi, off, ov, x0, np, j0, ot) in tiles_of.iter() {
-                        // SAFETY: tiles x0..x0+np < ntw of position pos in V (c floats each)
-                        // and in M (opad floats each, channels bi·64..bi·64+ov·16 ≤ opad);
-                        // the block's position pos holds c rows of ov·16 weights, of which
-                        // the tile takes vectors j0..j0+ot.
-                        unsafe {
-                            let xptr = v.as_ptr().add(pos * vs + x0 * c);
-                            let wptr = pk.data.as_ptr().add(off + pos * c * ov * L + j0 * L);
-                            let ws = ov * L;
-                            let aptr = m.as_mut_ptr().add(pos * ms + x0 * opad + bi * OB + j0 * L);
-                            match ot {
-                                4 => dispatch_p!(micro, 4, np, xptr, 0, c, 1, 1, wptr, ws, aptr, opad, false),
-                                3 => dispatch_p!(micro, 3, np, xptr, 0, c, 1, 1, wptr, ws, aptr, opad, false),
-                                2 => dispatch_p!(micro, 2, np, xptr, 0, c, 1, 1, wptr, ws, aptr, opad, false),
-                                _ => dispatch_p!(micro, 1, np, xptr, 0, c, 1, 1, wptr, ws, aptr, opad, false),
+                    for (bi, &(off, ov)) in pk.blocks.iter().enumerate() {
+                        for (x0, np, j0, ot) in reg_tiles(ntw, ov) {
+                            // SAFETY: tiles x0..x0+np < ntw of position pos in V (c floats each)
+                            // and in M (opad floats each, channels bi·64..bi·64+ov·16 ≤ opad);
+                            // the block's position pos holds c rows of ov·16 weights, of which
+                            // the tile takes vectors j0..j0+ot.
+                            unsafe {
+                                let xptr = v.as_ptr().add(pos * vs + x0 * c);
+                                let wptr = pk.data.as_ptr().add(off + pos * c * ov * L + j0 * L);
+                                let ws = ov * L;
+                                let aptr = m.as_mut_ptr().add(pos * ms + x0 * opad + bi * OB + j0 * L);
+                                match ot {
+                                    4 => dispatch_p!(
+                                        micro, 4, np, xptr, 0, c, 1, 1, wptr, ws, aptr, opad, false
+                                    ),
+                                    3 => dispatch_p!(
+                                        micro, 3, np, xptr, 0, c, 1, 1, wptr, ws, aptr, opad, false
+                                    ),
+                                    2 => dispatch_p!(
+                                        micro, 2, np, xptr, 0, c, 1, 1, wptr, ws, aptr, opad, false
+                                    ),
+                                    _ => dispatch_p!(
+                                        micro, 1, np, xptr, 0, c, 1, 1, wptr, ws, aptr, opad, false
+                                    ),
+                                }
                             }
                         }
                     }
