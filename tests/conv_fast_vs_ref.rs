@@ -14,7 +14,7 @@ use anisocb::ops::conv2d::{
     conv2d, conv2d_backward, conv2d_backward_ref, conv2d_packed, conv2d_ref, Epilogue, PackedConv,
 };
 use anisocb::ops::pixel_shuffle::pixel_shuffle;
-use anisocb::ops::{activation, Padding};
+use anisocb::ops::{activation, Padding, Precision};
 use anisocb::Tensor;
 use random::TestData;
 
@@ -159,6 +159,44 @@ fn conv_winograd_matches_ref_on_odd_sizes_and_channel_tails() {
 }
 
 #[test]
+fn conv_winograd_f4_matches_ref_on_odd_sizes_and_channel_tails() {
+    // `--precision fp32-fast`: the trunks' convs by Winograd F(4×4, 3×3) (6×6 input tiles, 4×4
+    // outputs) on the shapes of the F(2×2, 3×3) test above: sides down to 1×1 and not
+    // multiples of 4 (partial tiles), output channels that are not whole vectors or blocks,
+    // inputs padded inside the tasks and into a buffer first. Its transforms multiply by 4, 5,
+    // 8 and ⅙, which round: the tolerance is the F(2×2) test's absolute one times 4 (on the
+    // cases with 32 or more channels, F(4×4)'s largest differences measured 5–9× F(2×2)'s, and
+    // 2–4× below this tolerance), the relative one the same.
+    let mut rng = Rng::new(6);
+    for (n, c, o, h, w) in [
+        (1, 16, 5, 1, 1),
+        (1, 16, 16, 1, 2),
+        (2, 16, 16, 2, 3),
+        (1, 32, 17, 3, 2),
+        (1, 32, 32, 7, 9),
+        (1, 48, 65, 6, 13),
+        (2, 64, 64, 9, 8),
+        (1, 64, 80, 5, 29),
+        (1, 128, 128, 8, 8),
+        (1, 16, 32, 63, 65),
+        (2, 16, 24, 41, 50),
+    ] {
+        for pad in [Padding::Zero, Padding::Replicate] {
+            let what = format!("n{n} c{c} o{o} {h}x{w} {pad:?}");
+            let x = rng.tensor(&[n, c, h, w], -1.0, 1.0);
+            let wt = rng.tensor(&[o, c, 3, 3], -1.0, 1.0);
+            let b = rng.tensor(&[o], -1.0, 1.0);
+            let packed = PackedConv::with_precision(&wt, Precision::Fp32Fast);
+            assert!(packed.is_winograd(), "{what}");
+            let y = conv2d_packed(&x, &packed, Some(&b), pad, Epilogue::NONE);
+            let y_ref = conv2d_ref(&x, &wt, Some(&b), pad);
+            let tol = 4e-5 * ((c * 9) as f32).sqrt();
+            assert_close(&format!("F(4×4, 3×3) {what}"), &y, &y_ref, tol, 1e-4);
+        }
+    }
+}
+
+#[test]
 fn conv_fast_is_deterministic() {
     // Same bits on every run and for any thread count, on the channel-vector path (19 → 23),
     // the Winograd paths (32 → 23: forward and input gradient; 32 → 32: the weight gradient
@@ -242,64 +280,70 @@ fn fp32_chain_gives_the_bits_of_the_convs_one_by_one() {
     // conv2d_packed on NCHW tensors with the same epilogues and the pixel_shuffle op, step by
     // step and bit for bit: odd and even sizes, both paddings, 16·k channels (32 and 48), a
     // residual block, shuffles by 2 and 3, the last two convs into a 1-, 3- and 4-output conv of
-    // 3×3 or 1×1, and the same bits on one thread.
+    // 3×3 or 1×1, and the same bits on one thread. With the weights packed for F(4×4, 3×3)
+    // (`fp32-fast`) too, whose 4×4 tiles the chain's padded grid must hold.
     let bits = |t: &Tensor| t.data.iter().map(|v| v.to_bits()).collect::<Vec<u32>>();
     let mut rng = Rng::new(12);
-    let cases = [
-        (2, 13, 37, 32, 2, 3, 3, Padding::Replicate),
-        (1, 8, 6, 48, 3, 1, 3, Padding::Zero),
-        (1, 5, 9, 16, 2, 4, 1, Padding::Replicate),
-        (3, 1, 1, 32, 2, 3, 3, Padding::Zero),
-    ];
-    for (n, h, w, c, r, o_last, k_last, pad) in cases {
-        let what =
-            format!("{n}×{h}×{w}, {c} channels, shuffle {r}, last {o_last} {k_last}×{k_last}, {pad:?}");
-        let conv = |rng: &mut Rng, o: usize, ci: usize, k: usize| {
-            let wt = rng.tensor(&[o, ci, k, k], -0.5, 0.5);
-            (PackedConv::new(&wt), rng.tensor(&[o], -0.5, 0.5))
-        };
-        let (p_in, b_in) = conv(&mut rng, c, 3, 3);
-        let (p1, b1) = conv(&mut rng, c, c, 3);
-        let (p2, b2) = conv(&mut rng, c, c, 3);
-        let (pu, bu) = conv(&mut rng, c * r * r, c, 3);
-        let (pt, bt) = conv(&mut rng, c, c, 3);
-        let (pl, bl) = conv(&mut rng, o_last, c, k_last);
-        assert!(p1.is_winograd() && pu.is_winograd() && pl.is_small_out(), "{what}");
-        let x = rng.tensor(&[n, 3, h, w], -1.0, 1.0);
-        let run = || {
-            let mut steps = Vec::new();
-            let a = conv_to_f32_act(&x, &p_in, Some(&b_in), pad);
-            steps.push(a.to_nchw());
-            let r1 = conv_f32_act(&a, &p1, Some(&b1), ActEpilogue { skip: None, relu: true }, 1);
-            steps.push(r1.to_nchw());
-            let a = conv_f32_act(&r1, &p2, Some(&b2), ActEpilogue { skip: Some(&a), relu: false }, 1);
-            steps.push(a.to_nchw());
-            let z = conv_f32_act(&a, &pu, Some(&bu), ActEpilogue::default(), r);
-            assert_eq!(z.shape, [n, c, r * h, r * w], "{what}");
-            steps.push(z.to_nchw());
-            steps.push(conv_f32_act_relu_small_out(&z, &pt, Some(&bt), &pl, Some(&bl)));
-            steps
-        };
-        let chain = run();
-        // The same convs on NCHW tensors, one by one.
-        let a = conv2d_packed(&x, &p_in, Some(&b_in), pad, Epilogue::NONE);
-        let r1 = conv2d_packed(&a, &p1, Some(&b1), pad, Epilogue::RELU);
-        let a2 = conv2d_packed(&r1, &p2, Some(&b2), pad, Epilogue { skip: Some(&a), relu: false });
-        let z = pixel_shuffle(&conv2d_packed(&a2, &pu, Some(&bu), pad, Epilogue::NONE), r);
-        let t = conv2d_packed(&z, &pt, Some(&bt), pad, Epilogue::RELU);
-        let y = conv2d_packed(&t, &pl, Some(&bl), pad, Epilogue::NONE);
-        assert!(y.data.iter().all(|v| v.is_finite()) && r1.data.contains(&0.0), "{what}");
-        for (step, (got, want)) in ["conv_in", "conv1 + relu", "conv2 + skip", "upscale + shuffle", "tail"]
-            .iter()
-            .zip(chain.iter().zip([&a, &r1, &a2, &z, &y]))
-        {
-            assert_eq!(got.shape, want.shape, "{what}: {step}");
-            assert_eq!(bits(got), bits(want), "{what}: {step}");
+    for precision in [Precision::Fp32, Precision::Fp32Fast] {
+        let cases = [
+            (2, 13, 37, 32, 2, 3, 3, Padding::Replicate),
+            (1, 8, 6, 48, 3, 1, 3, Padding::Zero),
+            (1, 5, 9, 16, 2, 4, 1, Padding::Replicate),
+            (3, 1, 1, 32, 2, 3, 3, Padding::Zero),
+        ];
+        for (n, h, w, c, r, o_last, k_last, pad) in cases {
+            let what = format!(
+                "{}: {n}×{h}×{w}, {c} channels, shuffle {r}, last {o_last} {k_last}×{k_last}, {pad:?}",
+                precision.name()
+            );
+            let conv = |rng: &mut Rng, o: usize, ci: usize, k: usize| {
+                let wt = rng.tensor(&[o, ci, k, k], -0.5, 0.5);
+                (PackedConv::with_precision(&wt, precision), rng.tensor(&[o], -0.5, 0.5))
+            };
+            let (p_in, b_in) = conv(&mut rng, c, 3, 3);
+            let (p1, b1) = conv(&mut rng, c, c, 3);
+            let (p2, b2) = conv(&mut rng, c, c, 3);
+            let (pu, bu) = conv(&mut rng, c * r * r, c, 3);
+            let (pt, bt) = conv(&mut rng, c, c, 3);
+            let (pl, bl) = conv(&mut rng, o_last, c, k_last);
+            assert!(p1.is_winograd() && pu.is_winograd() && pl.is_small_out(), "{what}");
+            let x = rng.tensor(&[n, 3, h, w], -1.0, 1.0);
+            let run = || {
+                let mut steps = Vec::new();
+                let a = conv_to_f32_act(&x, &p_in, Some(&b_in), pad);
+                steps.push(a.to_nchw());
+                let r1 = conv_f32_act(&a, &p1, Some(&b1), ActEpilogue { skip: None, relu: true }, 1);
+                steps.push(r1.to_nchw());
+                let a = conv_f32_act(&r1, &p2, Some(&b2), ActEpilogue { skip: Some(&a), relu: false }, 1);
+                steps.push(a.to_nchw());
+                let z = conv_f32_act(&a, &pu, Some(&bu), ActEpilogue::default(), r);
+                assert_eq!(z.shape, [n, c, r * h, r * w], "{what}");
+                steps.push(z.to_nchw());
+                steps.push(conv_f32_act_relu_small_out(&z, &pt, Some(&bt), &pl, Some(&bl)));
+                steps
+            };
+            let chain = run();
+            // The same convs on NCHW tensors, one by one.
+            let a = conv2d_packed(&x, &p_in, Some(&b_in), pad, Epilogue::NONE);
+            let r1 = conv2d_packed(&a, &p1, Some(&b1), pad, Epilogue::RELU);
+            let a2 = conv2d_packed(&r1, &p2, Some(&b2), pad, Epilogue { skip: Some(&a), relu: false });
+            let z = pixel_shuffle(&conv2d_packed(&a2, &pu, Some(&bu), pad, Epilogue::NONE), r);
+            let t = conv2d_packed(&z, &pt, Some(&bt), pad, Epilogue::RELU);
+            let y = conv2d_packed(&t, &pl, Some(&bl), pad, Epilogue::NONE);
+            assert!(y.data.iter().all(|v| v.is_finite()) && r1.data.contains(&0.0), "{what}");
+            for (step, (got, want)) in
+                ["conv_in", "conv1 + relu", "conv2 + skip", "upscale + shuffle", "tail"]
+                    .iter()
+                    .zip(chain.iter().zip([&a, &r1, &a2, &z, &y]))
+            {
+                assert_eq!(got.shape, want.shape, "{what}: {step}");
+                assert_eq!(bits(got), bits(want), "{what}: {step}");
+            }
+            let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
+            assert_eq!(bits(&one.install(run)[4]), bits(&y), "{what}: one thread");
+            // The round trip through the chain's layout.
+            assert_eq!(bits(&F32Act::from_nchw(&a2, pad).to_nchw()), bits(&a2), "{what}: from_nchw");
         }
-        let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
-        assert_eq!(bits(&one.install(run)[4]), bits(&y), "{what}: one thread");
-        // The round trip through the chain's layout.
-        assert_eq!(bits(&F32Act::from_nchw(&a2, pad).to_nchw()), bits(&a2), "{what}: from_nchw");
     }
 }
 

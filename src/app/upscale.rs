@@ -136,7 +136,7 @@ pub struct Args {
     /// tiles, else fp32), fp32 (the audited path; on a GPU the op-by-op kernels), bf16 (the
     /// CPU's AMX tiles: bf16 products summed in f32, the nets' first and last convs in fp32)
     /// or fp16 (--device cuda only).
-    #[arg(help_heading = "Model and engine", long, default_value = "auto", value_parser = ["auto", "fp32", "bf16", "fp16"])]
+    #[arg(help_heading = "Model and engine", long, default_value = "auto", value_parser = ["auto", "fp32", "fp32-fast", "bf16", "fp16"])]
     pub precision: String,
     /// Output format: auto (same as input), obj or npy.
     #[arg(help_heading = "Input and output", long, default_value = "auto", value_parser = ["auto", "obj", "npy"])]

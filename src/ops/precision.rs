@@ -19,6 +19,13 @@ pub enum Precision {
     Bf16,
     /// fp16 operands with f32 accumulation: the CUDA tensor-core path (`cuda::nets_views`).
     Fp16,
+    /// f32 throughout, the trunks' 3×3 convs by Winograd F(4×4, 3×3) instead of F(2×2, 3×3):
+    /// 1.8× fewer multiply-adds in their products, sums rounded differently from [`Fp32`]'s
+    /// (relative error about 10⁻⁶; docs/performance.md). CPU only; training and `audit` stay
+    /// [`Fp32`].
+    ///
+    /// [`Fp32`]: Precision::Fp32
+    Fp32Fast,
 }
 
 impl Precision {
@@ -28,6 +35,7 @@ impl Precision {
             Precision::Fp32 => "fp32",
             Precision::Bf16 => "bf16",
             Precision::Fp16 => "fp16",
+            Precision::Fp32Fast => "fp32-fast",
         }
     }
 
@@ -47,7 +55,7 @@ impl Precision {
     /// CPU kernels' chains, the tiles' among them ([`Ops::runs_chains`]), fp32 elsewhere.
     pub fn for_ops(self, ops: &dyn Ops) -> Precision {
         match self {
-            Precision::Bf16 if !ops.runs_chains() => Precision::Fp32,
+            Precision::Bf16 | Precision::Fp32Fast if !ops.runs_chains() => Precision::Fp32,
             p => p,
         }
     }
@@ -55,7 +63,7 @@ impl Precision {
     /// Whether it runs on the CPU here (bf16 needs [`amx::available`]; fp16 is a GPU's).
     pub fn runs_on_cpu(self) -> bool {
         match self {
-            Precision::Fp32 => true,
+            Precision::Fp32 | Precision::Fp32Fast => true,
             Precision::Bf16 => amx::available(),
             Precision::Fp16 => false,
         }
@@ -73,6 +81,11 @@ impl Precision {
                 Ok(Precision::Fp32)
             }
             ("fp32", None) => Ok(Precision::Fp32),
+            ("fp32-fast", None) => Ok(Precision::Fp32Fast),
+            ("fp32-fast", Some(_)) => Err(Error::invalid(
+                "precision",
+                "fp32-fast runs on the CPU; on --device cuda use fp16, fp32 or auto",
+            )),
             ("auto", None) => Ok(Precision::fastest_cpu()),
             ("auto", Some(Err(_))) => Ok(Precision::Fp32),
             ("auto", Some(Ok(()))) | ("fp16", Some(Ok(()))) => Ok(Precision::Fp16),
@@ -91,7 +104,7 @@ impl Precision {
             )),
             (other, _) => Err(Error::invalid(
                 "precision",
-                format!("unknown precision `{other}`: expected auto, fp32, bf16 or fp16"),
+                format!("unknown precision `{other}`: expected auto, fp32, fp32-fast, bf16 or fp16"),
             )),
         }
     }

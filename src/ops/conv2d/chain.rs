@@ -12,7 +12,8 @@ use super::*;
 
 /// fp32 activations (N, C, H, W) in the layout the Winograd kernel reads
 /// ([`winograd::Input::Padded`]): channels-last, padded by one pixel for a 3×3 conv, on a grid
-/// of hp × wp = (2⌈H/2⌉ + 2) × (2⌈W/2⌉ + 2) pixels per image (whole 2×2 tiles); pixel (n, Y, X)
+/// of hp × wp = (4⌈H/4⌉ + 2) × (4⌈W/4⌉ + 2) pixels per image (whole tiles of either
+/// [`winograd::Tile`]); pixel (n, Y, X)
 /// of the padded grid at ((n·hp + Y)·wp + X)·C. Rows and columns beyond H + 2, W + 2 are zero.
 pub struct F32Act {
     data: Scratch,
@@ -24,13 +25,14 @@ pub struct F32Act {
 impl F32Act {
     /// The padded grid of an H × W activation: (hp, wp).
     fn grid(h: usize, w: usize) -> (usize, usize) {
-        (2 * h.div_ceil(2) + 2, 2 * w.div_ceil(2) + 2)
+        (4 * h.div_ceil(4) + 2, 4 * w.div_ceil(4) + 2)
     }
 
     /// `x` (N, C, H, W) padded for a 3×3 conv with `pad`.
     pub fn from_nchw(x: &Tensor, pad: Padding) -> F32Act {
         let (n, c, h, w) = x.dims4();
-        let (data, ..) = winograd::pad_input(x, pad);
+        let (hp, wp) = F32Act::grid(h, w);
+        let (data, ..) = pad_nhwc_to(x, 1, 1, pad, hp, wp, 0);
         F32Act { data, shape: [n, c, h, w], pad }
     }
 
@@ -67,7 +69,7 @@ pub fn conv_to_f32_act(x: &Tensor, packed: &PackedConv, b: Option<&Tensor>, pad:
     let (n, _, h, w) = x.dims4();
     let o = packed.shape[0];
     let opad = match &packed.kind {
-        PackedKind::Winograd(pk) | PackedKind::Direct(pk) => pk.opad,
+        PackedKind::Winograd(pk, _) | PackedKind::Direct(pk) => pk.opad,
         _ => panic!("conv_to_f32_act: weights packed for a kernel outside the fp32 chain"),
     };
     let mut y = F32Act::overwritten([n, o, h, w], pad);
@@ -87,7 +89,7 @@ pub fn conv_f32_act(
     epi: ActEpilogue<F32Act>,
     shuffle: usize,
 ) -> F32Act {
-    let PackedKind::Winograd(pk) = &packed.kind else {
+    let PackedKind::Winograd(pk, tile) = &packed.kind else {
         panic!("conv_f32_act: weights not packed for the Winograd kernel")
     };
     let [n, c, h, w] = x.shape;
@@ -100,7 +102,7 @@ pub fn conv_f32_act(
     let sink = act_store(&mut y, pk.opad, o, r, epi);
     let (hp, wp) = F32Act::grid(h, w);
     let input = winograd::Input::Padded { xp: &x.data, hp, wp };
-    winograd::correlate(&input, n, c, pk, bias.as_deref(), h, w, &sink);
+    winograd::correlate(&input, n, c, pk, *tile, bias.as_deref(), h, w, &sink);
     drop(sink);
     y
 }
@@ -115,7 +117,7 @@ pub fn conv_f32_act_relu_small_out(
     last: &PackedConv,
     b_last: Option<&Tensor>,
 ) -> Tensor {
-    let PackedKind::Winograd(pk) = &packed.kind else {
+    let PackedKind::Winograd(pk, tile) = &packed.kind else {
         panic!("conv_f32_act_relu_small_out: weights not packed for the Winograd kernel")
     };
     let [n, c, h, w] = x.shape;
@@ -125,7 +127,7 @@ pub fn conv_f32_act_relu_small_out(
     let (hp, wp) = F32Act::grid(h, w);
     let input = winograd::Input::Padded { xp: &x.data, hp, wp };
     relu_into_small_out([n, o, h, w], pk.opad, last, b_last, x.pad, &|sink| {
-        winograd::correlate(&input, n, c, pk, bias.as_deref(), h, w, sink)
+        winograd::correlate(&input, n, c, pk, *tile, bias.as_deref(), h, w, sink)
     })
 }
 

@@ -38,12 +38,16 @@ pub fn conv2d_input_grad(w: &Tensor, dy: &Tensor, pad: Padding, dx: &mut Tensor)
     }
     // Zero padding: the gradient is a "same" correlation of dy, which the Winograd path takes.
     let wino = wino && pad == Padding::Zero;
-    let pk = if wino { winograd::pack(c, o, flipped) } else { pack_weights(c, o, kh, kw, flipped) };
+    let pk = if wino {
+        winograd::pack(c, o, winograd::Tile::F2, flipped)
+    } else {
+        pack_weights(c, o, kh, kw, flipped)
+    };
     let opad = pk.opad;
     match pad {
         Padding::Zero => {
             let (dyp, hp, wp) = if wino {
-                winograd::pad_input(dy, Padding::Zero)
+                winograd::pad_input(dy, Padding::Zero, winograd::Tile::F2)
             } else {
                 pad_nhwc(dy, ph, pw, Padding::Zero, 0)
             };
@@ -62,7 +66,7 @@ pub fn conv2d_input_grad(w: &Tensor, dy: &Tensor, pad: Padding, dx: &mut Tensor)
             };
             if wino {
                 let input = winograd::Input::Padded { xp: &dyp, hp, wp };
-                winograd::correlate(&input, n, o, &pk, None, h, wd, &sink);
+                winograd::correlate(&input, n, o, &pk, winograd::Tile::F2, None, h, wd, &sink);
             } else {
                 correlate_rows(&dyp, n, hp, wp, o, kh, kw, &pk, None, h, wd, RowGroups::Single(h), &sink);
             }

@@ -109,8 +109,9 @@ pub struct PackedConv {
 enum PackedKind {
     /// O ≤ [`SMALL_OUT_MAX`]: [`pack_small_out`].
     SmallOut(Vec<f32>),
-    /// 3×3 with C a multiple of 16: [`winograd::pack`].
-    Winograd(Packed),
+    /// 3×3 with C a multiple of 16: [`winograd::pack`] for F(2×2, 3×3), or F(4×4, 3×3) under
+    /// [`Precision::Fp32Fast`].
+    Winograd(Packed, winograd::Tile),
     /// Everything else: [`pack_weights`].
     Direct(Packed),
     /// bf16 on AMX tiles ([`Precision::Bf16`], C a multiple of 32): [`amx::pack`].
@@ -147,7 +148,8 @@ impl PackedConv {
         } else if o <= SMALL_OUT_MAX {
             PackedKind::SmallOut(pack_small_out(w))
         } else if winograd::eligible(c, o, kh, kw) {
-            PackedKind::Winograd(winograd::pack(o, c, get))
+            let tile = if precision == Precision::Fp32Fast { winograd::Tile::F4 } else { winograd::Tile::F2 };
+            PackedKind::Winograd(winograd::pack(o, c, tile, get), tile)
         } else {
             PackedKind::Direct(pack_weights(o, c, kh, kw, get))
         };
@@ -166,7 +168,7 @@ impl PackedConv {
 
     /// Whether these weights run on the Winograd kernel (the fp32 chain's convs, [`chain`]).
     pub fn is_winograd(&self) -> bool {
-        matches!(self.kind, PackedKind::Winograd(_))
+        matches!(self.kind, PackedKind::Winograd(..))
     }
 
     /// Whether these weights run on the small-output kernel (≤ [`SMALL_OUT_MAX`] outputs).
@@ -213,7 +215,7 @@ pub fn conv2d_packed(
             );
             ak.opad
         }
-        PackedKind::Winograd(pk) | PackedKind::Direct(pk) => pk.opad,
+        PackedKind::Winograd(pk, _) | PackedKind::Direct(pk) => pk.opad,
         PackedKind::SmallOut(_) => unreachable!(),
     };
     let mut y = Tensor::for_overwrite(&[n, o, h, wd]);
@@ -243,14 +245,14 @@ fn correlate_packed(x: &Tensor, packed: &PackedConv, b: Option<&Tensor>, pad: Pa
             correlate_rows(&xp, n, hp, wp, c, kh, kw, pk, bias.as_deref(), h, wd, RowGroups::Single(h), sink)
         }
         // Small inputs are padded row by row inside the tasks.
-        PackedKind::Winograd(pk) => {
+        PackedKind::Winograd(pk, tile) => {
             let bias = chain::padded_bias(b, pk.opad);
-            let padded = (x.len() > winograd::FUSE_PAD_MAX).then(|| winograd::pad_input(x, pad));
+            let padded = (x.len() > winograd::FUSE_PAD_MAX).then(|| winograd::pad_input(x, pad, *tile));
             let input = match &padded {
                 Some((xp, hp, wp)) => winograd::Input::Padded { xp, hp: *hp, wp: *wp },
                 None => winograd::Input::Nchw { x, pad },
             };
-            winograd::correlate(&input, n, c, pk, bias.as_deref(), h, wd, sink)
+            winograd::correlate(&input, n, c, pk, *tile, bias.as_deref(), h, wd, sink)
         }
         PackedKind::SmallOut(_) => panic!("correlate_packed: the small-output kernel has no row sink"),
     }

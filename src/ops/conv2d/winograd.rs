@@ -13,6 +13,18 @@
 //! Every entry is 0, ±1 or ±½, so the transforms add no rounding beyond the adds themselves;
 //! the fast-vs-reference and JAX audits pass at the direct kernel's tolerances.
 //!
+//! F(4×4, 3×3) ([`Tile::F4`], `--precision fp32-fast` only) takes 6×6 input tiles to 4×4
+//! outputs: 36 multiply-adds per tile, 2.25 per pixel, 1.8× fewer than F(2×2, 3×3), with
+//! the interpolation points 0, ±1, ±2, ∞ (Lavin & Gray's matrices):
+//!
+//!   Bᵀ = [4 0 −5 0 1 0; 0 −4 −4 1 1 0; 0 4 −4 −1 1 0; 0 −2 −1 2 1 0; 0 2 −1 −2 1 0; 0 4 0 −5 0 1]
+//!   G  = [¼ 0 0; −⅙ −⅙ −⅙; −⅙ ⅙ −⅙; 1⁄24 1⁄12 ⅙; 1⁄24 −1⁄12 ⅙; 0 0 1]
+//!   Aᵀ = [1 1 1 1 1 0; 0 1 −1 2 −2 0; 0 1 1 4 4 0; 0 1 −1 8 −8 1]
+//!
+//! Its factors 4, 5, 8 and ⅙ round: the sums differ from the direct kernel's in the last bits
+//! (relative error about 10⁻⁶ where F(2×2, 3×3) stays near 10⁻⁷), so it is not the audited
+//! fp32 path and training never uses it.
+//!
 //! Layout: the padded channels-last input of [`super::pad_nhwc_to`], grown to whole tiles; one
 //! rayon task per (image, row of tiles). A task transforms its tiles into V[pos][tile][c_in]
 //! (channel vectors: 16 input channels per SIMD op), runs the direct kernel's register-tiled
@@ -29,10 +41,39 @@ use crate::tensor::Tensor;
 use rayon::prelude::*;
 use wide::f32x16;
 
-/// Positions of a 4×4 transformed tile.
+/// Positions of a 4×4 transformed tile (F(2×2, 3×3)).
 const POS: usize = 16;
-/// Tiles per chunk of a row of tiles in the forward (V and M of a chunk stay in L2).
-const TW_CHUNK: usize = 32;
+/// Output pixels per chunk of a row of tiles in the forward (V and M of a chunk stay in L2).
+const CHUNK_PX: usize = 64;
+
+/// The Winograd variant: F(m×m, 3×3) turns (m + 2)² input tiles into m × m outputs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum Tile {
+    /// F(2×2, 3×3): the audited fp32 path and training's.
+    F2,
+    /// F(4×4, 3×3): `--precision fp32-fast`.
+    F4,
+}
+
+impl Tile {
+    /// Output pixels per side of a tile.
+    pub(super) fn m(self) -> usize {
+        match self {
+            Tile::F2 => 2,
+            Tile::F4 => 4,
+        }
+    }
+
+    /// Input pixels per side of a tile (m + 2).
+    fn t(self) -> usize {
+        self.m() + 2
+    }
+
+    /// Positions of a transformed tile.
+    fn pos(self) -> usize {
+        self.t() * self.t()
+    }
+}
 
 /// Whether the Winograd path takes a convolution: 3×3 kernel, input channels a whole number of
 /// vectors, more output channels than the pixel-vector path takes.
@@ -63,18 +104,50 @@ fn kernel_transform(g: [f32x16; 9]) -> [f32x16; POS] {
     u
 }
 
-/// Transformed weights packed like [`super::pack_weights`] with the 16 positions as taps: per
-/// block of ≤ 64 output channels, [pos][c_in][ov·16] (lanes past `o` zero). `get(o, c, ky, kx)`
-/// reads the 3×3 weight.
-pub(super) fn pack(o: usize, c: usize, get: impl Fn(usize, usize, usize, usize) -> f32 + Sync) -> Packed {
+/// U = G g Gᵀ (row-major 6×6) of one 3×3 kernel g (row-major) for F(4×4, 3×3), in f64 and
+/// rounded once.
+fn kernel_transform4(g: [f32; 9]) -> [f32; 36] {
+    const G: [[f64; 3]; 6] = [
+        [0.25, 0.0, 0.0],
+        [-1.0 / 6.0, -1.0 / 6.0, -1.0 / 6.0],
+        [-1.0 / 6.0, 1.0 / 6.0, -1.0 / 6.0],
+        [1.0 / 24.0, 1.0 / 12.0, 1.0 / 6.0],
+        [1.0 / 24.0, -1.0 / 12.0, 1.0 / 6.0],
+        [0.0, 0.0, 1.0],
+    ];
+    let mut u = [0.0f32; 36];
+    for (i, gi) in G.iter().enumerate() {
+        for (j, gj) in G.iter().enumerate() {
+            let mut s = 0.0f64;
+            for ky in 0..3 {
+                for kx in 0..3 {
+                    s += gi[ky] * g[ky * 3 + kx] as f64 * gj[kx];
+                }
+            }
+            u[i * 6 + j] = s as f32;
+        }
+    }
+    u
+}
+
+/// Transformed weights packed like [`super::pack_weights`] with the tile's positions as taps:
+/// per block of ≤ 64 output channels, [pos][c_in][ov·16] (lanes past `o` zero).
+/// `get(o, c, ky, kx)` reads the 3×3 weight.
+pub(super) fn pack(
+    o: usize,
+    c: usize,
+    tile: Tile,
+    get: impl Fn(usize, usize, usize, usize) -> f32 + Sync,
+) -> Packed {
+    let npos = tile.pos();
     let opad = o.div_ceil(L) * L;
-    let mut data = Scratch::overwritten(opad * c * POS);
+    let mut data = Scratch::overwritten(opad * c * npos);
     let mut blocks = Vec::new();
     let mut off = 0;
     for ob in (0..opad).step_by(OB) {
         let ov = ((opad - ob) / L).min(OB / L);
         let wdt = ov * L;
-        let block = &mut data[off..off + POS * c * wdt];
+        let block = &mut data[off..off + npos * c * wdt];
         let bp = SyncPtr(block.as_mut_ptr());
         // Rayon tasks of ≥ 2048 kernels (≈ 20 µs): smaller layers are packed on one thread.
         (0..c).into_par_iter().with_min_len(2048 / wdt).for_each(|ci| {
@@ -86,24 +159,40 @@ pub(super) fn pack(o: usize, c: usize, get: impl Fn(usize, usize, usize, usize) 
                         gt[l] = get(ob + jv * L + l, ci, t / 3, t % 3);
                     }
                 }
-                for (pos, u) in kernel_transform(g.map(f32x16::from)).into_iter().enumerate() {
-                    // SAFETY: (pos·c + ci)·wdt + jv·16 + 16 ≤ 16·c·wdt, the block's length;
+                let mut u = [f32x16::ZERO; 36];
+                match tile {
+                    Tile::F2 => u[..POS].copy_from_slice(&kernel_transform(g.map(f32x16::from))),
+                    Tile::F4 => {
+                        let mut lanes = [[0.0f32; L]; 36];
+                        for l in 0..L {
+                            let ul = kernel_transform4(std::array::from_fn(|t| g[t][l]));
+                            for (p, v) in ul.into_iter().enumerate() {
+                                lanes[p][l] = v;
+                            }
+                        }
+                        u = lanes.map(f32x16::from);
+                    }
+                }
+                for (pos, u) in u.into_iter().take(npos).enumerate() {
+                    // SAFETY: (pos·c + ci)·wdt + jv·16 + 16 ≤ npos·c·wdt, the block's length;
                     // input channel ci's vectors are written by this task only.
                     unsafe { st(bp.get().add((pos * c + ci) * wdt + jv * L), u) };
                 }
             }
         });
         blocks.push((off, ov));
-        off += POS * c * wdt;
+        off += npos * c * wdt;
     }
     Packed { data, blocks, opad }
 }
 
-/// Padded channels-last copy of `x` for the tiles of an H × W output: (H + 2) × (W + 2) pixels
-/// with `pad` applied, grown with zeros to (2⌈H/2⌉ + 2) × (2⌈W/2⌉ + 2). Returns (buffer, hp, wp).
-pub(super) fn pad_input(x: &Tensor, pad: Padding) -> (Scratch, usize, usize) {
+/// Padded channels-last copy of `x` for the m × m tiles of an H × W output: (H + 2) × (W + 2)
+/// pixels with `pad` applied, grown with zeros to (m⌈H/m⌉ + 2) × (m⌈W/m⌉ + 2). Returns
+/// (buffer, hp, wp).
+pub(super) fn pad_input(x: &Tensor, pad: Padding, tile: Tile) -> (Scratch, usize, usize) {
     let (_, _, h, w) = x.dims4();
-    pad_nhwc_to(x, 1, 1, pad, 2 * h.div_ceil(2) + 2, 2 * w.div_ceil(2) + 2, 0)
+    let m = tile.m();
+    pad_nhwc_to(x, 1, 1, pad, m * h.div_ceil(m) + 2, m * w.div_ceil(m) + 2, 0)
 }
 
 /// What [`correlate`] reads.
@@ -163,22 +252,147 @@ unsafe fn input_tiles(xb: *const f32, wp: usize, c: usize, tw: usize, v: *mut f3
     }
 }
 
+/// Bᵀ d of one column (or row) of a 6×6 tile, F(4×4, 3×3).
+#[inline(always)]
+fn bt6([d0, d1, d2, d3, d4, d5]: [f32x16; 6]) -> [f32x16; 6] {
+    let (two, four, five) = (f32x16::splat(2.0), f32x16::splat(4.0), f32x16::splat(5.0));
+    let (a, b) = (d4 - d2, two * (d3 - d1));
+    [
+        (four * d0 - five * d2) + d4,
+        (d3 + d4) - four * (d1 + d2),
+        (d4 - d3) + four * (d1 - d2),
+        a + b,
+        a - b,
+        (four * d1 - five * d3) + d5,
+    ]
+}
+
+/// [`input_tiles`] for F(4×4, 3×3): V[pos][t][c] = (Bᵀ d B)[pos] (36 positions) for the `tw`
+/// 6×6 input tiles of one row of tiles, tile t at columns 4t..4t+6.
+///
+/// # Safety
+/// Rows 0..6 and columns 0..4tw+2 of `xb`, and 36 positions × tw tiles of `v` in bounds.
+#[inline(always)]
+#[allow(clippy::needless_range_loop)]
+unsafe fn input_tiles4(xb: *const f32, wp: usize, c: usize, tw: usize, v: *mut f32, vs: usize) {
+    for tx in 0..tw {
+        let (xb, vb) = (xb.add(4 * tx * c), v.add(tx * c));
+        for k in (0..c).step_by(L) {
+            let d = |i: usize, j: usize| ld(xb.add((i * wp + j) * c + k));
+            let mut t = [[f32x16::ZERO; 6]; 6];
+            for j in 0..6 {
+                let col = bt6(std::array::from_fn(|i| d(i, j)));
+                for i in 0..6 {
+                    t[i][j] = col[i];
+                }
+            }
+            for (i, ti) in t.into_iter().enumerate() {
+                for (j, r) in bt6(ti).into_iter().enumerate() {
+                    st(vb.add((i * 6 + j) * vs + k), r);
+                }
+            }
+        }
+    }
+}
+
+/// Two output rows init + Aᵀ M A of the `ntw` tiles of M (tile t at t·opad, position stride
+/// `ms`), F(2×2, 3×3): pixels 2t, 2t + 1 at `out` (pixel stride `opad`, row stride `row_len`).
+///
+/// # Safety
+/// 16 positions × ntw tiles of M, 2 rows × 2ntw pixels of `out`, `init` of opad floats.
+#[inline(always)]
+#[allow(clippy::needless_range_loop)]
+unsafe fn output_tiles(
+    m: *const f32,
+    ms: usize,
+    ntw: usize,
+    opad: usize,
+    init: Option<&[f32]>,
+    out: *mut f32,
+    row_len: usize,
+) {
+    for tx in 0..ntw {
+        let (mb, ob) = (m.add(tx * opad), out.add(2 * tx * opad));
+        for k in (0..opad).step_by(L) {
+            let mm = |i: usize, j: usize| ld(mb.add((i * 4 + j) * ms + k));
+            let b0 = init.map_or(f32x16::ZERO, |b| ld(b.as_ptr().add(k)));
+            let mut s = [[f32x16::ZERO; 4]; 2];
+            for j in 0..4 {
+                let (m0, m1, m2, m3) = (mm(0, j), mm(1, j), mm(2, j), mm(3, j));
+                s[0][j] = m0 + m1 + m2;
+                s[1][j] = m1 - m2 - m3;
+            }
+            for (r, [s0, s1, s2, s3]) in s.into_iter().enumerate() {
+                st(ob.add(r * row_len + k), b0 + (s0 + s1 + s2));
+                st(ob.add(r * row_len + opad + k), b0 + (s1 - s2 - s3));
+            }
+        }
+    }
+}
+
+/// Aᵀ m of one column (or row) of a 6×6 tile, F(4×4, 3×3).
+#[inline(always)]
+fn at6([m0, m1, m2, m3, m4, m5]: [f32x16; 6]) -> [f32x16; 4] {
+    let (two, four, eight) = (f32x16::splat(2.0), f32x16::splat(4.0), f32x16::splat(8.0));
+    let (p12, d12, p34, d34) = (m1 + m2, m1 - m2, m3 + m4, m3 - m4);
+    [(m0 + p12) + p34, d12 + two * d34, p12 + four * p34, (d12 + eight * d34) + m5]
+}
+
+/// [`output_tiles`] for F(4×4, 3×3): four output rows, pixels 4t..4t+4 of tile t.
+///
+/// # Safety
+/// 36 positions × ntw tiles of M, 4 rows × 4ntw pixels of `out`, `init` of opad floats.
+#[inline(always)]
+#[allow(clippy::needless_range_loop)]
+unsafe fn output_tiles4(
+    m: *const f32,
+    ms: usize,
+    ntw: usize,
+    opad: usize,
+    init: Option<&[f32]>,
+    out: *mut f32,
+    row_len: usize,
+) {
+    for tx in 0..ntw {
+        let (mb, ob) = (m.add(tx * opad), out.add(4 * tx * opad));
+        for k in (0..opad).step_by(L) {
+            let mm = |i: usize, j: usize| ld(mb.add((i * 6 + j) * ms + k));
+            let b0 = init.map_or(f32x16::ZERO, |b| ld(b.as_ptr().add(k)));
+            let mut s = [[f32x16::ZERO; 6]; 4];
+            for j in 0..6 {
+                let col = at6(std::array::from_fn(|i| mm(i, j)));
+                for r in 0..4 {
+                    s[r][j] = col[r];
+                }
+            }
+            for (r, sr) in s.into_iter().enumerate() {
+                for (x, v) in at6(sr).into_iter().enumerate() {
+                    st(ob.add(r * row_len + x * opad + k), b0 + v);
+                }
+            }
+        }
+    }
+}
+
 /// 3×3 correlation of a padded NHWC input (n images of hp × wp pixels, c channels, with
-/// hp ≥ 2⌈out_h/2⌉ + 2 and wp ≥ 2⌈out_w/2⌉ + 2) with weights from [`pack`], into out_h × out_w
-/// outputs per image: out[y][x] = init + Σ_{ky,kx,c} w · xp[y + ky][x + kx]. For every output
-/// row, `sink(n, y, row)` gets the row as NHWC scratch (out_w or more pixels × opad floats).
-#[allow(clippy::too_many_arguments, clippy::needless_range_loop)]
+/// hp ≥ m⌈out_h/m⌉ + 2 and wp ≥ m⌈out_w/m⌉ + 2 for the tile's m) with weights from [`pack`]
+/// for `tile`, into out_h × out_w outputs per image: out[y][x] = init + Σ_{ky,kx,c} w ·
+/// xp[y + ky][x + kx]. For every output row, `sink(n, y, row)` gets the row as NHWC scratch
+/// (out_w or more pixels × opad floats).
+#[allow(clippy::too_many_arguments)]
 pub(super) fn correlate(
     input: &Input,
     n: usize,
     c: usize,
     pk: &Packed,
+    tile: Tile,
     init: Option<&[f32]>,
     out_h: usize,
     out_w: usize,
     sink: &RowSink,
 ) {
-    let (th, tw) = (out_h.div_ceil(2), out_w.div_ceil(2));
+    let (m, t, npos) = (tile.m(), tile.t(), tile.pos());
+    let (th, tw) = (out_h.div_ceil(m), out_w.div_ceil(m));
     let (hp, wp) = match *input {
         Input::Padded { xp, hp, wp } => {
             assert!(xp.len() >= n * hp * wp * c);
@@ -186,51 +400,54 @@ pub(super) fn correlate(
         }
         Input::Nchw { x, .. } => {
             assert_eq!(x.dims4(), (n, c, out_h, out_w));
-            (2 * th + 2, 2 * tw + 2)
+            (m * th + 2, m * tw + 2)
         }
     };
-    assert!(c.is_multiple_of(L) && hp >= 2 * th + 2 && wp >= 2 * tw + 2);
+    assert!(c.is_multiple_of(L) && hp >= m * th + 2 && wp >= m * tw + 2);
     let opad = pk.opad;
-    assert!(pk.data.len() >= POS * c * opad && init.is_none_or(|b| b.len() >= opad));
+    assert!(pk.data.len() >= npos * c * opad && init.is_none_or(|b| b.len() >= opad));
     // One output row of the task, NHWC.
-    let row_len = 2 * tw * opad;
-    // A row of tiles is done in chunks of ≤ TW_CHUNK tiles, so V and M stay in L2 on wide
-    // images. Their position strides are one cache line more than the data, so the 16 streams
-    // a transform reads or writes are not 4 KiB apart (4K aliasing stalls loads behind stores).
-    let chunk = tw.min(TW_CHUNK);
+    let row_len = m * tw * opad;
+    // A row of tiles is done in chunks of ≤ CHUNK_PX pixels, so V and M stay in L2 on wide
+    // images. Their position strides are one cache line more than the data, so the streams a
+    // transform reads or writes are not 4 KiB apart (4K aliasing stalls loads behind stores).
+    let chunk = tw.min(CHUNK_PX / m);
     let (vs, ms) = (chunk * c + L, chunk * opad + L);
     (0..n * th).into_par_iter().for_each_init(
         || {
             (
-                Scratch::overwritten(POS * vs),
-                Scratch::overwritten(POS * ms),
-                Scratch::overwritten(2 * row_len),
-                Scratch::overwritten(if matches!(input, Input::Nchw { .. }) { 4 * wp * c } else { 0 }),
+                Scratch::overwritten(npos * vs),
+                Scratch::overwritten(npos * ms),
+                Scratch::overwritten(m * row_len),
+                Scratch::overwritten(if matches!(input, Input::Nchw { .. }) { t * wp * c } else { 0 }),
             )
         },
-        |(v, m, out, strip): &mut (Scratch, Scratch, Scratch, Scratch), task| {
+        |(v, mt, out, strip): &mut (Scratch, Scratch, Scratch, Scratch), task| {
             let (ni, ty) = (task / th, task % th);
-            // The task's four padded input rows: in the padded buffer, or padded here.
+            // The task's t padded input rows: in the padded buffer, or padded here.
             let (rows, r0) = match *input {
-                Input::Padded { xp, .. } => (xp, (ni * hp + 2 * ty) * wp * c),
+                Input::Padded { xp, .. } => (xp, (ni * hp + m * ty) * wp * c),
                 Input::Nchw { x, pad } => {
                     for (r, dst) in strip.chunks_exact_mut(wp * c).enumerate() {
-                        pad_row_nhwc(x, ni, 2 * ty + r, 1, 1, pad, dst);
+                        pad_row_nhwc(x, ni, m * ty + r, 1, 1, pad, dst);
                     }
                     (&strip[..], 0)
                 }
             };
             for (tx0, ntw) in tiles(tw, chunk) {
                 // V[pos][tile][c] = Bᵀ d B.
-                // SAFETY: the chunk's tiles cover rows 2ty..2ty+4 ≤ hp, columns 2tx0..2(tx0+ntw)+2
-                // ≤ wp of image ni (asserted above), at r0 in `rows`; V holds ntw ≤ chunk tiles
-                // per position.
+                // SAFETY: the chunk's tiles cover rows m·ty..m·ty+t ≤ hp, columns
+                // m·tx0..m(tx0+ntw)+2 ≤ wp of image ni (asserted above), at r0 in `rows`; V
+                // holds ntw ≤ chunk tiles per position.
                 unsafe {
-                    let xb = rows.as_ptr().add(r0 + 2 * tx0 * c);
-                    input_tiles(xb, wp, c, ntw, v.as_mut_ptr(), vs)
+                    let xb = rows.as_ptr().add(r0 + m * tx0 * c);
+                    match tile {
+                        Tile::F2 => input_tiles(xb, wp, c, ntw, v.as_mut_ptr(), vs),
+                        Tile::F4 => input_tiles4(xb, wp, c, ntw, v.as_mut_ptr(), vs),
+                    }
                 };
                 // M[pos][tile][o] = Σ_c V[pos][tile][c] · U[pos][c][o] (every element written).
-                for pos in 0..POS {
+                for pos in 0..npos {
                     for (bi, &(off, ov)) in pk.blocks.iter().enumerate() {
                         for (x0, np, j0, ot) in reg_tiles(ntw, ov) {
                             // SAFETY: tiles x0..x0+np < ntw of position pos in V (c floats each)
@@ -241,7 +458,7 @@ pub(super) fn correlate(
                                 let xptr = v.as_ptr().add(pos * vs + x0 * c);
                                 let wptr = pk.data.as_ptr().add(off + pos * c * ov * L + j0 * L);
                                 let ws = ov * L;
-                                let aptr = m.as_mut_ptr().add(pos * ms + x0 * opad + bi * OB + j0 * L);
+                                let aptr = mt.as_mut_ptr().add(pos * ms + x0 * opad + bi * OB + j0 * L);
                                 match ot {
                                     4 => dispatch_p!(
                                         micro, 4, np, xptr, 0, c, 1, 1, wptr, ws, aptr, opad, false
@@ -260,33 +477,20 @@ pub(super) fn correlate(
                         }
                     }
                 }
-                // Two output rows: init + Aᵀ M A.
-                for tx in 0..ntw {
-                    // SAFETY: tile tx of M at every position, and pixels 2(tx0+tx), +1 of both
-                    // rows of `out` (2tw pixels of opad floats each); init has opad floats.
-                    unsafe {
-                        let mb = m.as_ptr().add(tx * opad);
-                        let ob = out.as_mut_ptr().add(2 * (tx0 + tx) * opad);
-                        for k in (0..opad).step_by(L) {
-                            let mm = |i: usize, j: usize| ld(mb.add((i * 4 + j) * ms + k));
-                            let b0 = init.map_or(f32x16::ZERO, |b| ld(b.as_ptr().add(k)));
-                            let mut s = [[f32x16::ZERO; 4]; 2];
-                            for j in 0..4 {
-                                let (m0, m1, m2, m3) = (mm(0, j), mm(1, j), mm(2, j), mm(3, j));
-                                s[0][j] = m0 + m1 + m2;
-                                s[1][j] = m1 - m2 - m3;
-                            }
-                            for (r, [s0, s1, s2, s3]) in s.into_iter().enumerate() {
-                                st(ob.add(r * row_len + k), b0 + (s0 + s1 + s2));
-                                st(ob.add(r * row_len + opad + k), b0 + (s1 - s2 - s3));
-                            }
-                        }
+                // m output rows: init + Aᵀ M A.
+                // SAFETY: ntw tiles of M at every position; pixels m·tx0..m(tx0+ntw) of the m
+                // rows of `out` (m·tw pixels of opad floats each); init has opad floats.
+                unsafe {
+                    let ob = out.as_mut_ptr().add(m * tx0 * opad);
+                    match tile {
+                        Tile::F2 => output_tiles(mt.as_ptr(), ms, ntw, opad, init, ob, row_len),
+                        Tile::F4 => output_tiles4(mt.as_ptr(), ms, ntw, opad, init, ob, row_len),
                     }
                 }
             }
             for (r, row) in out.chunks_exact(row_len).enumerate() {
-                if 2 * ty + r < out_h {
-                    sink(ni, 2 * ty + r, row);
+                if m * ty + r < out_h {
+                    sink(ni, m * ty + r, row);
                 }
             }
         },
@@ -319,7 +523,7 @@ pub(super) fn weight_grad(x: &Tensor, dy: &Tensor, pad: Padding, dw: &mut Tensor
     let o = dy.shape[1];
     assert!(eligible_weight_grad(c, o, 3, 3) && dw.shape == [o, c, 3, 3]);
     let (th, tw) = (h.div_ceil(2), w.div_ceil(2));
-    let (xp, hp, wp) = pad_input(x, pad);
+    let (xp, hp, wp) = pad_input(x, pad, Tile::F2);
     // dy channels-last on the 2th × 2tw tile grid, zero past the image.
     let (dq, _, _) = pad_nhwc_to(dy, 0, 0, Padding::Zero, 2 * th, 2 * tw, 0);
     let rows = n * th; // rows of tiles
