@@ -39,15 +39,17 @@ impl Precision {
         }
     }
 
-    /// The fastest the CPU has: bf16 where it has AMX tiles, else fp32. The dot-product kernel
-    /// of a CPU with AVX512_BF16 and no tiles is not chosen: it measured 1.9× slower than fp32
-    /// on `upscale` (docs/performance.md), since the hi + lo pairs double its work and one
-    /// `vdpbf16ps` does as many multiply-adds as one fp32 FMA there.
+    /// The fastest the CPU has: bf16 where it has AMX tiles, else fp32-fast (Winograd
+    /// F(4×4, 3×3): `upscale` in about 0.7× fp32's time, output vertices within 0.0002 mm of
+    /// fp32's on the held-out runs, docs/performance.md). The dot-product kernel of a CPU with
+    /// AVX512_BF16 and no tiles is not chosen: it measured 1.9× slower than fp32 on `upscale`,
+    /// since the hi + lo pairs double its work and one `vdpbf16ps` does as many multiply-adds
+    /// as one fp32 FMA there.
     pub fn fastest_cpu() -> Precision {
         if amx::tiles() {
             Precision::Bf16
         } else {
-            Precision::Fp32
+            Precision::Fp32Fast
         }
     }
 
@@ -69,9 +71,9 @@ impl Precision {
         }
     }
 
-    /// The precision `request` (`auto`, `fp32`, `bf16` or `fp16`) resolved for `ops`: `auto`
-    /// is fp16 where `ops` is a GPU with tensor cores, bf16 on a CPU with AMX tiles
-    /// ([`Precision::fastest_cpu`]), else fp32. `fp32` on such a GPU turns its tensor-core path off (the op-by-op fp32 kernels
+    /// The precision `request` (`auto`, `fp32`, `fp32-fast`, `bf16` or `fp16`) resolved for
+    /// `ops`: `auto` is fp16 where `ops` is a GPU with tensor cores, fp32 on a GPU without,
+    /// and on the CPU [`Precision::fastest_cpu`] (bf16 with AMX tiles, else fp32-fast). `fp32` on such a GPU turns its tensor-core path off (the op-by-op fp32 kernels
     /// run). Errors: a precision that cannot run here, saying which can.
     pub fn resolve(request: &str, ops: &dyn Ops) -> Result<Precision> {
         let tc = ops.as_cuda().map(|c| c.tensor_cores());

@@ -256,7 +256,8 @@ unsafe fn input_tiles(xb: *const f32, wp: usize, c: usize, tw: usize, v: *mut f3
 /// path is not the audited one: 14 operations instead of 21).
 #[inline(always)]
 fn bt6([d0, d1, d2, d3, d4, d5]: [f32x16; 6]) -> [f32x16; 6] {
-    let (two, four, m4, m5) = (f32x16::splat(2.0), f32x16::splat(4.0), f32x16::splat(-4.0), f32x16::splat(-5.0));
+    let (two, four, m4, m5) =
+        (f32x16::splat(2.0), f32x16::splat(4.0), f32x16::splat(-4.0), f32x16::splat(-5.0));
     let (a, b) = (d4 - d2, two * (d3 - d1));
     [
         four.mul_add(d0, m5.mul_add(d2, d4)),
@@ -409,7 +410,7 @@ pub(super) fn correlate(
     out_w: usize,
     sink: &RowSink,
 ) {
-    let (m, t, npos) = (tile.m(), tile.t(), tile.pos());
+    let (m, npos) = (tile.m(), tile.pos());
     let (th, tw) = (out_h.div_ceil(m), out_w.div_ceil(m));
     let (hp, wp) = match *input {
         Input::Padded { xp, hp, wp } => {
@@ -430,49 +431,68 @@ pub(super) fn correlate(
     // images. Their position strides are one cache line more than the data, so the streams a
     // transform reads or writes are not 4 KiB apart (4K aliasing stalls loads behind stores).
     let chunk = tw.min(CHUNK_PX / m);
-    let (vs, ms) = (chunk * c + L, chunk * opad + L);
-    (0..n * th).into_par_iter().for_each_init(
+    // Short rows of tiles (small images, F(4×4)'s 8 tiles a row at 32²) are taken g rows to a
+    // task, so the products' register tiles run on up to `chunk` tiles, not a few: as many g
+    // as fit a chunk while every thread keeps about four tasks. Which tiles share a product call
+    // never changes an output's sum: the bits do not depend on g.
+    let fit = if 2 * tw <= CHUNK_PX / m { (CHUNK_PX / m) / tw } else { 1 };
+    let g = fit.min((n * th / (4 * rayon::current_num_threads())).max(1)).min(th);
+    let groups = th.div_ceil(g);
+    let tiles_max = chunk.max(g * tw);
+    let (vs, ms) = (tiles_max * c + L, tiles_max * opad + L);
+    (0..n * groups).into_par_iter().for_each_init(
         || {
             (
                 // F(4×4, 3×3)'s transforms take their intermediates past V's and M's end.
                 Scratch::overwritten(npos * vs + if tile == Tile::F4 { col_len(chunk) } else { 0 }),
                 Scratch::overwritten(npos * ms + if tile == Tile::F4 { 24 * L } else { 0 }),
-                Scratch::overwritten(m * row_len),
-                Scratch::overwritten(if matches!(input, Input::Nchw { .. }) { t * wp * c } else { 0 }),
+                Scratch::overwritten(g * m * row_len),
+                Scratch::overwritten(if matches!(input, Input::Nchw { .. }) {
+                    (g * m + 2) * wp * c
+                } else {
+                    0
+                }),
             )
         },
         |(v, mt, out, strip): &mut (Scratch, Scratch, Scratch, Scratch), task| {
-            let (ni, ty) = (task / th, task % th);
-            // The task's t padded input rows: in the padded buffer, or padded here.
+            let (ni, ty0) = (task / groups, (task % groups) * g);
+            let nr = g.min(th - ty0); // rows of tiles in this task
+                                      // The task's m·nr + 2 padded input rows: in the padded buffer, or padded here.
             let (rows, r0) = match *input {
-                Input::Padded { xp, .. } => (xp, (ni * hp + m * ty) * wp * c),
+                Input::Padded { xp, .. } => (xp, (ni * hp + m * ty0) * wp * c),
                 Input::Nchw { x, pad } => {
-                    for (r, dst) in strip.chunks_exact_mut(wp * c).enumerate() {
-                        pad_row_nhwc(x, ni, m * ty + r, 1, 1, pad, dst);
+                    for (r, dst) in strip.chunks_exact_mut(wp * c).take(m * nr + 2).enumerate() {
+                        pad_row_nhwc(x, ni, m * ty0 + r, 1, 1, pad, dst);
                     }
                     (&strip[..], 0)
                 }
             };
             for (tx0, ntw) in tiles(tw, chunk) {
-                // V[pos][tile][c] = Bᵀ d B.
-                // SAFETY: the chunk's tiles cover rows m·ty..m·ty+t ≤ hp, columns
-                // m·tx0..m(tx0+ntw)+2 ≤ wp of image ni (asserted above), at r0 in `rows`; V
-                // holds ntw ≤ chunk tiles per position.
-                unsafe {
-                    let xb = rows.as_ptr().add(r0 + m * tx0 * c);
-                    match tile {
-                        Tile::F2 => input_tiles(xb, wp, c, ntw, v.as_mut_ptr(), vs),
-                        Tile::F4 => {
-                            let col = v.as_mut_ptr().add(npos * vs);
-                            input_tiles4(xb, wp, c, ntw, v.as_mut_ptr(), vs, col)
+                // With nr > 1 the chunk is the whole row (tw ≤ chunk): its nr rows of tiles
+                // side by side in V and M, row r's tiles from r·ntw on.
+                for r in 0..nr {
+                    // V[pos][tile][c] = Bᵀ d B.
+                    // SAFETY: the tiles cover rows m(ty0 + r)..m(ty0 + r + 1) + 2 ≤ hp, columns
+                    // m·tx0..m(tx0+ntw)+2 ≤ wp of image ni (asserted above), at r0 in `rows`;
+                    // V holds nr·ntw ≤ tiles_max tiles per position.
+                    unsafe {
+                        let xb = rows.as_ptr().add(r0 + (m * r * wp + m * tx0) * c);
+                        let vb = v.as_mut_ptr().add(r * ntw * c);
+                        match tile {
+                            Tile::F2 => input_tiles(xb, wp, c, ntw, vb, vs),
+                            Tile::F4 => {
+                                let col = v.as_mut_ptr().add(npos * vs);
+                                input_tiles4(xb, wp, c, ntw, vb, vs, col)
+                            }
                         }
-                    }
-                };
+                    };
+                }
+                let nt = nr * ntw;
                 // M[pos][tile][o] = Σ_c V[pos][tile][c] · U[pos][c][o] (every element written).
                 for pos in 0..npos {
                     for (bi, &(off, ov)) in pk.blocks.iter().enumerate() {
-                        for (x0, np, j0, ot) in reg_tiles(ntw, ov) {
-                            // SAFETY: tiles x0..x0+np < ntw of position pos in V (c floats each)
+                        for (x0, np, j0, ot) in reg_tiles(nt, ov) {
+                            // SAFETY: tiles x0..x0+np < nt of position pos in V (c floats each)
                             // and in M (opad floats each, channels bi·64..bi·64+ov·16 ≤ opad);
                             // the block's position pos holds c rows of ov·16 weights, of which
                             // the tile takes vectors j0..j0+ot.
@@ -499,23 +519,27 @@ pub(super) fn correlate(
                         }
                     }
                 }
-                // m output rows: init + Aᵀ M A.
-                // SAFETY: ntw tiles of M at every position; pixels m·tx0..m(tx0+ntw) of the m
-                // rows of `out` (m·tw pixels of opad floats each); init has opad floats.
-                unsafe {
-                    let ob = out.as_mut_ptr().add(m * tx0 * opad);
-                    match tile {
-                        Tile::F2 => output_tiles(mt.as_ptr(), ms, ntw, opad, init, ob, row_len),
-                        Tile::F4 => {
-                            let tmp = mt.as_mut_ptr().add(npos * ms);
-                            output_tiles4(mt.as_ptr(), ms, ntw, opad, init, ob, row_len, tmp)
+                for r in 0..nr {
+                    // m output rows per row of tiles: init + Aᵀ M A.
+                    // SAFETY: tiles r·ntw..(r+1)·ntw of M at every position; pixels
+                    // m·tx0..m(tx0+ntw) of rows m·r..m·r+m of `out` (g·m rows of m·tw pixels
+                    // of opad floats); init has opad floats.
+                    unsafe {
+                        let mb = mt.as_ptr().add(r * ntw * opad);
+                        let ob = out.as_mut_ptr().add(m * r * row_len + m * tx0 * opad);
+                        match tile {
+                            Tile::F2 => output_tiles(mb, ms, ntw, opad, init, ob, row_len),
+                            Tile::F4 => {
+                                let tmp = mt.as_mut_ptr().add(npos * ms);
+                                output_tiles4(mb, ms, ntw, opad, init, ob, row_len, tmp)
+                            }
                         }
                     }
                 }
             }
-            for (r, row) in out.chunks_exact(row_len).enumerate() {
-                if m * ty + r < out_h {
-                    sink(ni, m * ty + r, row);
+            for (r, row) in out.chunks_exact(row_len).take(m * nr).enumerate() {
+                if m * ty0 + r < out_h {
+                    sink(ni, m * ty0 + r, row);
                 }
             }
         },
