@@ -14,7 +14,7 @@ use anisocb::ops::conv2d::{
     conv2d, conv2d_backward, conv2d_backward_ref, conv2d_packed, conv2d_ref, Epilogue, PackedConv,
 };
 use anisocb::ops::pixel_shuffle::pixel_shuffle;
-use anisocb::ops::{activation, Padding, Precision};
+use anisocb::ops::{activation, Cpu, Padding, Precision};
 use anisocb::Tensor;
 use random::TestData;
 
@@ -194,6 +194,19 @@ fn conv_winograd_f4_matches_ref_on_odd_sizes_and_channel_tails() {
             assert_close(&format!("F(4×4, 3×3) {what}"), &y, &y_ref, tol, 1e-4);
         }
     }
+    // What Winograd does not take (the first conv's 3 channels, the last conv's ≤ 4 outputs, 1×1
+    // kernels) keeps fp32's kernels and bits; `fp32-fast` is a CPU precision only.
+    let bits = |t: &Tensor| t.data.iter().map(|v| v.to_bits()).collect::<Vec<u32>>();
+    for (c, o, k) in [(3, 32, 3), (32, 3, 3), (32, 32, 1)] {
+        let x = rng.tensor(&[1, c, 7, 9], -1.0, 1.0);
+        let wt = rng.tensor(&[o, c, k, k], -1.0, 1.0);
+        let packed = PackedConv::with_precision(&wt, Precision::Fp32Fast);
+        let y = conv2d_packed(&x, &packed, None, Padding::Replicate, Epilogue::NONE);
+        assert_eq!(bits(&y), bits(&conv2d(&x, &wt, None, Padding::Replicate)), "{c} → {o} {k}×{k}");
+    }
+    assert_eq!(Precision::resolve("fp32-fast", &Cpu).unwrap(), Precision::Fp32Fast);
+    assert_eq!(Precision::Fp32Fast.name(), "fp32-fast");
+    assert!(Precision::Fp32Fast.runs_on_cpu());
 }
 
 #[test]

@@ -119,7 +119,7 @@ pub struct Args {
     #[arg(long, default_value = "cpu")]
     pub device: String,
     /// The nets' arithmetic in every anisocb row, as `upscale --precision`: auto (what upscale
-    /// runs here by default), fp32, bf16 or fp16.
+    /// runs here by default), fp32, fp32-fast, bf16 or fp16.
     #[arg(long, default_value = "auto", value_parser = ["auto", "fp32", "fp32-fast", "bf16", "fp16"])]
     pub precision: String,
 }
