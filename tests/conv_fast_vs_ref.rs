@@ -128,30 +128,34 @@ fn conv_few_outputs_matches_ref_on_wide_rows_and_tails() {
     }
 }
 
+/// (n, c, o, h, w) of the Winograd tests: images with odd and even sides down to 1×1 (partial
+/// tiles), tile rows shorter and longer than one register tile, output channels that are not
+/// whole vectors or whole 64-channel blocks. Inputs of up to 2¹⁶ floats are padded inside the
+/// tasks, larger ones into a buffer first: the last three cases sit on either side of that line
+/// (65 520, 67 600 and, two images, 65 600).
+const WINOGRAD_SHAPES: [(usize, usize, usize, usize, usize); 12] = [
+    (1, 16, 5, 1, 1),
+    (1, 16, 16, 1, 2),
+    (2, 16, 16, 2, 3),
+    (1, 32, 17, 3, 2),
+    (1, 32, 32, 7, 9),
+    (1, 48, 65, 6, 13),
+    (2, 64, 64, 9, 8),
+    (1, 64, 80, 5, 29),
+    (1, 32, 3 * 16, 16, 16),
+    (1, 16, 32, 63, 65),
+    (1, 16, 32, 65, 65),
+    (2, 16, 24, 41, 50),
+];
+
 #[test]
 fn conv_winograd_matches_ref_on_odd_sizes_and_channel_tails() {
-    // The Winograd F(2×2, 3×3) path (3×3, C_in a multiple of 16, C_out > 4): images with odd
-    // and even sides down to 1×1 (partial 2×2 tiles), tile rows shorter and longer than one
-    // register tile, output channels that are not whole vectors or whole 64-channel blocks.
-    // With replicate padding the input gradient takes the same path on dy framed by zeros and
-    // folds the frame onto the border (one-row images fold three rows onto one). Inputs of up
-    // to 2¹⁶ floats are padded inside the tasks, larger ones into a buffer first: the last
-    // three cases sit on either side of that line (65 520, 67 600 and, two images, 65 600).
+    // The Winograd F(2×2, 3×3) path (3×3, C_in a multiple of 16, C_out > 4) on
+    // [`WINOGRAD_SHAPES`]. With replicate padding the input gradient takes the same path on dy
+    // framed by zeros and folds the frame onto the border (one-row images fold three rows onto
+    // one).
     let mut rng = Rng::new(5);
-    for (n, c, o, h, w) in [
-        (1, 16, 5, 1, 1),
-        (1, 16, 16, 1, 2),
-        (2, 16, 16, 2, 3),
-        (1, 32, 17, 3, 2),
-        (1, 32, 32, 7, 9),
-        (1, 48, 65, 6, 13),
-        (2, 64, 64, 9, 8),
-        (1, 64, 80, 5, 29),
-        (1, 32, 3 * 16, 16, 16),
-        (1, 16, 32, 63, 65),
-        (1, 16, 32, 65, 65),
-        (2, 16, 24, 41, 50),
-    ] {
+    for (n, c, o, h, w) in WINOGRAD_SHAPES {
         for pad in [Padding::Zero, Padding::Replicate] {
             check_case(&mut rng, n, c, o, h, w, 3, 3, pad, h % 2 == 1, true);
         }
@@ -161,26 +165,13 @@ fn conv_winograd_matches_ref_on_odd_sizes_and_channel_tails() {
 #[test]
 fn conv_winograd_f4_matches_ref_on_odd_sizes_and_channel_tails() {
     // `--precision fp32-fast`: the trunks' convs by Winograd F(4×4, 3×3) (6×6 input tiles, 4×4
-    // outputs) on the shapes of the F(2×2, 3×3) test above: sides down to 1×1 and not
-    // multiples of 4 (partial tiles), output channels that are not whole vectors or blocks,
-    // inputs padded inside the tasks and into a buffer first. Its transforms multiply by 4, 5,
+    // outputs) on [`WINOGRAD_SHAPES`] (sides not multiples of 4 are partial tiles here) and
+    // 128 channels. Its transforms multiply by 4, 5,
     // 8 and ⅙, which round: the tolerance is the F(2×2) test's absolute one times 4 (on the
     // cases with 32 or more channels, F(4×4)'s largest differences measured 5–9× F(2×2)'s, and
     // 2–4× below this tolerance), the relative one the same.
     let mut rng = Rng::new(6);
-    for (n, c, o, h, w) in [
-        (1, 16, 5, 1, 1),
-        (1, 16, 16, 1, 2),
-        (2, 16, 16, 2, 3),
-        (1, 32, 17, 3, 2),
-        (1, 32, 32, 7, 9),
-        (1, 48, 65, 6, 13),
-        (2, 64, 64, 9, 8),
-        (1, 64, 80, 5, 29),
-        (1, 128, 128, 8, 8),
-        (1, 16, 32, 63, 65),
-        (2, 16, 24, 41, 50),
-    ] {
+    for (n, c, o, h, w) in WINOGRAD_SHAPES.into_iter().chain([(1, 128, 128, 8, 8)]) {
         for pad in [Padding::Zero, Padding::Replicate] {
             let what = format!("n{n} c{c} o{o} {h}x{w} {pad:?}");
             let x = rng.tensor(&[n, c, h, w], -1.0, 1.0);
