@@ -6,7 +6,10 @@ use std::time::{Duration, Instant};
 
 use wide::f32x16;
 
-use crate::ops::conv2d::{conv2d, conv2d_input_grad, conv2d_ref, conv2d_weight_grad, Padding};
+use crate::ops::conv2d::{
+    conv2d, conv2d_input_grad, conv2d_packed, conv2d_ref, conv2d_weight_grad, Epilogue, PackedConv, Padding,
+};
+use crate::ops::Precision;
 use crate::tensor::Tensor;
 
 /// Independent FMA chains (f32x16) per thread: enough to cover FMA latency × ports (4 × 2 on
@@ -167,6 +170,10 @@ pub fn conv_cases(quick: bool) -> Vec<ConvCase> {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Pass {
     Forward,
+    /// The forward of `--precision fp32-fast` (Winograd F(4×4, 3×3)), its weights packed once
+    /// as inference packs them (the other rows pack on every call, as [`conv2d`] does); its
+    /// GFLOP/s count the direct conv's multiply-adds.
+    ForwardFast,
     InputGrad,
     WeightGrad,
     /// The scalar reference forward (`conv2d_ref`), for before/after comparison.
@@ -177,6 +184,7 @@ impl Pass {
     pub fn name(&self) -> &'static str {
         match self {
             Pass::Forward => "forward",
+            Pass::ForwardFast => "fwd fp32-fast, packed",
             Pass::InputGrad => "input-grad",
             Pass::WeightGrad => "weight-grad",
             Pass::ForwardRef => "forward (scalar ref)",
@@ -222,6 +230,14 @@ pub fn bench_conv_case(case: ConvCase, quick: bool, with_ref: bool) -> Vec<ConvR
     let t =
         time_fn(|| drop(std::hint::black_box(conv2d(&x, &w, Some(&b), pad))), min_reps, max_reps, min_time);
     push(Pass::Forward, t);
+    let fast = PackedConv::with_precision(&w, Precision::Fp32Fast);
+    let t = time_fn(
+        || drop(std::hint::black_box(conv2d_packed(&x, &fast, Some(&b), pad, Epilogue::NONE))),
+        min_reps,
+        max_reps,
+        min_time,
+    );
+    push(Pass::ForwardFast, t);
     let mut dx = Tensor::zeros(&x.shape);
     let t = time_fn(|| conv2d_input_grad(&w, &dy, pad, &mut dx), min_reps, max_reps, min_time);
     push(Pass::InputGrad, t);
@@ -301,7 +317,8 @@ pub fn run_conv_bench(
                     cpu
                 ));
             }
-            let sum: f64 = rows.iter().filter(|r| r.pass != Pass::ForwardRef).map(|r| r.timing.median).sum();
+            let training = [Pass::Forward, Pass::InputGrad, Pass::WeightGrad];
+            let sum: f64 = rows.iter().filter(|r| training.contains(&r.pass)).map(|r| r.timing.median).sum();
             out(&format!("{:<22} {:<22} {:>9.3}", case.label(), "fwd + both grads", sum * 1e3));
             if i == 0 {
                 fb_small = rows[0].timing.median;

@@ -1,5 +1,6 @@
 //! `anisocb bench`: this machine's FMA peak, then the engine's 3×3 conv hot paths (forward,
-//! input gradient, weight gradient) in ms, GFLOP/s and % of peak.
+//! the forward of `--precision fp32-fast`, input gradient, weight gradient) in ms, GFLOP/s and
+//! % of peak.
 
 use crate::error::Result;
 use crate::ops::Padding;

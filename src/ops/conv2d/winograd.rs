@@ -115,19 +115,10 @@ fn kernel_transform4(g: [f32; 9]) -> [f32; 36] {
         [1.0 / 24.0, -1.0 / 12.0, 1.0 / 6.0],
         [0.0, 0.0, 1.0],
     ];
-    let mut u = [0.0f32; 36];
-    for (i, gi) in G.iter().enumerate() {
-        for (j, gj) in G.iter().enumerate() {
-            let mut s = 0.0f64;
-            for ky in 0..3 {
-                for kx in 0..3 {
-                    s += gi[ky] * g[ky * 3 + kx] as f64 * gj[kx];
-                }
-            }
-            u[i * 6 + j] = s as f32;
-        }
-    }
-    u
+    // G g: 6×3, then (G g) Gᵀ: 6×6.
+    let gg: [[f64; 3]; 6] =
+        G.map(|gi| std::array::from_fn(|kx| (0..3).map(|ky| gi[ky] * g[ky * 3 + kx] as f64).sum()));
+    std::array::from_fn(|p| (0..3).map(|kx| gg[p / 6][kx] * G[p % 6][kx]).sum::<f64>() as f32)
 }
 
 /// Transformed weights packed like [`super::pack_weights`] with the tile's positions as taps:
