@@ -21,8 +21,8 @@ pub enum Precision {
     Fp16,
     /// f32 throughout, the trunks' 3×3 convs by Winograd F(4×4, 3×3) instead of F(2×2, 3×3):
     /// 1.8× fewer multiply-adds in their products, sums rounded differently from [`Fp32`]'s
-    /// (relative error about 10⁻⁶; docs/performance.md). CPU only; training and `audit` stay
-    /// [`Fp32`].
+    /// (differences from the exact sums 5–9× F(2×2)'s: about 2·10⁻⁵ of a 64-channel conv's
+    /// typical output; docs/performance.md). CPU only; training and `audit` stay [`Fp32`].
     ///
     /// [`Fp32`]: Precision::Fp32
     Fp32Fast,
