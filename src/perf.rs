@@ -7,7 +7,8 @@ use std::time::{Duration, Instant};
 use wide::f32x16;
 
 use crate::ops::conv2d::{
-    conv2d, conv2d_input_grad, conv2d_packed, conv2d_ref, conv2d_weight_grad, Epilogue, PackedConv, Padding,
+    amx, conv2d, conv2d_input_grad, conv2d_packed, conv2d_ref, conv2d_weight_grad, Epilogue, PackedConv,
+    Padding,
 };
 use crate::ops::Precision;
 use crate::tensor::Tensor;
@@ -174,6 +175,13 @@ pub enum Pass {
     /// as inference packs them (the other rows pack on every call, as [`conv2d`] does); its
     /// GFLOP/s count the direct conv's multiply-adds.
     ForwardFast,
+    /// The forward of `--precision bf16` ([`amx::conv_act`], from one bf16 activation to the
+    /// next, weights packed once), on a CPU with the bf16 kernels only: the input as hi + lo
+    /// pairs (`Bf16Pairs`, how a trunk's low-resolution convs read it, twice the tile work) or
+    /// rounded once (`Bf16`, the high-resolution tail). Its GFLOP/s count the direct conv's
+    /// multiply-adds once, pairs or not.
+    Bf16Pairs,
+    Bf16,
     InputGrad,
     WeightGrad,
     /// The scalar reference forward (`conv2d_ref`), for before/after comparison.
@@ -185,6 +193,8 @@ impl Pass {
         match self {
             Pass::Forward => "forward",
             Pass::ForwardFast => "fwd fp32-fast, packed",
+            Pass::Bf16Pairs => "fwd bf16 pairs, packed",
+            Pass::Bf16 => "fwd bf16, packed",
             Pass::InputGrad => "input-grad",
             Pass::WeightGrad => "weight-grad",
             Pass::ForwardRef => "forward (scalar ref)",
@@ -238,6 +248,20 @@ pub fn bench_conv_case(case: ConvCase, quick: bool, with_ref: bool) -> Vec<ConvR
         min_time,
     );
     push(Pass::ForwardFast, t);
+    if amx::available() {
+        for (pass, split) in [(Pass::Bf16Pairs, true), (Pass::Bf16, false)] {
+            let packed = PackedConv::for_chain(&w, Precision::Bf16, 1, split);
+            let xa = amx::Act::from_nchw(&x, pad, split);
+            let epi = amx::ActEpilogue::default();
+            let t = time_fn(
+                || drop(std::hint::black_box(amx::conv_act(&xa, &packed, Some(&b), epi, false))),
+                min_reps,
+                max_reps,
+                min_time,
+            );
+            push(pass, t);
+        }
+    }
     let mut dx = Tensor::zeros(&x.shape);
     let t = time_fn(|| conv2d_input_grad(&w, &dy, pad, &mut dx), min_reps, max_reps, min_time);
     push(Pass::InputGrad, t);
@@ -281,6 +305,11 @@ pub fn run_conv_bench(
             ));
         }
     }
+    out(match (amx::available(), amx::tiles()) {
+        (true, true) => "bf16 rows: AMX tiles (tdpbf16ps)",
+        (true, false) => "bf16 rows: AVX512_BF16 dot products (vdpbf16ps; no AMX tiles, or ANISOCB_NO_AMX=1)",
+        (false, _) => "bf16 rows: none (no AVX512_BF16 on this CPU, or ANISOCB_NO_BF16=1)",
+    });
     out(&format!(
         "{:<22} {:<22} {:>9} {:>9} {:>9} {:>7}{}",
         "3x3 conv (replicate)",
