@@ -294,11 +294,11 @@ fn store_bf16_split(hi: &mut [u16], lo: &mut [u16], v: &[f32]) {
 
 /// [`store_pixel`] for w pixels: source pixel x at `row[x·opad + off ..][..oc]`, its bias
 /// `bias[..oc]`, destination at `out[x·stride ..]` (a pixel-shuffled row: every r-th pixel),
-/// skip pixel x at `skip[x·os ..]`. One call a row, so the per-pixel work inlines under the
-/// target features.
+/// skip pixel x at `skip[x·os ..]`. One call a row: the bounds are checked once here, and the
+/// row's options pick one instance of the pixel loop, so no pixel tests them again.
 ///
 /// # Safety
-/// As [`store_pixel`].
+/// The CPU has AVX512F and AVX512_BF16.
 #[target_feature(enable = "avx512f,avx512bf16")]
 #[allow(clippy::too_many_arguments)]
 unsafe fn store_pixels(
@@ -315,13 +315,30 @@ unsafe fn store_pixels(
     split: bool,
 ) {
     let os = oc * (1 + split as usize);
-    let bias = bias.map(|b| &b[..oc]);
-    for x in 0..w {
-        let src = &row[x * opad + off..][..oc];
-        let px = &mut out[x * stride..][..os];
-        let sk = skip.map(|s| &s[x * os..][..os]);
-        store_pixel(src, bias, sk, relu, px, split);
+    if w == 0 {
+        return;
     }
+    assert!(oc <= opad && off + oc <= opad && row.len() >= (w - 1) * opad + off + oc);
+    assert!(stride >= os && out.len() >= (w - 1) * stride + os);
+    assert!(bias.is_none_or(|b| b.len() >= oc) && skip.is_none_or(|s| s.len() >= w * os));
+    let src = row.as_ptr().add(off);
+    let b = bias.map_or(std::ptr::null(), |b| b.as_ptr());
+    let sk = skip.map_or(std::ptr::null(), |s| s.as_ptr());
+    let dst = out.as_mut_ptr();
+    macro_rules! pick {
+        ($($b:literal $s:literal $r:literal $p:literal),*) => {
+            match (bias.is_some(), skip.is_some(), relu, split) {
+                $(($b, $s, $r, $p) => for x in 0..w {
+                    store_pixel::<$b, $s, $r, $p>(src.add(x * opad), b, sk.add(x * os * $s as usize),
+                        dst.add(x * stride), oc)
+                },)*
+            }
+        };
+    }
+    pick!(false false false false, false false false true, false false true false, false false true true,
+        false true false false, false true false true, false true true false, false true true true,
+        true false false false, true false false true, true false true false, true false true true,
+        true true false false, true true false true, true true true false, true true true true);
 }
 
 /// The epilogue of one output pixel of [`conv_act`]: `src` (the conv's C sums, f32) + `bias`,
@@ -331,21 +348,18 @@ unsafe fn store_pixels(
 /// f32 subnormals, below 1.2·10⁻³⁸, as 0), the rest one by one.
 ///
 /// # Safety
-/// The CPU has AVX512F and AVX512_BF16; `px` (and `sk`) hold C values, 2C split.
+/// The CPU has AVX512F and AVX512_BF16; `src` (and `bias` where BIAS) hold C values, `px` (and
+/// `sk` where SKIP) C values, 2C where SPLIT.
 #[target_feature(enable = "avx512f,avx512bf16")]
 #[inline]
-unsafe fn store_pixel(
-    src: &[f32],
-    bias: Option<&[f32]>,
-    sk: Option<&[u16]>,
-    relu: bool,
-    px: &mut [u16],
-    split: bool,
+unsafe fn store_pixel<const BIAS: bool, const SKIP: bool, const RELU: bool, const SPLIT: bool>(
+    src: *const f32,
+    bias: *const f32,
+    sk: *const u16,
+    px: *mut u16,
+    c: usize,
 ) {
     use std::arch::x86_64::*;
-    let c = src.len();
-    assert!(px.len() == c * (1 + split as usize) && sk.is_none_or(|s| s.len() == px.len()));
-    assert!(bias.is_none_or(|b| b.len() == c));
     let widen = |p: *const u16| {
         _mm512_castsi512_ps(_mm512_slli_epi32::<16>(_mm512_cvtepu16_epi32(_mm256_loadu_si256(
             p as *const __m256i,
@@ -353,40 +367,40 @@ unsafe fn store_pixel(
     };
     let c16 = c / 16 * 16;
     for c0 in (0..c16).step_by(16) {
-        let mut v = _mm512_loadu_ps(src.as_ptr().add(c0));
-        if let Some(b) = bias {
-            v = _mm512_add_ps(v, _mm512_loadu_ps(b.as_ptr().add(c0)));
+        let mut v = _mm512_loadu_ps(src.add(c0));
+        if BIAS {
+            v = _mm512_add_ps(v, _mm512_loadu_ps(bias.add(c0)));
         }
-        if let Some(s) = sk {
-            v = _mm512_add_ps(v, widen(s.as_ptr().add(c0)));
-            if split {
-                v = _mm512_add_ps(v, widen(s.as_ptr().add(c + c0)));
+        if SKIP {
+            v = _mm512_add_ps(v, widen(sk.add(c0)));
+            if SPLIT {
+                v = _mm512_add_ps(v, widen(sk.add(c + c0)));
             }
         }
-        if relu {
+        if RELU {
             // max(0, v): v where it is not below 0 (−0 and NaN kept, as `relu1`).
             v = _mm512_max_ps(_mm512_setzero_ps(), v);
         }
         let hi: __m256i = std::mem::transmute(_mm512_cvtneps_pbh(v));
-        _mm256_storeu_si256(px.as_mut_ptr().add(c0) as *mut __m256i, hi);
-        if split {
-            let rest = _mm512_sub_ps(v, widen(px.as_ptr().add(c0)));
+        _mm256_storeu_si256(px.add(c0) as *mut __m256i, hi);
+        if SPLIT {
+            let rest = _mm512_sub_ps(v, widen(px.add(c0)));
             let lo: __m256i = std::mem::transmute(_mm512_cvtneps_pbh(rest));
-            _mm256_storeu_si256(px.as_mut_ptr().add(c + c0) as *mut __m256i, lo);
+            _mm256_storeu_si256(px.add(c + c0) as *mut __m256i, lo);
         }
     }
     for k in c16..c {
-        let mut v = match bias {
-            Some(b) => src[k] + b[k],
-            None => src[k],
-        };
-        if let Some(s) = sk {
-            v += f32_of_bf16(s[k]) + if split { f32_of_bf16(s[c + k]) } else { 0.0 };
+        let mut v = *src.add(k);
+        if BIAS {
+            v += *bias.add(k);
         }
-        let v = if relu { relu1(v) } else { v };
-        px[k] = bf16(v);
-        if split {
-            px[c + k] = bf16(v - f32_of_bf16(px[k]));
+        if SKIP {
+            v += f32_of_bf16(*sk.add(k)) + if SPLIT { f32_of_bf16(*sk.add(c + k)) } else { 0.0 };
+        }
+        let v = if RELU { relu1(v) } else { v };
+        *px.add(k) = bf16(v);
+        if SPLIT {
+            *px.add(c + k) = bf16(v - f32_of_bf16(*px.add(k)));
         }
     }
 }
