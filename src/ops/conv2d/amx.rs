@@ -558,6 +558,10 @@ unsafe fn block_dot<const MT: usize, const NT: usize>(
     }
 }
 
+/// The most bytes of f32 sums [`correlate`] keeps between the tiles and the sink (a group of
+/// rows): well inside a core's L2, so the sink reads them back from it.
+const GROUP_BYTES: usize = 128 << 10;
+
 /// Correlate the padded bf16 input ([`pad_input`]: n images of hp × wp pixels, c channels)
 /// with `pk` into out_h × out_w outputs per image, starting from `init` (the bias, opad
 /// floats) or 0; `sink(n, y, row)` gets each output row as NHWC scratch (≥ out_w × opad
@@ -587,7 +591,9 @@ pub(super) fn correlate(
     let rows = n * out_h;
     // Runs of rows per task: a row of a 32-channel 64-wide conv is about a microsecond of
     // tile work, as much as handing a task to a thread, so several rows go to each task.
-    let per_task = rows.div_ceil(8 * rayon::current_num_threads()).max(1);
+    // A task's sums stay within GROUP_BYTES, so its sink reads them from the core's own cache.
+    let per_task =
+        rows.div_ceil(8 * rayon::current_num_threads()).clamp(1, (GROUP_BYTES / (row_len * 4)).max(1));
     let xb = xp.as_ptr() as *const u16 as usize;
     // A task's rows go through the tiles first, all of them, and then through the sink: every
     // switch between the tile products and the AVX-512 stores costs about half a microsecond
