@@ -241,6 +241,40 @@ fn bf16_activation_chain_matches_the_twin_with_its_skip_relu_shuffle_and_borders
 }
 
 #[test]
+fn bf16_rows_grouped_per_task_give_the_same_bits_whatever_the_grouping() {
+    // `correlate` takes a task's rows through the tiles, then all of them through the store,
+    // with at most 128 KiB of sums a task. A batch of 128-wide rows (16 KiB of sums each) on
+    // 1, 3 and 5 threads groups them 8 (the cap), 6 and 4 to a task: the same bits, with the
+    // skip, the ReLU and hi + lo pairs, and the shuffle; and the twin's values.
+    if !tiles_here() {
+        return;
+    }
+    let bits = |a: &Act| a.to_nchw().data.iter().map(|v| v.to_bits()).collect::<Vec<u32>>();
+    let mut rng = Rng::new(21);
+    let x = rng.tensor(&[4, 32, 32, 128], -1.0, 1.0);
+    let (w1, b1) = (rng.tensor(&[32, 32, 3, 3], -0.2, 0.2), rng.tensor(&[32], -0.5, 0.5));
+    let (w2, b2) = (rng.tensor(&[128, 32, 3, 3], -0.2, 0.2), rng.tensor(&[128], -0.5, 0.5));
+    let a = Act::from_nchw(&x, Padding::Replicate, true);
+    let p1 = PackedConv::for_chain(&w1, Precision::Bf16, 1, true);
+    let p2 = PackedConv::for_chain(&w2, Precision::Bf16, 2, true);
+    let run = || {
+        let y = conv_act(&a, &p1, Some(&b1), ActEpilogue { skip: Some(&a), relu: true }, true);
+        let up = conv_act(&y, &p2, Some(&b2), ActEpilogue::default(), false);
+        (bits(&y), bits(&up), y)
+    };
+    let pool = |t: usize| rayon::ThreadPoolBuilder::new().num_threads(t).build().unwrap();
+    let (y_bits, up_bits, y) = pool(1).install(run);
+    for t in [3, 5] {
+        let (yb, ub, _) = pool(t).install(run);
+        assert!(yb == y_bits && ub == up_bits, "{t} threads differ from 1");
+    }
+    let mut want = conv2d_ref(&x, &rounded(&w1), Some(&b1), Padding::Replicate);
+    activation::add_assign(&mut want, &x);
+    let want = activation::relu(&want);
+    assert_close("grouped rows against the twin", &y.to_nchw(), &want, 1e-5 * 288.0, 2f32.powi(-16));
+}
+
+#[test]
 fn tile_conv_stored_into_the_last_convs_input_gives_the_bits_of_the_two_convs_apart() {
     // A trunk's last two convs fused (the tile conv's ReLU'd f32 output written straight into the
     // padded planar input of the ≤ 4-output conv, its border filled after) against the same two
