@@ -336,3 +336,25 @@ fn bf16_trunk_stays_within_bf16_rounding_of_the_fp32_trunk_and_is_deterministic(
         assert_close(&format!("{kind:?} {}", config.channels), &got, &fp32, 0.01 * scale, 0.0);
     }
 }
+
+#[test]
+fn only_geometrynets_lr_part_reads_hi_lo_pairs_boundarynet_reads_single_bf16() {
+    // Trunk::pack(Bf16): GeometryNet's blocks and upscale conv read hi + lo pairs (single
+    // rounding there moved held-out vertices by up to 0.36 mm); its HR tail and every conv of
+    // BoundaryNet, whose output only gates R, read one bf16 (docs/performance.md).
+    if !tiles_here() {
+        return;
+    }
+    let config = NetConfig::small().with_padding(Padding::Replicate);
+    for (kind, lr_pairs) in [(NetKind::Geometry, true), (NetKind::Boundary, false), (NetKind::Enhance, true)]
+    {
+        let net = Trunk::init(kind, config, 4);
+        let packed = net.pack(Precision::Bf16);
+        let names: Vec<String> = net.convs().into_iter().map(|(n, _)| n).collect();
+        for (name, p) in names.iter().zip(&packed) {
+            let lr = name.starts_with("blocks") || name.starts_with("upscale");
+            assert_eq!(p.is_split(), lr && lr_pairs && p.is_bf16(), "{kind:?} {name}: pairs or not");
+        }
+        assert!(packed.iter().filter(|p| p.is_bf16()).count() > 1, "{kind:?}: too few tile convs");
+    }
+}
