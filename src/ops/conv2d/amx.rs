@@ -8,7 +8,7 @@
 //! (B) is 16 pairs of input channels × 16 output channels × 2 (the pair interleaved, AMX's
 //! "VNNI" layout), packed once ([`pack`]); an accumulator tile (C) is 16 pixels × 16 output
 //! channels in f32. Eight tile registers: up to 2 × 2 accumulators, 2 input and 2 weight
-//! tiles, so each tile loaded feeds two products. The row scratch starts at the bias, the tiles
+//! tiles, so each tile loaded feeds two products (a weight tile four, on hi + lo pairs). The row scratch starts at the bias, the tiles
 //! accumulate on it, and the same store as the fp32 kernels ([`super::conv2d_packed`]'s sink)
 //! moves it to NCHW with the skip and ReLU.
 //!
@@ -140,7 +140,8 @@ pub(super) fn eligible(c: usize, o: usize) -> bool {
     c.is_multiple_of(KT) && o > SMALL_OUT_MAX
 }
 
-/// Weights packed into B tiles, [tap][c block of 32][o block of 16][16 pairs][16 × 2].
+/// Weights packed into B tiles, [tap][c block of 32][o block of 16][16 pairs][16 × 2]; for
+/// split inputs one copy, which both halves are multiplied by ([`block`]).
 pub(super) struct AmxPacked {
     /// The tiles, from `data[off]` (64-byte aligned) on.
     data: Vec<u16>,
@@ -169,9 +170,7 @@ pub(super) fn pack(
     get: impl Fn(usize, usize, usize, usize) -> f32,
 ) -> AmxPacked {
     assert!(c.is_multiple_of(KT), "amx: {c} input channels is not a multiple of {KT}");
-    // Split inputs: channels [hi 0..c, lo 0..c], both times the same weights.
-    let (c_in, c) = (c, if split { 2 * c } else { c });
-    let get = move |o: usize, ci: usize, ky: usize, kx: usize| get(o, ci % c_in, ky, kx);
+    // Split inputs: channels [hi 0..c, lo 0..c], both times the same weights, packed once.
     let r2 = shuffle * shuffle;
     assert!(o.is_multiple_of(r2), "amx: {o} output channels do not shuffle by {shuffle}");
     let get = |q: usize, ci: usize, ky: usize, kx: usize| get((q % (o / r2)) * r2 + q / (o / r2), ci, ky, kx);
@@ -193,7 +192,7 @@ pub(super) fn pack(
             }
         }
     }
-    AmxPacked { data, off, shape: [o, c, kh, kw], opad: nob * T, shuffle, split }
+    AmxPacked { data, off, shape: [o, c << split as usize, kh, kw], opad: nob * T, shuffle, split }
 }
 
 /// `x` (N, C, H, W) padded by (ph, pw) as bf16 channels-last: pixel (n, Y, X) at
@@ -443,7 +442,9 @@ macro_rules! tile_dot {
 /// loaded from `acc` (f32, pixel stride `opad`), += Σ over taps and channel blocks, stored back.
 /// `x` points at the block's first input pixel (tap 0, channel 0) of the padded bf16 input
 /// (row stride `wp` pixels, `c` channels); `w` at the packed tile of (tap 0, block 0, this
-/// o block).
+/// o block). `halves` = 2 for split inputs: each weight tile, loaded once, multiplies the hi
+/// block and then the lo block of its channels (6 tile loads for 8 products instead of 8, and
+/// half the weights to keep in L1).
 ///
 /// # Safety
 /// The tile configuration is loaded on this thread; every tile read and written is in bounds.
@@ -456,6 +457,7 @@ unsafe fn block<const MT: usize, const NT: usize>(
     kw: usize,
     w: *const u16,
     nob: usize,
+    halves: usize,
     acc: *mut f32,
     opad: usize,
 ) {
@@ -463,26 +465,30 @@ unsafe fn block<const MT: usize, const NT: usize>(
     let c01 = acc.add(T);
     let (c10, c11) = (acc.add(T * opad), acc.add(T * opad + T));
     asm!("tilezero tmm0", "tilezero tmm1", "tilezero tmm2", "tilezero tmm3", options(nostack, nomem));
-    let nkb = c / KT;
+    let nkb = c / KT / halves;
     for ky in 0..kh {
         for kx in 0..kw {
             let xt = x.add((ky * wp + kx) * c);
             let wt = w.add((ky * kw + kx) * nkb * nob * TILE);
             for kb in 0..nkb {
-                let a0 = xt.add(kb * KT);
                 let b0 = wt.add(kb * nob * TILE);
-                tile_load!("4", a0, xs);
                 tile_load!("6", b0, ws);
-                tile_dot!("0", "4", "6");
                 if NT == 2 {
                     tile_load!("7", b0.add(TILE), ws);
-                    tile_dot!("1", "4", "7");
                 }
-                if MT == 2 {
-                    tile_load!("5", a0.add(T * c), xs);
-                    tile_dot!("2", "5", "6");
+                for h in 0..halves {
+                    let a0 = xt.add((h * nkb + kb) * KT);
+                    tile_load!("4", a0, xs);
+                    tile_dot!("0", "4", "6");
                     if NT == 2 {
-                        tile_dot!("3", "5", "7");
+                        tile_dot!("1", "4", "7");
+                    }
+                    if MT == 2 {
+                        tile_load!("5", a0.add(T * c), xs);
+                        tile_dot!("2", "5", "6");
+                        if NT == 2 {
+                            tile_dot!("3", "5", "7");
+                        }
                     }
                 }
             }
@@ -519,20 +525,21 @@ unsafe fn block_dot<const MT: usize, const NT: usize>(
     kw: usize,
     w: *const u16,
     nob: usize,
+    halves: usize,
     acc: *mut f32,
     opad: usize,
 ) {
     use std::arch::x86_64::*;
     const G: usize = 8;
-    let nkb = c / KT;
+    let nkb = c / KT / halves;
     for g in (0..MT * T).step_by(G) {
         let mut s = [[_mm512_setzero_ps(); NT]; G];
         for ky in 0..kh {
             for kx in 0..kw {
                 let xt = x.add((ky * wp + kx + g) * c);
                 let wt = w.add((ky * kw + kx) * nkb * nob * TILE);
-                for kb in 0..nkb {
-                    let (a0, b0) = (xt.add(kb * KT), wt.add(kb * nob * TILE));
+                for (kb, h) in (0..nkb).flat_map(|kb| (0..halves).map(move |h| (kb, h))) {
+                    let (a0, b0) = (xt.add((h * nkb + kb) * KT), wt.add(kb * nob * TILE));
                     for r in 0..KT / 2 {
                         let b: [__m512bh; NT] = std::array::from_fn(|t| {
                             std::mem::transmute::<__m512i, __m512bh>(_mm512_loadu_si512(
@@ -582,7 +589,7 @@ pub(super) fn correlate(
     let tiles = tiles();
     let [_, c, kh, kw] = pk.shape;
     assert_eq!(xp.len() * 2 / (n * hp * wp + T).max(1), c, "amx: the input has another channel count");
-    let (opad, nob) = (pk.opad, pk.opad / T);
+    let (opad, nob, halves) = (pk.opad, pk.opad / T, 1 + pk.split as usize);
     let mt = out_w.div_ceil(T);
     assert!(out_h + kh - 1 <= hp && out_w + kw - 1 <= wp);
     // The last tile's reads end (mt·16 − out_w) pixels past the last padded row: the slack.
@@ -622,14 +629,24 @@ pub(super) fn correlate(
                         let w = pk.data.as_ptr().add(pk.off + ob * TILE);
                         let acc = row.as_mut_ptr().add(m * T * opad + ob * T);
                         match (tiles, two_m, two_o) {
-                            (true, true, true) => block::<2, 2>(x, wp, c, kh, kw, w, nob, acc, opad),
-                            (true, true, false) => block::<2, 1>(x, wp, c, kh, kw, w, nob, acc, opad),
-                            (true, false, true) => block::<1, 2>(x, wp, c, kh, kw, w, nob, acc, opad),
-                            (true, false, false) => block::<1, 1>(x, wp, c, kh, kw, w, nob, acc, opad),
-                            (false, true, true) => block_dot::<2, 2>(x, wp, c, kh, kw, w, nob, acc, opad),
-                            (false, true, false) => block_dot::<2, 1>(x, wp, c, kh, kw, w, nob, acc, opad),
-                            (false, false, true) => block_dot::<1, 2>(x, wp, c, kh, kw, w, nob, acc, opad),
-                            (false, false, false) => block_dot::<1, 1>(x, wp, c, kh, kw, w, nob, acc, opad),
+                            (true, true, true) => block::<2, 2>(x, wp, c, kh, kw, w, nob, halves, acc, opad),
+                            (true, true, false) => block::<2, 1>(x, wp, c, kh, kw, w, nob, halves, acc, opad),
+                            (true, false, true) => block::<1, 2>(x, wp, c, kh, kw, w, nob, halves, acc, opad),
+                            (true, false, false) => {
+                                block::<1, 1>(x, wp, c, kh, kw, w, nob, halves, acc, opad)
+                            }
+                            (false, true, true) => {
+                                block_dot::<2, 2>(x, wp, c, kh, kw, w, nob, halves, acc, opad)
+                            }
+                            (false, true, false) => {
+                                block_dot::<2, 1>(x, wp, c, kh, kw, w, nob, halves, acc, opad)
+                            }
+                            (false, false, true) => {
+                                block_dot::<1, 2>(x, wp, c, kh, kw, w, nob, halves, acc, opad)
+                            }
+                            (false, false, false) => {
+                                block_dot::<1, 1>(x, wp, c, kh, kw, w, nob, halves, acc, opad)
+                            }
                         }
                     }
                 }
