@@ -8,9 +8,9 @@
 //! (B) is 16 pairs of input channels × 16 output channels × 2 (the pair interleaved, AMX's
 //! "VNNI" layout), packed once ([`pack`]); an accumulator tile (C) is 16 pixels × 16 output
 //! channels in f32. Eight tile registers: up to 2 × 2 accumulators, 2 input and 2 weight
-//! tiles, so each tile loaded feeds two products (a weight tile four, on hi + lo pairs). The row scratch starts at the bias, the tiles
-//! accumulate on it, and the same store as the fp32 kernels ([`super::conv2d_packed`]'s sink)
-//! moves it to NCHW with the skip and ReLU.
+//! tiles, so each tile loaded feeds two products (a weight tile four, on hi + lo pairs). The
+//! row scratch starts at the bias, the tiles accumulate on it, and the same store as the fp32
+//! kernels ([`super::conv2d_packed`]'s sink) moves it to NCHW with the skip and ReLU.
 //!
 //! Without tiles (a CPU with AVX512_BF16 only, or `ANISOCB_NO_AMX=1`) the same packed weights
 //! and activations go through [`block_dot`]: `vdpbf16ps` against each input pixel's channel
