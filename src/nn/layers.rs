@@ -280,7 +280,7 @@ impl Trunk {
     /// GeometryNet's residual R, so an error δ in them moves a vertex by δ·|R| (η·δ·|R|), not by
     /// δ; on the validation runs their single rounding moved no output vertex more than 5 %
     /// further from fp32's and no figure by more than 0.01 %, for 11 % less tile work a frame
-    /// (22 % at η > 0).
+    /// (17 % at η > 0).
     pub fn pack(&self, precision: Precision) -> Vec<PackedConv> {
         let lr_pairs = self.kind == NetKind::Geometry;
         layout(self.kind, self.config)
