@@ -307,6 +307,38 @@ fn tile_conv_stored_into_the_last_convs_input_gives_the_bits_of_the_two_convs_ap
 }
 
 #[test]
+fn first_conv_stored_straight_into_the_tiles_layout_gives_the_bits_of_the_nchw_way() {
+    // A trunk's first conv (3 → C, fp32) stored as an Act as it runs (`conv_to_act`) against
+    // the conv to an NCHW tensor and that tensor padded into an Act: the same bf16 values and
+    // borders (so the same bits downstream), rounded and split, both paddings, widths on and
+    // off the 16-pixel tiles, a batch of two.
+    if !tiles_here() {
+        return;
+    }
+    let mut rng = Rng::new(37);
+    for split in [false, true] {
+        for (pad, h, w) in [(Padding::Replicate, 9, 37), (Padding::Zero, 6, 15), (Padding::Replicate, 1, 32)]
+        {
+            let what = format!("{pad:?} {h}x{w} split={split}");
+            let x = rng.tensor(&[2, 3, h, w], -1.0, 1.0);
+            let (wt, b) = (rng.tensor(&[32, 3, 3, 3], -0.5, 0.5), rng.tensor(&[32], -0.5, 0.5));
+            let p = PackedConv::with_precision(&wt, Precision::Bf16);
+            assert!(!p.is_bf16(), "{what}: a 3-channel conv packed for the tiles");
+            let want = Act::from_nchw(&conv2d_packed(&x, &p, Some(&b), pad, Epilogue::NONE), pad, split);
+            let got = amx::conv_to_act(&x, &p, Some(&b), pad, split);
+            assert!(got.shape == want.shape && got.is_split() == split, "{what}: shape or form");
+            let bits = |t: &Tensor| t.data.iter().map(|v| v.to_bits()).collect::<Vec<u32>>();
+            assert_eq!(bits(&got.to_nchw()), bits(&want.to_nchw()), "{what}: the stored values differ");
+            // The borders, as the next conv reads them.
+            let (w2, b2) = (rng.tensor(&[16, 32, 3, 3], -0.2, 0.2), rng.tensor(&[16], -0.5, 0.5));
+            let p2 = PackedConv::for_chain(&w2, Precision::Bf16, 1, split);
+            let next = |a: &Act| bits(&conv_act_nchw(a, &p2, Some(&b2), Epilogue::NONE));
+            assert_eq!(next(&got), next(&want), "{what}: the next conv reads other borders");
+        }
+    }
+}
+
+#[test]
 fn bf16_trunk_stays_within_bf16_rounding_of_the_fp32_trunk_and_is_deterministic() {
     // Every net of the shipped shape (small config: 32 channels, replicate padding) and the
     // paper's (64 channels), on a smooth input: the bf16 forward (`Trunk::pack(Bf16)`: the

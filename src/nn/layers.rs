@@ -10,7 +10,7 @@
 //! stride 1, "same" size, with bias. Every op goes through `&dyn Ops`.
 
 use super::config::{NetConfig, NetKind, IN_CHANNELS, KERNEL, TAIL_CONVS};
-use crate::ops::conv2d::amx::{conv_act, Act, ActEpilogue};
+use crate::ops::conv2d::amx::{conv_act, conv_to_act, Act, ActEpilogue};
 use crate::ops::conv2d::chain::{conv_f32_act, conv_f32_act_relu_small_out, conv_to_f32_act};
 use crate::ops::conv2d::{conv_act_relu_small_out, Epilogue, PackedConv};
 use crate::ops::Precision;
@@ -324,10 +324,12 @@ impl Trunk {
         if ops.runs_chains() && self.fits_f32_chain(packed) {
             return self.forward_f32_chain(x, packed);
         }
-        let mut a = self.conv_in.forward_packed(ops, x, pad, at(Layer::ConvIn), Epilogue::NONE);
         if at(Layer::Upscale).is_bf16() {
-            return self.forward_bf16(&a, packed);
+            let split = at(Layer::Conv1(0)).is_split();
+            let a = conv_to_act(x, at(Layer::ConvIn), Some(&self.conv_in.bias), pad, split);
+            return self.forward_bf16(a, packed);
         }
+        let mut a = self.conv_in.forward_packed(ops, x, pad, at(Layer::ConvIn), Epilogue::NONE);
         for (k, b) in self.blocks.iter().enumerate() {
             let r1 = b.conv1.forward_packed(ops, &a, pad, at(Layer::Conv1(k)), Epilogue::RELU);
             let skip = self.kind.residual().then_some(&a);
@@ -386,17 +388,17 @@ impl Trunk {
         conv_f32_act_relu_small_out(&z, at(t), Some(&self.conv(t).bias), at(tl), Some(&self.conv(tl).bias))
     }
 
-    /// [`Trunk::forward_packed`] from conv_in's output `a` on, with the weights packed for the
+    /// [`Trunk::forward_packed`] from conv_in's output `a` on (stored by the fp32 conv straight
+    /// into the tiles' layout, [`conv_to_act`]), with the weights packed for the
     /// bf16 tiles ([`Precision::Bf16`]): every conv but the first and the last (the ones with
     /// 32·k input channels: all of them when any is) reads and writes bf16 activations in the
     /// tiles' padded channels-last layout ([`Act`]), the residual adds, ReLUs and the pixel
     /// shuffle fused into the stores; the tail's last tile conv stores f32 straight into the
     /// padded input of the last conv ([`conv_act_relu_small_out`]). CPU only: the pipelines
     /// pack for the tiles only for the CPU table ([`Precision::for_ops`]).
-    fn forward_bf16(&self, a: &Tensor, packed: &[PackedConv]) -> Tensor {
+    fn forward_bf16(&self, mut a: Act, packed: &[PackedConv]) -> Tensor {
         let (nb, last) = (self.blocks.len(), self.tail.len() - 1);
         let at = |l: Layer| &packed[l.index(nb)];
-        let mut a = Act::from_nchw(a, self.config.padding, at(Layer::Conv1(0)).is_split());
         for (k, b) in self.blocks.iter().enumerate() {
             let r1 = conv_act(
                 &a,

@@ -688,6 +688,18 @@ impl Act {
         Act { data, shape: [n, c, h, w], pad, split }
     }
 
+    /// An activation of `shape` whose every pixel the caller writes ([`act_store`]); the slack
+    /// after the last image zero.
+    fn overwritten(shape: [usize; 4], pad: Padding, split: bool) -> Act {
+        let [n, c, h, w] = shape;
+        let os = c * (1 + split as usize);
+        let len = n * (h + 2) * (w + 2) * os;
+        let mut data = Aligned::new((len + T * os).div_ceil(2));
+        let v: &mut [u16] = bytemuck::cast_slice_mut(&mut data[..]);
+        v[len..].fill(0);
+        Act { data, shape, pad, split }
+    }
+
     /// bf16 values a pixel: C, or 2C split.
     pub(super) fn stored(&self) -> usize {
         self.shape[1] * (1 + self.split as usize)
@@ -767,19 +779,16 @@ pub fn conv_act(x: &Act, packed: &PackedConv, b: Option<&Tensor>, epi: ActEpilog
     let [o, c2, kh, kw] = pk.shape;
     let c = x.stored();
     assert!(c == c2 && kh == 3 && kw == 3, "conv_act: a 3×3 conv of {c2} stored channels on {c}");
-    let (r, split) = (pk.shuffle, out_split);
+    let r = pk.shuffle;
     assert_eq!(x.split, pk.split, "conv_act: the input is not in the weights' bf16 form");
-    let (oc, ho, wo) = (o / (r * r), h * r, w * r);
-    // Stored values a pixel of the output (hi and lo halves when split).
-    let os = oc * (1 + split as usize);
+    let oc = o / (r * r);
     if let Some(s) = epi.skip {
         assert!(
-            r == 1 && s.shape == [n, o, h, w] && s.split == split,
+            r == 1 && s.shape == [n, o, h, w] && s.split == out_split,
             "conv_act: the skip is not the output's shape"
         );
     }
-    let out_len = (n * (ho + 2) * (wo + 2) + T) * os;
-    let mut data = Aligned::new(out_len.div_ceil(2));
+    let mut y = Act::overwritten([n, oc, h * r, w * r], x.pad, out_split);
     // The bias in the packed channel order (a pooled buffer: no allocation per conv).
     let init = b.map(|b| {
         let mut v = Scratch::zeroed(pk.opad);
@@ -788,28 +797,70 @@ pub fn conv_act(x: &Act, packed: &PackedConv, b: Option<&Tensor>, epi: ActEpilog
         }
         v
     });
-    let out = SyncPtr(data.as_mut_ptr());
-    let skip = epi.skip.map(|s| s.values());
-    let (opad, relu) = (pk.opad, epi.relu);
-    let sink = move |ni: usize, y: usize, row: &[f32]| {
+    let sink = act_store(&mut y, pk.opad, r, init.as_deref(), epi.skip.map(|s| s.values()), epi.relu);
+    // The bias is added in the store (`init` None here): the same (sum + bias) + skip as ever.
+    correlate(x.padded(), n, h + 2, w + 2, pk, None, h, w, &sink);
+    drop(sink);
+    y
+}
+
+/// `x` (N, C, H, W) f32 through `packed` (an fp32 kernel: the 3-channel first conv of a trunk)
+/// with bias `b`, stored as an [`Act`] padded for `pad`, rounded or `split`: how a chain of bf16
+/// convs starts, each value the bf16 of what [`conv2d_packed`] computes, without the NCHW
+/// tensor and the channels-last copy of it ([`Act::from_nchw`]) between the two.
+pub fn conv_to_act(x: &Tensor, packed: &PackedConv, b: Option<&Tensor>, pad: Padding, split: bool) -> Act {
+    let (n, _, h, w) = x.dims4();
+    let opad = match &packed.kind {
+        PackedKind::Winograd(pk, _) | PackedKind::Direct(pk) => pk.opad,
+        _ => panic!("conv_to_act: weights packed for a kernel outside fp32"),
+    };
+    assert!(available(), "amx: bf16 activations on a CPU without AVX512_BF16");
+    let mut y = Act::overwritten([n, packed.shape[0], h, w], pad, split);
+    let sink = act_store(&mut y, opad, 1, None, None, false);
+    correlate_packed(x, packed, b, pad, &sink);
+    drop(sink);
+    y
+}
+
+/// The sink of a conv into `y` (N, O/r², rH, rW, [`Act::overwritten`]): output row (n, yy) of
+/// the kernel's scratch (pixel stride `opad`) + `init` (the bias, packed order), + `skip` (an
+/// Act's values of y's shape), ReLU, pixel-shuffled by r, stored as bf16 (split where y is);
+/// each stored row's border pixels, and the top and bottom border rows by the task that writes
+/// the row next to them, filled for y's padding (zero, or a copy of the pixel inside).
+fn act_store<'a>(
+    y: &'a mut Act,
+    opad: usize,
+    r: usize,
+    init: Option<&'a [f32]>,
+    skip: Option<&'a [u16]>,
+    relu: bool,
+) -> impl Fn(usize, usize, &[f32]) + Sync + 'a {
+    assert!(available(), "amx: bf16 activations on a CPU without AVX512_BF16");
+    let [_, oc, ho, wo] = y.shape;
+    let (h, w, split, pad) = (ho / r, wo / r, y.split, y.pad);
+    // Stored values a pixel of the output (hi and lo halves when split).
+    let os = y.stored();
+    assert!(oc * r * r <= opad && init.is_none_or(|b| b.len() >= oc * r * r));
+    let out = SyncPtr(y.data.as_mut_ptr());
+    move |ni: usize, yy: usize, row: &[f32]| {
         let dst = out.get() as *mut u16;
         for i in 0..r {
-            let yo = (ni * (ho + 2) + r * y + i + 1) * (wo + 2);
-            // SAFETY: LR row y of image ni is this task's; it writes HR rows r·y .. r·y + r
+            let yo = (ni * (ho + 2) + r * yy + i + 1) * (wo + 2);
+            // SAFETY: LR row yy of image ni is this task's; it writes HR rows r·yy .. r·yy + r
             // (padded: + 1) of that image, columns 0 .. wo + 2, all inside the n·(ho+2)·(wo+2)
-            // pixels of os values; the row scratch holds w pixels of opad ≥ o floats.
+            // pixels of os values; the row scratch holds w pixels of opad ≥ O floats.
             let line = unsafe { std::slice::from_raw_parts_mut(dst.add(yo * os), (wo + 2) * os) };
             for j in 0..r {
                 let sk = skip.map(|s| &s[(yo + 1) * os..][..w * os]);
-                // SAFETY: `available()` (asserted by `correlate`) includes AVX512_BF16; the
-                // slices' lengths are checked inside.
+                // SAFETY: `available()` (asserted above) includes AVX512_BF16; the slices'
+                // lengths are checked inside.
                 unsafe {
                     store_pixels(
                         row,
                         opad,
                         (i * r + j) * oc,
                         oc,
-                        init.as_deref().map(|b| &b[(i * r + j) * oc..]),
+                        init.map(|b| &b[(i * r + j) * oc..]),
                         w,
                         &mut line[(j + 1) * os..],
                         r * os,
@@ -820,7 +871,7 @@ pub fn conv_act(x: &Act, packed: &PackedConv, b: Option<&Tensor>, epi: ActEpilog
                 };
             }
             // The left and right border pixels of the padded row.
-            let (l, rr) = match x.pad {
+            let (l, rr) = match pad {
                 Padding::Zero => (None, None),
                 Padding::Replicate => (Some(1), Some(wo)),
             };
@@ -836,7 +887,7 @@ pub fn conv_act(x: &Act, packed: &PackedConv, b: Option<&Tensor>, epi: ActEpilog
         // row ho − 1 (LR row h − 1).
         let row = (wo + 2) * os;
         for (to, from, at) in [(0, 1, 0), (ho + 1, ho, h.saturating_sub(1))] {
-            if y != at {
+            if yy != at {
                 continue;
             }
             let img = ni * (ho + 2) * row;
@@ -844,19 +895,13 @@ pub fn conv_act(x: &Act, packed: &PackedConv, b: Option<&Tensor>, epi: ActEpilog
             // above); `to` is written by this task only, and `from` was written just above.
             unsafe {
                 let d = dst.add(img + to * row);
-                match x.pad {
+                match pad {
                     Padding::Replicate => std::ptr::copy_nonoverlapping(dst.add(img + from * row), d, row),
                     Padding::Zero => std::ptr::write_bytes(d, 0, row),
                 }
             }
         }
-    };
-    // The bias is added in the store (`init` None here): the same (sum + bias) + skip as ever.
-    correlate(x.padded(), n, h + 2, w + 2, pk, None, h, w, &sink);
-    // The slack after the last image.
-    let v: &mut [u16] = bytemuck::cast_slice_mut(&mut data[..]);
-    v[n * (ho + 2) * (wo + 2) * os..].fill(0);
-    Act { data, shape: [n, oc, ho, wo], pad: x.pad, split }
+    }
 }
 
 /// The scalar twin: [`conv2d_ref`] on `x` and `w` rounded to bf16 (sums in f64, so the only
