@@ -836,13 +836,14 @@ fn act_store<'a>(
     relu: bool,
 ) -> impl Fn(usize, usize, &[f32]) + Sync + 'a {
     assert!(available(), "amx: bf16 activations on a CPU without AVX512_BF16");
-    let [_, oc, ho, wo] = y.shape;
+    let [n, oc, ho, wo] = y.shape;
     let (h, w, split, pad) = (ho / r, wo / r, y.split, y.pad);
     // Stored values a pixel of the output (hi and lo halves when split).
     let os = y.stored();
     assert!(oc * r * r <= opad && init.is_none_or(|b| b.len() >= oc * r * r));
     let out = SyncPtr(y.data.as_mut_ptr());
     move |ni: usize, yy: usize, row: &[f32]| {
+        assert!(ni < n && yy < h, "amx: the store got row {yy} of image {ni} of {n} × {h}");
         let dst = out.get() as *mut u16;
         for i in 0..r {
             let yo = (ni * (ho + 2) + r * yy + i + 1) * (wo + 2);
