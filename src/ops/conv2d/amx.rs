@@ -594,6 +594,14 @@ pub(super) fn correlate(
     assert!(out_h + kh - 1 <= hp && out_w + kw - 1 <= wp);
     // The last tile's reads end (mt·16 − out_w) pixels past the last padded row: the slack.
     assert!(xp.len() * 2 >= (n * hp * wp + T) * c, "amx: the padded input has no slack");
+    // Every tile row loaded or stored starts on a 64-byte line: the buffers are [`Aligned`], a
+    // pixel holds 32·k bf16 channels (64·k bytes) and a weight tile 1 KiB. A tile load split
+    // across two lines measured about 3× slower, and was then no longer hidden behind the
+    // products (docs/performance.md, "The tile loop on its own").
+    assert!(
+        xp.as_ptr() as usize % 64 == 0 && pk.data[pk.off..].as_ptr() as usize % 64 == 0,
+        "amx: a tile operand is off its 64-byte lines"
+    );
     let row_len = mt * T * opad;
     let rows = n * out_h;
     // Runs of rows per task: a row of a 32-channel 64-wide conv is about a microsecond of
@@ -919,6 +927,37 @@ pub fn conv2d_bf16_ref(x: &Tensor, w: &Tensor, b: Option<&Tensor>, pad: Padding)
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Every tile the kernel loads starts on a 64-byte line: the padded activations (of any
+    /// shape, split or not, in whatever buffer the pool hands out), each pixel of them, the
+    /// packed weights and the row scratch. A load split across two lines took about 3× the
+    /// time of one on its line, and the products no longer hid it.
+    #[test]
+    fn every_tile_operand_starts_on_a_64_byte_line() {
+        let line = |p: *const u16| p as usize % 64;
+        let (mut keep, mut bytes) = (Vec::new(), Vec::new());
+        for (i, &(n, c, h, w, split)) in
+            [(1, 32, 5, 7, false), (2, 32, 16, 16, true), (1, 64, 3, 33, false), (3, 32, 1, 1, true)]
+                .iter()
+                .enumerate()
+        {
+            // Buffers of odd sizes held meanwhile, so the next ones start elsewhere.
+            keep.push(Aligned::new(17 + 13 * i));
+            bytes.push(vec![0u8; 3 + 5 * i]);
+            let x = Tensor::zeros(&[n, c, h, w]);
+            for a in [
+                Act::from_nchw(&x, Padding::Zero, split),
+                Act::overwritten([n, c, h, w], Padding::Replicate, split),
+            ] {
+                assert_eq!(line(a.values().as_ptr()), 0, "activation {:?} split {split}", a.shape);
+                assert_eq!(a.stored() * 2 % 64, 0, "a pixel of {:?} is not whole lines", a.shape);
+            }
+            let pk = pack(16 * (i + 1), c, 3, 3, 1, split, |_, _, _, _| 0.5);
+            assert_eq!(line(pk.data[pk.off..].as_ptr()), 0, "weights {:?}", pk.shape);
+            assert_eq!(Aligned::new(100 + i).as_ptr() as usize % 64, 0, "row scratch");
+        }
+        drop((keep, bytes));
+    }
 
     /// The 16-lane store is the scalar [`store_bf16`] bit for bit: ties to even, NaN kept
     /// quiet, ±0, subnormals, infinities, the largest finite values, and every tail length.
