@@ -599,7 +599,7 @@ pub(super) fn correlate(
     // across two lines measured about 3× slower, and was then no longer hidden behind the
     // products (docs/performance.md, "The tile loop on its own").
     assert!(
-        xp.as_ptr() as usize % 64 == 0 && pk.data[pk.off..].as_ptr() as usize % 64 == 0,
+        (xp.as_ptr() as usize).is_multiple_of(64) && (pk.data[pk.off..].as_ptr() as usize).is_multiple_of(64),
         "amx: a tile operand is off its 64-byte lines"
     );
     let row_len = mt * T * opad;
