@@ -16,6 +16,7 @@ test: fmt-check clippy check-features
 	@# The bf16 convolution again on its AVX512_BF16 dot-product kernel (a CPU without AMX).
 	ANISOCB_NO_AMX=1 $(CARGO) test --release --test conv_bf16_vs_ref
 	$(MAKE) cuda-parity
+	$(MAKE) cuda-emu-if-tools
 	$(MAKE) rust-example
 	$(MAKE) c-example-if-cc
 	$(MAKE) dist-test
@@ -72,6 +73,22 @@ cuda-parity:
 			echo "✗ CUDA parity tests compiled with --features cuda; no CUDA device here, so they were skipped"; \
 		else echo "✓ CUDA parity tests ran on the GPU"; fi; \
 	else echo "✗ CUDA parity tests failed"; exit 1; fi
+
+## The CUDA kernels without a GPU: kernels/emu/check_kernels.py compiles kernels/*.cu with g++
+## in a CPU emulation (blocks of threads, shared memory, barriers, mma.sync lane by lane) and
+## checks every kernel against NumPy, and each fusion of device-resident training against the
+## kernels it replaces, bit for bit. ≈ 15 s. Needs g++ and numpy: skipped without them, except
+## under CI (.ci/run installs them).
+cuda-emu:
+	@mkdir -p target
+	@if python3 kernels/emu/check_kernels.py > target/cuda-emu.log 2>&1; then \
+		echo "✓ CUDA kernels in the CPU emulation: $$(grep -c '^ok' target/cuda-emu.log) checks passed"; \
+	else grep -v '^ok' target/cuda-emu.log | tail -30; echo "✗ CUDA kernels in the CPU emulation failed (target/cuda-emu.log)"; exit 1; fi
+
+cuda-emu-if-tools:
+	@if command -v g++ >/dev/null 2>&1 && python3 -c "import numpy" >/dev/null 2>&1; then $(MAKE) cuda-emu; \
+	elif [ -n "$$CI" ]; then echo "✗ no g++ or numpy under CI: .ci/run should have installed them"; exit 1; \
+	else echo "✗ no g++ or numpy: make cuda-emu skipped"; fi
 
 ## The portable build's tests, once: the whole suite compiled for x86-64-v3 (AVX2 + FMA, no
 ## AVX-512: `wide` then runs its 256-bit paths), as `make dist` builds the shipped binary.

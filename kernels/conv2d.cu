@@ -11,10 +11,21 @@
 // zeros); both give the same bits (every output is summed in the same order). Every kernel
 // writes each output once and reduces in a fixed order: results are bit-for-bit reproducible
 // run to run (no atomics).
+//
+// Fused epilogues (device-resident training, src/cuda/train.rs): the forward's store can apply
+// the ReLU or the residual skip that follows the conv, and the input gradient's store the ReLU's
+// backward, each with the element-wise kernel's own expression (elementwise.cu), so the fused
+// result has the bits of the conv followed by that kernel.
 
 #define BN 64
 #define BK 16
 #define NT 256
+
+// conv2d_fwd's `epi`: what its store does with v = acc + bias (acc alone with dgrad = 1).
+#define EPI_NONE 0  // y = v; with dgrad, y += acc
+#define EPI_RELU 1  // y = v < 0 ? 0 : v                      (relu_fwd)
+#define EPI_ADD 2   // y = v + aux[the same index]             (add_assign: the residual skip)
+#define EPI_MASK 3  // dgrad only: y += aux[same] > 0 ? acc : 0 (relu_bwd, aux the ReLU's output)
 
 // Source index of padded coordinate p in [0, n), or -1 where zero padding reads a 0.
 __device__ __forceinline__ int pad_idx(int p, int n, int mode) {
@@ -51,11 +62,13 @@ __device__ __forceinline__ void mma_tile(float (*As)[16 * MI + 1], float (*Bs)[B
 // dgrad = 1: the input gradient of a zero-padded conv as this forward, y += conv(dy, w'): x is
 // that conv's dy (C here = its O), w its own weight (C x O x KH x KW, here O = its C) read as
 // w'[o, c, ky, kx] = w[c, o, KH-1-ky, KW-1-kx], no bias, and y (its dx) accumulated.
+// epi: EPI_* above; aux (N, O, H, W) is read by EPI_ADD and EPI_MASK only.
 template <int MI>
 __device__ __forceinline__ void conv2d_fwd_t(const float* __restrict__ x, const float* __restrict__ w,
                                              const float* __restrict__ bias, float* __restrict__ y,
                                              int N, int C, int H, int W, int O, int KH, int KW,
-                                             int pad_mode, int has_bias, int dgrad) {
+                                             int pad_mode, int has_bias, int dgrad,
+                                             const float* __restrict__ aux, int epi) {
     constexpr int BMv = 16 * MI;
     __shared__ float As[BK][BMv + 1];
     __shared__ float Bs[BK][BN];
@@ -129,9 +142,14 @@ __device__ __forceinline__ void conv2d_fwd_t(const float* __restrict__ x, const 
             if (q >= P) continue;
             const int qn = q / HW;
             const int r = q - qn * HW;
-            float* dst = y + ((long long)qn * O + m) * HW + r;
-            if (dgrad) *dst += acc[i][j];
-            else *dst = acc[i][j] + b;
+            const long long at = ((long long)qn * O + m) * HW + r;
+            const float a = acc[i][j];
+            if (dgrad) {
+                y[at] += epi == EPI_MASK ? (aux[at] > 0.f ? a : 0.f) : a;
+            } else {
+                const float v = a + b;
+                y[at] = epi == EPI_RELU ? (v < 0.f ? 0.f : v) : epi == EPI_ADD ? v + aux[at] : v;
+            }
         }
     }
 }
@@ -139,12 +157,12 @@ __device__ __forceinline__ void conv2d_fwd_t(const float* __restrict__ x, const 
 #define CONV2D_FWD_ARGS                                                                             \
     const float *__restrict__ x, const float *__restrict__ w, const float *__restrict__ bias,       \
         float *__restrict__ y, int N, int C, int H, int W, int O, int KH, int KW, int pad_mode, \
-        int has_bias, int dgrad
+        int has_bias, int dgrad, const float *__restrict__ aux, int epi
 extern "C" __global__ void conv2d_fwd(CONV2D_FWD_ARGS) {
-    conv2d_fwd_t<4>(x, w, bias, y, N, C, H, W, O, KH, KW, pad_mode, has_bias, dgrad);
+    conv2d_fwd_t<4>(x, w, bias, y, N, C, H, W, O, KH, KW, pad_mode, has_bias, dgrad, aux, epi);
 }
 extern "C" __global__ void conv2d_fwd_m32(CONV2D_FWD_ARGS) {
-    conv2d_fwd_t<2>(x, w, bias, y, N, C, H, W, O, KH, KW, pad_mode, has_bias, dgrad);
+    conv2d_fwd_t<2>(x, w, bias, y, N, C, H, W, O, KH, KW, pad_mode, has_bias, dgrad, aux, epi);
 }
 
 // Weight gradient, split over the reduction: for reduction chunk z (pixels [z*chunk, (z+1)*chunk)),
@@ -345,8 +363,10 @@ extern "C" __global__ void conv2d_dgrad_padded_m32(CONV2D_DGRAD_ARGS) {
 // dx[nc, sy, sx] += sum dxp[nc, py, px] over the padded pixels that read (sy, sx):
 // zero padding: only (sy + KH/2, sx + KW/2); replicate: border pixels also collect the halo.
 // dxp: (NC, H + KH - 1, W + KW - 1), dx: (NC, H, W). 1-D grid-stride over NC*H*W.
+// masked = 1: dx += mask > 0 ? sum : 0, mask (NC, H, W) the ReLU output x is (relu_bwd fused).
 extern "C" __global__ void conv2d_dgrad_fold(const float* __restrict__ dxp, float* __restrict__ dx,
-                                             int NC, int H, int W, int KH, int KW, int pad_mode) {
+                                             int NC, int H, int W, int KH, int KW, int pad_mode,
+                                             const float* __restrict__ mask, int masked) {
     const int ph = KH / 2, pw = KW / 2;
     const int Hp = H + KH - 1, Wp = W + KW - 1;
     const long long HW = (long long)H * W, total = (long long)NC * HW;
@@ -366,7 +386,7 @@ extern "C" __global__ void conv2d_dgrad_fold(const float* __restrict__ dxp, floa
         float s = 0.f;
         for (int py = ylo; py <= yhi; ++py)
             for (int px = xlo; px <= xhi; ++px) s += src[py * Wp + px];
-        dx[i] += s;
+        dx[i] += masked ? (mask[i] > 0.f ? s : 0.f) : s;
     }
 }
 

@@ -100,19 +100,24 @@ def tile_rows(rows):
     return ("_m32", TILE // 2) if rows <= TILE // 2 else ("", TILE)
 
 
-def conv_fwd_dev(x, w, b, mode, force=None):
+EPI_NONE, EPI_RELU, EPI_ADD, EPI_MASK = 0, 1, 2, 3  # kernels/conv2d.cu
+
+
+def conv_fwd_dev(x, w, b, mode, force=None, epi=EPI_NONE, aux=None):
     N, C, H, W = x.shape
     O, _, KH, KW = w.shape
     y = np.zeros((N, O, H, W), np.float32)
     bias = b if b is not None else np.zeros(1, np.float32)
+    aux = aux if aux is not None else np.zeros(1, np.float32)
     P = N * H * W
     sfx, bm = force or tile_rows(O)
     launch("conv2d_fwd" + sfx, (-(-P // TILE), -(-O // bm), 1), THREADS, x, w, bias, y,
-           I(N), I(C), I(H), I(W), I(O), I(KH), I(KW), I(mode), I(b is not None), I(0))
+           I(N), I(C), I(H), I(W), I(O), I(KH), I(KW), I(mode), I(b is not None), I(0), aux, I(epi))
     return y
 
 
-def conv_bwd_dev(x, w, dy, mode, dx, dw, db):
+def conv_bwd_dev(x, w, dy, mode, dx, dw, db, mask=None):
+    """src/cuda/conv2d.rs conv2d_backward_dev; mask: dx += mask > 0 ? input gradient : 0."""
     N, C, H, W = x.shape
     O, _, KH, KW = w.shape
     P, KK = N * H * W, C * KH * KW
@@ -128,13 +133,15 @@ def conv_bwd_dev(x, w, dy, mode, dx, dw, db):
     sfx, bm = tile_rows(C)
     if mode == 0:  # the forward kernel in its dgrad mode: dx += conv(dy, w transposed and flipped)
         launch("conv2d_fwd" + sfx, (-(-P // TILE), -(-C // bm), 1), THREADS, dy, w, dy, dx,
-               I(N), I(O), I(H), I(W), I(C), I(KH), I(KW), I(0), I(0), I(1))
+               I(N), I(O), I(H), I(W), I(C), I(KH), I(KW), I(0), I(0), I(1),
+               mask if mask is not None else dy, I(EPI_MASK if mask is not None else EPI_NONE))
     else:
         Hp, Wp = H + KH - 1, W + KW - 1
         dxp = np.zeros(N * C * Hp * Wp, np.float32)
         launch("conv2d_dgrad_padded" + sfx, (-(-(N * Hp * Wp) // TILE), -(-C // bm), 1), THREADS, w, dy, dxp,
                I(N), I(C), I(H), I(W), I(O), I(KH), I(KW))
-        launch("conv2d_dgrad_fold", grid1(N * C * H * W), THREADS, dxp, dx, I(N * C), I(H), I(W), I(KH), I(KW), I(mode))
+        launch("conv2d_dgrad_fold", grid1(N * C * H * W), THREADS, dxp, dx, I(N * C), I(H), I(W), I(KH), I(KW), I(mode),
+               mask if mask is not None else dx, I(mask is not None))
     launch("conv2d_bias_grad", (O, 1, 1), THREADS, dy, db, I(N), I(O), I(H * W))
     return Z
 
@@ -163,6 +170,53 @@ for case, (N, C, H, W, O, KH, KW) in enumerate([
         check(tag + f" dx", dx, dx0 + rdx, 1e-4, 1e-4)
         check(tag + f" dw (Z={Z})", dw, dw0 + rdw, 1e-4, 1e-4)
         check(tag + " db", db, db0 + rdb, 1e-4, 1e-4)
+
+# Fused epilogues (device-resident training) give the bits of the conv, then the element-wise
+# kernel they replace.
+# Their own generator: the checks after them keep their inputs.
+fused_rng = np.random.default_rng(11)
+
+
+def bits(a):
+    return np.ascontiguousarray(a).view(np.uint32)
+
+
+def frnd(*shape):
+    return fused_rng.uniform(-1, 1, shape).astype(np.float32)
+
+
+for (N, C, H, W, O) in [(2, 5, 9, 7, 6), (1, 33, 5, 6, 33), (3, 4, 4, 13, 70)]:
+    for mode in (0, 1):
+        tag = f"fused {N}x{C}x{H}x{W}->{O} {'replicate' if mode else 'zero'}"
+        x, w, b = frnd(N, C, H, W), frnd(O, C, 3, 3), frnd(O)
+        y = conv_fwd_dev(x, w, b, mode)
+        r = np.zeros_like(y)
+        launch("relu_fwd", grid1(y.size), THREADS, y, r, L(y.size))
+        check(tag + " forward + ReLU (bits)", bits(conv_fwd_dev(x, w, b, mode, epi=EPI_RELU)), bits(r), 0, 0)
+        skip = frnd(N, O, H, W)
+        ys = y.copy()
+        launch("add_assign", grid1(y.size), THREADS, ys, skip, L(y.size))
+        check(tag + " forward + skip (bits)", bits(conv_fwd_dev(x, w, b, mode, epi=EPI_ADD, aux=skip)), bits(ys), 0, 0)
+        # dx of a conv whose input is a ReLU's output xr: the unfused way, then fused
+        t = frnd(N, C, H, W)
+        t[0, 0, 0, :] = 0.0
+        xr = np.zeros_like(t)
+        launch("relu_fwd", grid1(t.size), THREADS, t, xr, L(t.size))
+        dy = frnd(N, O, H, W)
+        dxr, dt = np.zeros_like(x), np.zeros_like(x)
+        conv_bwd_dev(xr, w, dy, mode, dxr, np.zeros_like(w), np.zeros(O, np.float32))
+        launch("relu_bwd", grid1(t.size), THREADS, t, dxr, dt, L(t.size))
+        fused = np.zeros_like(x)
+        conv_bwd_dev(xr, w, dy, mode, fused, np.zeros_like(w), np.zeros(O, np.float32), mask=xr)
+        check(tag + " input gradient + ReLU backward (bits)", bits(fused), bits(dt), 0, 0)
+        # the residual's gradient added by accumulating into the skip's gradient
+        da = frnd(N, C, H, W)
+        unfused = np.zeros_like(x)
+        conv_bwd_dev(x, w, dy, mode, unfused, np.zeros_like(w), np.zeros(O, np.float32))
+        launch("add_assign", grid1(da.size), THREADS, unfused, da, L(da.size))
+        acc = da.copy()
+        conv_bwd_dev(x, w, dy, mode, acc, np.zeros_like(w), np.zeros(O, np.float32))
+        check(tag + " input gradient into the skip's (bits)", bits(acc), bits(unfused), 0, 0)
 
 # ---------------- element-wise ----------------
 for n in (1, 255, 257, 3000):
@@ -369,6 +423,158 @@ for step in range(1, 11):
 check("adam 10 steps p", p, pr, 1e-6, 1e-5)
 check("adam 10 steps m", m, mr, 1e-6, 1e-5)
 check("adam 10 steps v", v, vr, 1e-7, 1e-5)
+
+# adam_step_all: several tensors in one launch, adam_step's bits, each gradient zeroed
+sizes = [1, 255, 257, 3000, 0, 17]
+ps = [frnd(k) for k in sizes]
+gs = [frnd(k) for k in sizes]
+ms = [frnd(k) * 0.1 for k in sizes]
+vs = [np.abs(frnd(k)) * 0.1 for k in sizes]
+want = [(p.copy(), g.copy(), m.copy(), v.copy()) for p, g, m, v in zip(ps, gs, ms, vs)]
+c1, c2 = np.float32(1 - b1 ** 3), np.float32(1 - b2 ** 3)
+for p, g, m, v in want:
+    if p.size:
+        launch("adam_step", grid1(p.size), THREADS, p, g, m, v, L(p.size), F(lr), F(b1), F(b2), F(eps), F(c1), F(c2))
+table = np.array([[a.ctypes.data if a.size else 0 for a in t] + [t[0].size] for t in zip(ps, gs, ms, vs)], np.uint64)
+gx = grid1(max(sizes))[0]
+launch("adam_step_all", (gx, len(sizes), 1), THREADS, table, F(lr), F(b1), F(b2), F(eps), F(c1), F(c2))
+for k, (p, g, m, v) in enumerate(zip(ps, gs, ms, vs)):
+    for what, got, ref in (("p", p, want[k][0]), ("m", m, want[k][2]), ("v", v, want[k][3])):
+        check(f"adam_step_all tensor {k} (n={p.size}) {what} (bits)", bits(got), bits(ref), 0, 0)
+    check(f"adam_step_all tensor {k} gradient zeroed", g, np.zeros_like(g), 0, 0)
+
+# ---------------- a training step: fused (src/cuda/train.rs) against op by op ----------------
+# One GeometryNet-shaped trunk (C = 4, 2 blocks, x2, four tail convs) through the forward, a
+# given output gradient, the backward and Adam, twice: op for op as the trainer ran before the
+# fusions (ReLU, skip and U + R as kernels of their own, a memset of the gradients, Adam per
+# tensor), then as it runs now. Every gradient and parameter must keep its bits.
+def relu_k(t):
+    r = np.zeros_like(t)
+    launch("relu_fwd", grid1(t.size), THREADS, t, r, L(t.size))
+    return r
+
+
+def add_k(a, b):
+    launch("add_assign", grid1(a.size), THREADS, a, b, L(a.size))
+
+
+def shuffle_k(u, r):
+    N, Cr, H, W = u.shape
+    z = np.zeros((N, Cr // (r * r), H * r, W * r), np.float32)
+    launch("pixel_shuffle", grid1(z.size), THREADS, u, z, I(N), I(Cr // (r * r)), I(H), I(W), I(r))
+    return z
+
+
+def unshuffle_k(dz, r):
+    N, C, Hr, Wr = dz.shape
+    du = np.zeros((N, C * r * r, Hr // r, Wr // r), np.float32)
+    launch("pixel_unshuffle", grid1(du.size), THREADS, dz, du, I(N), I(C), I(Hr // r), I(Wr // r), I(r))
+    return du
+
+
+def trunk_step(params, x, skip, dy, mode, fused, blocks, tails=4, r=2):
+    """Gradients (w, b per conv, layout order) of one step; params: [(w, b)] in layout order."""
+    conv = lambda i, inp, epi=EPI_NONE, aux=None: conv_fwd_dev(inp, params[i][0], params[i][1], mode, epi=epi, aux=aux)
+    grads = [(np.zeros_like(w), np.zeros_like(b)) for w, b in params]
+    bwd = lambda i, inp, d, dx, mask=None: conv_bwd_dev(inp, params[i][0], d, mode, dx, grads[i][0], grads[i][1], mask=mask)
+    a = conv(0, x)
+    tape = []
+    for k in range(blocks):
+        if fused:
+            r1 = conv(1 + 2 * k, a, EPI_RELU)
+            out = conv(2 + 2 * k, r1, EPI_ADD, a)
+            tape.append((a, None, r1))
+        else:
+            t1 = conv(1 + 2 * k, a)
+            r1 = relu_k(t1)
+            out = conv(2 + 2 * k, r1)
+            add_k(out, a)
+            tape.append((a, t1, r1))
+        a = out
+    up = 1 + 2 * blocks
+    z = shuffle_k(conv(up, a), r)
+    tail_in, tail_pre = [], []
+    for i in range(tails):
+        if i + 1 == tails:
+            if fused:
+                y = conv(up + 1 + i, z, EPI_ADD, skip)
+            else:
+                y = conv(up + 1 + i, z)
+                add_k(y, skip)
+            tail_in.append(z)
+            break
+        if fused:
+            nz = conv(up + 1 + i, z, EPI_RELU)
+        else:
+            pre = conv(up + 1 + i, z)
+            tail_pre.append(pre)
+            nz = relu_k(pre)
+        tail_in.append(z)
+        z = nz
+    # backward
+    if fused:
+        d = dy
+        for i in reversed(range(tails)):
+            dzin = np.zeros_like(tail_in[i])
+            bwd(up + 1 + i, tail_in[i], d, dzin, tail_in[i] if i > 0 else None)
+            d = dzin
+    else:
+        d = np.zeros_like(tail_in[-1])
+        bwd(up + tails, tail_in[-1], dy, d)
+        for i in reversed(range(tails - 1)):
+            dpre = np.zeros_like(d)
+            launch("relu_bwd", grid1(d.size), THREADS, tail_pre[i], d, dpre, L(d.size))
+            dzin = np.zeros_like(tail_in[i])
+            bwd(up + 1 + i, tail_in[i], dpre, dzin)
+            d = dzin
+    du = unshuffle_k(d, r)
+    da = np.zeros_like(a)
+    bwd(up, a, du, da)
+    for k in reversed(range(blocks)):
+        a_in, t1, r1 = tape[k]
+        if fused:
+            dt1 = np.zeros_like(r1)
+            bwd(2 + 2 * k, r1, da, dt1, r1)
+            bwd(1 + 2 * k, a_in, dt1, da)  # into the skip's gradient
+        else:
+            dr1 = np.zeros_like(r1)
+            bwd(2 + 2 * k, r1, da, dr1)
+            dt1 = np.zeros_like(t1)
+            launch("relu_bwd", grid1(t1.size), THREADS, t1, dr1, dt1, L(t1.size))
+            da_in = np.zeros_like(a_in)
+            bwd(1 + 2 * k, a_in, dt1, da_in)
+            add_k(da_in, da)
+            da = da_in
+    bwd(0, x, da, np.zeros_like(x))  # conv_in: its input gradient is not used
+    return grads
+
+
+C_, B_, N_, H_, W_ = 4, 2, 2, 5, 6
+shapes = [(C_, 3)] + [(C_, C_)] * (2 * B_) + [(4 * C_, C_)] + [(C_, C_)] * 3 + [(3, C_)]
+for mode in (0, 1):
+    params = [(frnd(o, i, 3, 3) * 0.5, frnd(o) * 0.1) for o, i in shapes]
+    x, skip, dy = frnd(N_, 3, H_, W_), frnd(N_, 3, 2 * H_, 2 * W_), frnd(N_, 3, 2 * H_, 2 * W_)
+    old = trunk_step(params, x, skip, dy, mode, False, B_)
+    new = trunk_step(params, x, skip, dy, mode, True, B_)
+    same = all((bits(o[j]) == bits(n[j])).all() for o, n in zip(old, new) for j in (0, 1))
+    nonzero = all(np.abs(o[0]).max() > 0 for o in old)
+    check(f"training step fused = op by op, every gradient (bits), {'replicate' if mode else 'zero'}",
+          np.float64(same and nonzero), np.float64(1), 0, 0)
+    # Adam: per tensor after a memset (before), one launch that zeroes the gradients (now)
+    tensors = [t for pair in params for t in pair]
+    gl = [t for pair in old for t in pair]
+    ref = [(p.copy(), g.copy(), np.zeros_like(p), np.zeros_like(p)) for p, g in zip(tensors, gl)]
+    for p, g, m, v in ref:
+        launch("adam_step", grid1(p.size), THREADS, p, g, m, v, L(p.size), F(lr), F(b1), F(b2), F(eps),
+               F(np.float32(1 - b1)), F(np.float32(1 - b2)))
+    got = [(p.copy(), g.copy(), np.zeros_like(p), np.zeros_like(p)) for p, g in zip(tensors, gl)]
+    table = np.array([[t.ctypes.data for t in row] + [row[0].size] for row in got], np.uint64)
+    launch("adam_step_all", (grid1(max(t.size for t in tensors))[0], len(got), 1), THREADS, table,
+           F(lr), F(b1), F(b2), F(eps), F(np.float32(1 - b1)), F(np.float32(1 - b2)))
+    same = all((bits(a[j]) == bits(b[j])).all() for a, b in zip(ref, got) for j in (0, 2, 3))
+    zeroed = all(not row[1].any() for row in got)
+    check(f"training step's Adam in one launch = per tensor (bits), gradients zeroed, {'replicate' if mode else 'zero'}",
+          np.float64(same and zeroed), np.float64(1), 0, 0)
 
 # ---------------- infer.cu: the tensor-core inference kernels ----------------
 TC_COUT = 32

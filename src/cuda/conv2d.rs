@@ -3,6 +3,8 @@
 //! gradient with the weights transposed and flipped; for replicate padding a full correlation
 //! on the padded grid, then a fold onto the input), bias gradient. GEMMs of at most 32 rows
 //! (output channels; input channels for the input gradient) run the kernels' 32-row tiles.
+//! The stores can fuse what follows a conv in a trunk (the ReLU, the residual skip; the ReLU's
+//! backward into the input gradient), with the element-wise kernels' bits.
 
 use cudarc::driver::{LaunchConfig, PushKernelArg};
 
@@ -24,6 +26,21 @@ fn tile_rows(rows: usize) -> (usize, usize) {
     }
 }
 
+/// What the forward's store does besides the bias (`EPI_*` in `kernels/conv2d.cu`).
+#[derive(Clone, Copy)]
+pub enum Epilogue<'a> {
+    None,
+    /// y = relu(conv): the ReLU after conv1 of a block and after each tail conv but the last.
+    Relu,
+    /// y = conv + skip (same shape as y): the residual add of a GeometryNet block, or U + R.
+    Add(&'a DevBuf),
+}
+
+const EPI_NONE: i32 = 0;
+const EPI_RELU: i32 = 1;
+const EPI_ADD: i32 = 2;
+const EPI_MASK: i32 = 3;
+
 fn pad_mode(pad: Padding) -> i32 {
     match pad {
         Padding::Zero => 0,
@@ -34,6 +51,18 @@ fn pad_mode(pad: Padding) -> i32 {
 impl Cuda {
     /// y = conv2d(x, w, b); x (N, C, H, W), w (O, C, KH, KW), b (O) → (N, O, H, W).
     pub fn conv2d_dev(&self, x: &DevBuf, w: &DevBuf, b: Option<&DevBuf>, pad: Padding) -> DResult<DevBuf> {
+        self.conv2d_epi_dev(x, w, b, pad, Epilogue::None)
+    }
+
+    /// [`Cuda::conv2d_dev`] with `epi` applied in the store.
+    pub fn conv2d_epi_dev(
+        &self,
+        x: &DevBuf,
+        w: &DevBuf,
+        b: Option<&DevBuf>,
+        pad: Padding,
+        epi: Epilogue,
+    ) -> DResult<DevBuf> {
         let [n, c, h, wd] = dims4(&x.shape, "conv2d x");
         let [o, c2, kh, kw] = dims4(&w.shape, "conv2d w");
         assert_eq!(c, c2, "conv2d: x has {c} channels, weight expects {c2}");
@@ -58,6 +87,14 @@ impl Cuda {
         let (ni, ci, hi, wi, oi, khi, kwi) =
             (n as i32, c as i32, h as i32, wd as i32, o as i32, kh as i32, kw as i32);
         let (pm, hb, dgrad) = (pad_mode(pad), b.is_some() as i32, 0i32);
+        let (aux, epi) = match epi {
+            Epilogue::None => (&x.buf, EPI_NONE),
+            Epilogue::Relu => (&x.buf, EPI_RELU),
+            Epilogue::Add(skip) => {
+                assert_eq!(skip.shape, y.shape, "conv2d: the skip's shape is not the output's");
+                (&skip.buf, EPI_ADD)
+            }
+        };
         let (kt, bm) = tile_rows(o);
         let cfg = LaunchConfig {
             grid_dim: (p.div_ceil(TILE) as u32, o.div_ceil(bm) as u32, 1),
@@ -67,13 +104,17 @@ impl Cuda {
         let mut l = self.stream.launch_builder(&self.k.conv2d_fwd[kt]);
         l.arg(&x.buf).arg(&w.buf).arg(bias).arg(&mut y.buf);
         l.arg(&ni).arg(&ci).arg(&hi).arg(&wi).arg(&oi).arg(&khi).arg(&kwi).arg(&pm).arg(&hb).arg(&dgrad);
-        // SAFETY: argument list matches conv2d_fwd; buffers hold the sizes the shapes imply.
+        l.arg(aux).arg(&epi);
+        // SAFETY: argument list matches conv2d_fwd; buffers hold the sizes the shapes imply
+        // (aux is read only by EPI_ADD, where it has y's shape).
         unsafe { l.launch(cfg) }?;
         self.mark(|| format!("conv fwd {c}->{o} {h}x{wd}"));
         Ok(y)
     }
 
-    /// Adds the conv2d gradients into `dx` (if given), `dw`, `db` (if given).
+    /// Adds the conv2d gradients into `dx` (if given), `dw`, `db` (if given). With `mask`
+    /// (x's shape: the ReLU output that x is), dx gets the input gradient where mask > 0 and
+    /// nothing elsewhere: the ReLU's backward fused (`relu_backward_dev`'s bits into a zeroed dx).
     #[allow(clippy::too_many_arguments)]
     pub fn conv2d_backward_dev(
         &self,
@@ -82,6 +123,7 @@ impl Cuda {
         dy: &DevBuf,
         pad: Padding,
         dx: Option<&mut DevBuf>,
+        mask: Option<&DevBuf>,
         dw: &mut DevBuf,
         db: Option<&mut DevBuf>,
     ) -> DResult<()> {
@@ -97,6 +139,13 @@ impl Cuda {
         if let Some(db) = db.as_deref() {
             assert_eq!(db.len(), o, "conv2d_backward: db has {} values for {o} channels", db.len());
         }
+        if let Some(m) = mask {
+            assert_eq!(m.shape, x.shape, "conv2d_backward: the ReLU mask's shape is not x's");
+        }
+        let (mask_buf, masked) = match mask {
+            Some(m) => (&m.buf, 1i32),
+            None => (&dy.buf, 0i32),
+        };
         if dy.is_empty() {
             return Ok(()); // every gradient gets += 0
         }
@@ -147,13 +196,14 @@ impl Cuda {
                     block_dim: (THREADS, 1, 1),
                     shared_mem_bytes: 0,
                 };
+                let epi = if masked == 1 { EPI_MASK } else { EPI_NONE };
                 let mut l = self.stream.launch_builder(&self.k.conv2d_fwd[kt]);
                 l.arg(&dy.buf).arg(&w.buf).arg(&dy.buf).arg(&mut dx.buf);
                 l.arg(&ni).arg(&oi).arg(&hi).arg(&wi).arg(&ci).arg(&khi).arg(&kwi).arg(&no).arg(&no_bias);
-                l.arg(&dgrad);
+                l.arg(&dgrad).arg(mask_buf).arg(&epi);
                 // SAFETY: matches conv2d_fwd in its dgrad mode (x = dy with O channels, the
                 // weight read as (C, O, KH, KW) transposed, y = dx with C channels; the bias
-                // argument is not read).
+                // argument is not read, the mask only with EPI_MASK, where it has dx's shape).
                 unsafe { l.launch(cfg) }?;
                 self.mark(|| format!("conv dgrad {c}->{o} {h}x{wd}"));
             }
@@ -174,7 +224,9 @@ impl Cuda {
                 let nc = (n * c) as i32;
                 let mut l = self.stream.launch_builder(&self.k.conv2d_dgrad_fold);
                 l.arg(&dxp).arg(&mut dx.buf).arg(&nc).arg(&hi).arg(&wi).arg(&khi).arg(&kwi).arg(&pm);
-                // SAFETY: matches conv2d_dgrad_fold; dx holds N·C·H·W values.
+                l.arg(mask_buf).arg(&masked);
+                // SAFETY: matches conv2d_dgrad_fold; dx (and the mask, read only if masked)
+                // hold N·C·H·W values.
                 unsafe { l.launch(grid1(n * c * h * wd)) }?;
                 self.mark(|| format!("conv dgrad fold {c} {h}x{wd}"));
             }

@@ -57,6 +57,7 @@ pub(super) struct Kernels {
     pub(super) bce_logits_loss: CudaFunction,
     pub(super) geometry_loss: CudaFunction,
     pub(super) adam_step: CudaFunction,
+    pub(super) adam_step_all: CudaFunction,
 }
 
 /// A device buffer with its NCHW (or any) shape: the unit of a device-resident pipeline.
@@ -227,6 +228,7 @@ impl Cuda {
             bce_logits_loss: f("bce_logits_loss")?,
             geometry_loss: f("geometry_loss")?,
             adam_step: f("adam_step")?,
+            adam_step_all: f("adam_step_all")?,
         };
         let infer = InferKernels::load(&ctx);
         Ok(Cuda {

@@ -107,7 +107,7 @@ pub(crate) const KERNELS: [(&str, &str, &[&str]); 6] = [
     ),
     ("resample.cu", include_str!("../../kernels/resample.cu"), &["resize_fwd", "resize_bwd"]),
     ("loss.cu", include_str!("../../kernels/loss.cu"), &["mse_loss", "bce_logits_loss", "geometry_loss"]),
-    ("adam.cu", include_str!("../../kernels/adam.cu"), &["adam_step"]),
+    ("adam.cu", include_str!("../../kernels/adam.cu"), &["adam_step", "adam_step_all"]),
 ];
 
 /// `kernels/infer.cu`, the device-resident inference of a whole bundle ([`nets_views`]):

@@ -51,7 +51,7 @@ impl Ops for Cuda {
                 let mut dwd = self.upload(dw)?;
                 let mut dxd = dx.as_deref().map(|t| self.upload(t)).transpose()?;
                 let mut dbd = db.as_deref().map(|t| self.upload(t)).transpose()?;
-                self.conv2d_backward_dev(&xd, &wd, &dyd, pad, dxd.as_mut(), &mut dwd, dbd.as_mut())?;
+                self.conv2d_backward_dev(&xd, &wd, &dyd, pad, dxd.as_mut(), None, &mut dwd, dbd.as_mut())?;
                 store(dw, self.download(&dwd)?);
                 if let (Some(dx), Some(d)) = (dx, dxd) {
                     store(dx, self.download(&d)?);

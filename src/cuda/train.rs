@@ -8,9 +8,18 @@
 //! wrinkle-energy terms have no kernels: with a weight other than 0 for either, the estimate is
 //! downloaded, the CPU computes the loss and its gradient, and the gradient is uploaded
 //! ([`estimate_loss`]).
+//!
+//! Fewer launches than op for op, with the same bits: the ReLUs, the residual skips and U + R
+//! are done in the conv stores ([`Epilogue`]), the ReLUs' backward in the input gradients'
+//! stores (the ReLU's output is the mask: relu(t) > 0 exactly where t > 0), a skip's gradient
+//! by accumulating the conv's input gradient into it, and Adam is one launch for every tensor
+//! that also zeroes the gradients for the next step (`kernels/emu/check_kernels.py` checks
+//! each fusion against the kernels it replaces, bit for bit).
 
 use cudarc::driver::CudaSlice;
 
+use super::adam::AdamTable;
+use super::conv2d::Epilogue;
 use super::device::{Cuda, DResult, DevBuf};
 use super::StepLoss;
 use crate::nn::config::{NetConfig, NetKind};
@@ -30,6 +39,8 @@ pub struct DeviceTrainer<'a> {
     grads: Vec<DevBuf>,
     m: Vec<CudaSlice<f32>>,
     v: Vec<CudaSlice<f32>>,
+    /// The addresses of `params`, `grads`, `m`, `v` (which never move while `self` lives).
+    adam_table: AdamTable,
     step: u64,
     adam: AdamParams,
 }
@@ -40,13 +51,15 @@ impl Drop for DeviceTrainer<'_> {
     }
 }
 
-/// Activations a training forward keeps for its backward (as [`crate::nn::Tape`]).
+/// Activations a training forward keeps for its backward (as [`crate::nn::Tape`], without the
+/// ReLUs' inputs: their outputs mask the gradients).
 struct DevTape {
     input: DevBuf,
-    blocks: Vec<[DevBuf; 3]>,
+    /// Per block: its input a and relu(conv1(a)).
+    blocks: Vec<[DevBuf; 2]>,
     upscale_in: DevBuf,
+    /// Each tail conv's input: the pixel shuffle's output, then ReLU outputs.
     tail_in: Vec<DevBuf>,
-    tail_pre: Vec<DevBuf>,
 }
 
 impl<'a> DeviceTrainer<'a> {
@@ -58,6 +71,7 @@ impl<'a> DeviceTrainer<'a> {
             let grads = params.iter().map(|p| cuda.zeros(&p.shape)).collect::<DResult<Vec<_>>>()?;
             let m = adam.m.iter().map(|m| cuda.up(m)).collect::<DResult<Vec<_>>>()?;
             let v = adam.v.iter().map(|v| cuda.up(v)).collect::<DResult<Vec<_>>>()?;
+            let adam_table = cuda.adam_table(&params, &grads, &m, &v)?;
             Ok(DeviceTrainer {
                 cuda,
                 kind: trunk.kind,
@@ -66,6 +80,7 @@ impl<'a> DeviceTrainer<'a> {
                 grads,
                 m,
                 v,
+                adam_table,
                 step: adam.step,
                 adam: adam.params,
             })
@@ -88,34 +103,39 @@ impl<'a> DeviceTrainer<'a> {
             "validation loss",
             || f32::NAN,
             || {
-                let (y, _) = self.forward_train(self.cuda.upload(lr)?)?;
-                Ok(self.loss_and_grad(y, lr, u, target, loss)?.0)
+                let (y, _) = self.forward_train(self.cuda.upload(lr)?, self.skip_of(u, loss)?.as_ref())?;
+                Ok(self.loss_and_grad(y, lr, target, loss)?.0)
             },
         )
     }
 
-    /// The loss of the output `y` (R for GeometryNet, logits for a map net) and its gradient.
+    /// What the last conv adds to its output: U for GeometryNet (its estimate is U + R).
+    fn skip_of(&self, u: &Tensor, loss: StepLoss) -> DResult<Option<DevBuf>> {
+        match loss {
+            StepLoss::Geometry(_) => self.cuda.upload(u).map(Some),
+            StepLoss::Map { .. } => Ok(None),
+        }
+    }
+
+    /// The loss of the output `y` (U + R for GeometryNet, logits for a map net) and its
+    /// gradient.
     fn loss_and_grad(
         &self,
-        mut y: DevBuf,
+        y: DevBuf,
         lr: &Tensor,
-        u: &Tensor,
         target: &Tensor,
         loss: StepLoss,
     ) -> DResult<(f32, DevBuf)> {
         let c = self.cuda;
         Ok(match loss {
-            StepLoss::Geometry(w) => {
-                c.add_assign_dev(&mut y, &c.upload(u)?)?;
-                match c.geometry_loss_dev(&y, &c.upload(target)?, w)? {
-                    Some(lg) => lg,
-                    None => {
-                        let (_, _, h, wd) = lr.dims4();
-                        let (l, g) = estimate_loss(&Cpu, &c.download(&y)?, target, (h, wd), w);
-                        (l, c.upload(&g)?)
-                    }
+            StepLoss::Geometry(w) => match c.geometry_loss_dev(&y, &c.upload(target)?, w)? {
+                Some(lg) => lg,
+                None => {
+                    let (_, _, h, wd) = lr.dims4();
+                    let (l, g) = estimate_loss(&Cpu, &c.download(&y)?, target, (h, wd), w);
+                    (l, c.upload(&g)?)
                 }
-            }
+            },
             StepLoss::Map { pos_weight } => c.bce_with_logits_dev(&y, &c.upload(target)?, pos_weight)?,
         })
     }
@@ -123,30 +143,17 @@ impl<'a> DeviceTrainer<'a> {
     fn step_dev(&mut self, lr: &Tensor, u: &Tensor, target: &Tensor, loss: StepLoss) -> DResult<f32> {
         let c = self.cuda;
         c.mark(|| "host: the batch, the loop".into());
-        for g in &mut self.grads {
-            c.stream.memset_zeros(&mut g.buf)?;
-        }
-        c.mark(|| "zero the gradients".into());
         let x = c.upload(lr)?;
-        c.mark(|| "upload lr".into());
-        let (y, tape) = self.forward_train(x)?;
-        let (l, dy) = self.loss_and_grad(y, lr, u, target, loss)?;
-        c.mark(|| "loss (upload u, target; download the loss)".into());
+        let skip = self.skip_of(u, loss)?;
+        c.mark(|| "upload lr, u".into());
+        let (y, tape) = self.forward_train(x, skip.as_ref())?;
+        drop(skip);
+        let (l, dy) = self.loss_and_grad(y, lr, target, loss)?;
+        c.mark(|| "loss (upload the target; download the loss)".into());
+        // The gradients are zero here: at the start, and after every Adam step.
         self.backward(&tape, &dy)?;
         self.step += 1;
-        for i in 0..self.params.len() {
-            let n = self.params[i].len();
-            c.adam_update_dev(
-                &mut self.params[i].buf,
-                &self.grads[i].buf,
-                &mut self.m[i],
-                &mut self.v[i],
-                n,
-                self.step,
-                &self.adam,
-            )?;
-        }
-        c.mark(|| "adam".into());
+        c.adam_update_all_dev(&self.adam_table, self.step, &self.adam)?;
         Ok(l)
     }
 
@@ -156,13 +163,21 @@ impl<'a> DeviceTrainer<'a> {
         (&self.params[2 * i], &self.params[2 * i + 1])
     }
 
-    fn conv_fwd(&self, l: Layer, x: &DevBuf) -> DResult<DevBuf> {
+    fn conv_fwd(&self, l: Layer, x: &DevBuf, epi: Epilogue) -> DResult<DevBuf> {
         let (w, b) = self.conv(l);
-        self.cuda.conv2d_dev(x, w, Some(b), self.config.padding)
+        self.cuda.conv2d_epi_dev(x, w, Some(b), self.config.padding, epi)
     }
 
-    /// Adds conv `l`'s gradients for input `x` and output gradient `dy`; into `dx` if given.
-    fn conv_bwd(&mut self, l: Layer, x: &DevBuf, dy: &DevBuf, dx: Option<&mut DevBuf>) -> DResult<()> {
+    /// Adds conv `l`'s gradients for input `x` and output gradient `dy`; into `dx` if given,
+    /// masked where `x` is a ReLU's output (`relu_out`).
+    fn conv_bwd(
+        &mut self,
+        l: Layer,
+        x: &DevBuf,
+        dy: &DevBuf,
+        dx: Option<&mut DevBuf>,
+        relu_out: bool,
+    ) -> DResult<()> {
         let i = l.index(self.config.blocks);
         let (dw, db) = self.grads[2 * i..2 * i + 2].split_at_mut(1);
         self.cuda.conv2d_backward_dev(
@@ -171,39 +186,37 @@ impl<'a> DeviceTrainer<'a> {
             dy,
             self.config.padding,
             dx,
+            relu_out.then_some(x),
             &mut dw[0],
             Some(&mut db[0]),
         )
     }
 
-    /// [`Trunk::forward_train`] on the device.
-    fn forward_train(&self, x: DevBuf) -> DResult<(DevBuf, DevTape)> {
+    /// [`Trunk::forward_train`] on the device; `skip` (the output's shape) is added to the
+    /// last conv's output.
+    fn forward_train(&self, x: DevBuf, skip: Option<&DevBuf>) -> DResult<(DevBuf, DevTape)> {
         let c = self.cuda;
-        let mut a = self.conv_fwd(Layer::ConvIn, &x)?;
+        let mut a = self.conv_fwd(Layer::ConvIn, &x, Epilogue::None)?;
         let mut blocks = Vec::with_capacity(self.config.blocks);
         for k in 0..self.config.blocks {
-            let t1 = self.conv_fwd(Layer::Conv1(k), &a)?;
-            let r1 = c.relu_dev(&t1)?;
-            let mut out = self.conv_fwd(Layer::Conv2(k), &r1)?;
-            if self.kind.residual() {
-                c.add_assign_dev(&mut out, &a)?;
-            }
-            blocks.push([std::mem::replace(&mut a, out), t1, r1]);
+            let r1 = self.conv_fwd(Layer::Conv1(k), &a, Epilogue::Relu)?;
+            let epi = if self.kind.residual() { Epilogue::Add(&a) } else { Epilogue::None };
+            let out = self.conv_fwd(Layer::Conv2(k), &r1, epi)?;
+            blocks.push([std::mem::replace(&mut a, out), r1]);
         }
-        let u = self.conv_fwd(Layer::Upscale, &a)?;
+        let u = self.conv_fwd(Layer::Upscale, &a, Epilogue::None)?;
         let mut z = c.pixel_shuffle_dev(&u, self.config.scale)?;
         drop(u);
         let tails = layout(self.kind, self.config).len() - Layer::Upscale.index(self.config.blocks) - 1;
-        let (mut tail_in, mut tail_pre) = (Vec::with_capacity(tails), Vec::with_capacity(tails));
+        let mut tail_in = Vec::with_capacity(tails);
         for i in 0..tails {
-            let y = self.conv_fwd(Layer::Tail(i), &z)?;
             if i + 1 == tails {
+                let y = self.conv_fwd(Layer::Tail(i), &z, skip.map_or(Epilogue::None, Epilogue::Add))?;
                 tail_in.push(z);
-                return Ok((y, DevTape { input: x, blocks, upscale_in: a, tail_in, tail_pre }));
+                return Ok((y, DevTape { input: x, blocks, upscale_in: a, tail_in }));
             }
-            let r = c.relu_dev(&y)?;
+            let r = self.conv_fwd(Layer::Tail(i), &z, Epilogue::Relu)?;
             tail_in.push(std::mem::replace(&mut z, r));
-            tail_pre.push(y);
         }
         unreachable!("a trunk has tail convs")
     }
@@ -211,36 +224,36 @@ impl<'a> DeviceTrainer<'a> {
     /// [`Trunk::backward`] on the device: adds every parameter's gradient into `self.grads`.
     fn backward(&mut self, tape: &DevTape, dy: &DevBuf) -> DResult<()> {
         let c = self.cuda;
-        let last = tape.tail_in.len() - 1;
-        let mut dz = c.zeros(&tape.tail_in[last].shape)?;
-        self.conv_bwd(Layer::Tail(last), &tape.tail_in[last], dy, Some(&mut dz))?;
-        for i in (0..last).rev() {
-            let mut dpre = c.zeros(&dz.shape)?;
-            c.relu_backward_dev(&tape.tail_pre[i], &dz, &mut dpre)?;
+        // The gradient of each tail conv's output, from the last back; tail_in[i > 0] is a
+        // ReLU's output, so its gradient comes masked (the ReLU's input's gradient).
+        let mut dz: Option<DevBuf> = None;
+        for i in (0..tape.tail_in.len()).rev() {
             let mut dzin = c.zeros(&tape.tail_in[i].shape)?;
-            self.conv_bwd(Layer::Tail(i), &tape.tail_in[i], &dpre, Some(&mut dzin))?;
-            dz = dzin;
+            self.conv_bwd(
+                Layer::Tail(i),
+                &tape.tail_in[i],
+                dz.as_ref().unwrap_or(dy),
+                Some(&mut dzin),
+                i > 0,
+            )?;
+            dz = Some(dzin);
         }
+        let dz = dz.expect("a trunk has tail convs");
         let du = c.pixel_unshuffle_dev(&dz, self.config.scale)?;
         drop(dz);
         let mut da = c.zeros(&tape.upscale_in.shape)?;
-        self.conv_bwd(Layer::Upscale, &tape.upscale_in, &du, Some(&mut da))?;
+        self.conv_bwd(Layer::Upscale, &tape.upscale_in, &du, Some(&mut da), false)?;
         drop(du);
         for k in (0..self.config.blocks).rev() {
-            let [a_in, t1, r1] = &tape.blocks[k];
-            let mut dr1 = c.zeros(&r1.shape)?;
-            self.conv_bwd(Layer::Conv2(k), r1, &da, Some(&mut dr1))?;
-            let mut dt1 = c.zeros(&t1.shape)?;
-            c.relu_backward_dev(t1, &dr1, &mut dt1)?;
-            drop(dr1);
-            let mut da_in = c.zeros(&a_in.shape)?;
-            self.conv_bwd(Layer::Conv1(k), a_in, &dt1, Some(&mut da_in))?;
-            if self.kind.residual() {
-                c.add_assign_dev(&mut da_in, &da)?;
-            }
+            let [a_in, r1] = &tape.blocks[k];
+            let mut dt1 = c.zeros(&r1.shape)?;
+            self.conv_bwd(Layer::Conv2(k), r1, &da, Some(&mut dt1), true)?;
+            // The skip's gradient is da itself: conv1's input gradient is added into it.
+            let mut da_in = if self.kind.residual() { da } else { c.zeros(&a_in.shape)? };
+            self.conv_bwd(Layer::Conv1(k), a_in, &dt1, Some(&mut da_in), false)?;
             da = da_in;
         }
-        self.conv_bwd(Layer::ConvIn, &tape.input, &da, None)
+        self.conv_bwd(Layer::ConvIn, &tape.input, &da, None, false)
     }
 
     /// The parameters and Adam's state back into `trunk` and `adam` (for a checkpoint, a

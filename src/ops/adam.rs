@@ -12,7 +12,7 @@ use super::AdamParams;
 use rayon::prelude::*;
 
 /// Bias corrections (1 − β1^t, 1 − β2^t), computed in f64 and rounded once.
-fn corrections(step: u64, hp: &AdamParams) -> (f32, f32) {
+pub(crate) fn corrections(step: u64, hp: &AdamParams) -> (f32, f32) {
     assert!(step >= 1, "adam_update: step counts from 1");
     let t = step.min(i32::MAX as u64) as i32;
     ((1.0 - (hp.beta1 as f64).powi(t)) as f32, (1.0 - (hp.beta2 as f64).powi(t)) as f32)
