@@ -12,6 +12,10 @@
 # configs on cpu and cuda, three pairs interleaved (samples/s, the weights' difference); last, each
 # target of docs/gpu.md met or missed (training: the median of the three pairs' ratios). Needs
 # python3 with numpy. About 2.5 minutes on an H200 machine.
+# With BASE_BIN=path/to/an/older/anisocb (built with --features cuda), it also times cuda training
+# of the older binary against this one, three pairs interleaved per config (samples/s, the median
+# ratio), and says whether the weights after 100 steps have the same bits: a change meant to keep
+# the bits (e.g. fused launches) is then measured and checked in the same run. About 1 minute more.
 set -u
 BIN=${1:?usage: gpu-check.sh ANISOCB_BIN CUDA_PARITY_TEST_BIN [OUT_DIR]}
 PARITY=${2:?usage: gpu-check.sh ANISOCB_BIN CUDA_PARITY_TEST_BIN [OUT_DIR]}
@@ -70,6 +74,30 @@ m = max(float(np.abs(a[k]).max()) for k in keys)
 print(f'train {sys.argv[3]}: weights after 100 steps, largest |cpu - cuda| {d:.2e} (largest weight {m:.2e})')
 PY
 done
+if [ -n "${BASE_BIN:-}" ]; then
+  for cfg in small paper; do
+    for rep in 1 2 3; do  # base, this, base, this, ...
+      for side in base this; do
+        b=$BIN; [ $side = base ] && b=$BASE_BIN
+        "$b" train --data "$TMP/data.npz" --config $cfg --net geometry --steps 100 --batch 32 --patch 16 --device cuda \
+          --val-every 1000 --checkpoint-every 1000 --out "$TMP/ab-$side-$cfg-$rep" > "$OUT/ab-$side-$cfg-$rep.log" 2>&1
+      done
+    done
+    python3 - "$TMP" "$OUT" $cfg <<'PY'
+import re, sys, numpy as np
+t, out, cfg = sys.argv[1:]
+def sps(side, rep):
+    v = re.findall(r'([0-9.]+) samples/s', open(f'{out}/ab-{side}-{cfg}-{rep}.log').read().replace('\r', '\n'))
+    return float(v[-1]) if v else float('nan')
+rs = sorted(sps('this', k) / sps('base', k) for k in (1, 2, 3))
+a, b = np.load(f'{t}/ab-base-{cfg}-1/weights.npz'), np.load(f'{t}/ab-this-{cfg}-1/weights.npz')
+keys = [k for k in a.files if a[k].dtype.kind == 'f']
+same = all(a[k].shape == b[k].shape and a[k].tobytes() == b[k].tobytes() for k in keys)
+print(f'train {cfg} on cuda, this binary / BASE_BIN: {rs[1]:.3f}x samples/s (median of 3 pairs: '
+      + ', '.join(f'{r:.3f}' for r in rs) + f'); weights after 100 steps {"the same bits" if same else "DIFFER"}')
+PY
+  done
+fi
 # The targets of the GPU work (docs/gpu.md), from the logs above.
 python3 - "$OUT" <<'PY'
 import re, sys
