@@ -20,7 +20,7 @@
 use std::sync::{Arc, Mutex, MutexGuard};
 
 use cudarc::driver::{
-    CudaContext, CudaFunction, CudaModule, CudaSlice, CudaStream, DriverError, LaunchConfig,
+    CudaContext, CudaFunction, CudaModule, CudaSlice, CudaStream, DriverError, LaunchConfig, PinnedHostSlice,
 };
 use cudarc::nvrtc::{compile_ptx_with_opts, CompileOptions};
 
@@ -318,6 +318,30 @@ impl Cuda {
     /// Upload a tensor.
     pub fn upload(&self, t: &Tensor) -> DResult<DevBuf> {
         Ok(DevBuf { shape: t.shape.to_vec(), buf: self.up(&t.data)? })
+    }
+
+    /// Upload a tensor through a page-locked staging buffer, `slot` (allocated on first use and
+    /// whenever the tensor's length changes): the copy is queued behind the stream's work, where
+    /// an upload from pageable memory first waits for the stream to drain. Writing into `slot`
+    /// waits for its previous copy to leave (cudarc records an event on the slice).
+    pub(super) fn upload_staged(
+        &self,
+        t: &Tensor,
+        slot: &mut Option<PinnedHostSlice<f32>>,
+    ) -> DResult<DevBuf> {
+        let n = t.data.len();
+        if n == 0 {
+            return self.upload(t);
+        }
+        if slot.as_ref().is_none_or(|p| p.len() != n) {
+            // SAFETY: the memory starts unset; all n values are written below before the copy.
+            *slot = Some(unsafe { self.ctx.alloc_pinned::<f32>(n) }?);
+        }
+        let p = slot.as_mut().expect("allocated above");
+        p.as_mut_slice()?.copy_from_slice(&t.data);
+        let mut d = self.stream.alloc_zeros::<f32>(n)?;
+        self.stream.memcpy_htod(p, &mut d)?;
+        Ok(DevBuf { shape: t.shape.to_vec(), buf: d })
     }
 
     /// Download a device buffer as a tensor.

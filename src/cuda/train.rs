@@ -16,7 +16,7 @@
 //! that also zeroes the gradients for the next step (`kernels/emu/check_kernels.py` checks
 //! each fusion against the kernels it replaces, bit for bit).
 
-use cudarc::driver::CudaSlice;
+use cudarc::driver::{CudaSlice, PinnedHostSlice};
 
 use super::adam::AdamTable;
 use super::conv2d::Epilogue;
@@ -41,6 +41,9 @@ pub struct DeviceTrainer<'a> {
     v: Vec<CudaSlice<f32>>,
     /// The addresses of `params`, `grads`, `m`, `v` (which never move while `self` lives).
     adam_table: AdamTable,
+    /// Page-locked copies of a step's lr, u and target ([`Cuda::upload_staged`]): a step's
+    /// uploads queue behind the previous step's backward instead of waiting for it.
+    staging: [Option<PinnedHostSlice<f32>>; 3],
     step: u64,
     adam: AdamParams,
 }
@@ -81,6 +84,7 @@ impl<'a> DeviceTrainer<'a> {
                 m,
                 v,
                 adam_table,
+                staging: [None, None, None],
                 step: adam.step,
                 adam: adam.params,
             })
@@ -103,32 +107,27 @@ impl<'a> DeviceTrainer<'a> {
             "validation loss",
             || f32::NAN,
             || {
-                let (y, _) = self.forward_train(self.cuda.upload(lr)?, self.skip_of(u, loss)?.as_ref())?;
-                Ok(self.loss_and_grad(y, lr, target, loss)?.0)
+                let c = self.cuda;
+                let skip = skip_of(loss, || c.upload(u))?;
+                let (y, _) = self.forward_train(c.upload(lr)?, skip.as_ref())?;
+                Ok(self.loss_and_grad(y, lr, target, &c.upload(target)?, loss)?.0)
             },
         )
     }
 
-    /// What the last conv adds to its output: U for GeometryNet (its estimate is U + R).
-    fn skip_of(&self, u: &Tensor, loss: StepLoss) -> DResult<Option<DevBuf>> {
-        match loss {
-            StepLoss::Geometry(_) => self.cuda.upload(u).map(Some),
-            StepLoss::Map { .. } => Ok(None),
-        }
-    }
-
-    /// The loss of the output `y` (U + R for GeometryNet, logits for a map net) and its
-    /// gradient.
+    /// The loss of the output `y` (U + R for GeometryNet, logits for a map net) against the
+    /// target (on the host and on the device) and its gradient.
     fn loss_and_grad(
         &self,
         y: DevBuf,
         lr: &Tensor,
         target: &Tensor,
+        target_dev: &DevBuf,
         loss: StepLoss,
     ) -> DResult<(f32, DevBuf)> {
         let c = self.cuda;
         Ok(match loss {
-            StepLoss::Geometry(w) => match c.geometry_loss_dev(&y, &c.upload(target)?, w)? {
+            StepLoss::Geometry(w) => match c.geometry_loss_dev(&y, target_dev, w)? {
                 Some(lg) => lg,
                 None => {
                     let (_, _, h, wd) = lr.dims4();
@@ -136,20 +135,22 @@ impl<'a> DeviceTrainer<'a> {
                     (l, c.upload(&g)?)
                 }
             },
-            StepLoss::Map { pos_weight } => c.bce_with_logits_dev(&y, &c.upload(target)?, pos_weight)?,
+            StepLoss::Map { pos_weight } => c.bce_with_logits_dev(&y, target_dev, pos_weight)?,
         })
     }
 
     fn step_dev(&mut self, lr: &Tensor, u: &Tensor, target: &Tensor, loss: StepLoss) -> DResult<f32> {
         let c = self.cuda;
         c.mark(|| "host: the batch, the loop".into());
-        let x = c.upload(lr)?;
-        let skip = self.skip_of(u, loss)?;
-        c.mark(|| "upload lr, u".into());
+        let [s_lr, s_u, s_target] = &mut self.staging;
+        let x = c.upload_staged(lr, s_lr)?;
+        let skip = skip_of(loss, || c.upload_staged(u, s_u))?;
+        let t = c.upload_staged(target, s_target)?;
+        c.mark(|| "upload lr, u, target".into());
         let (y, tape) = self.forward_train(x, skip.as_ref())?;
         drop(skip);
-        let (l, dy) = self.loss_and_grad(y, lr, target, loss)?;
-        c.mark(|| "loss (upload the target; download the loss)".into());
+        let (l, dy) = self.loss_and_grad(y, lr, target, &t, loss)?;
+        c.mark(|| "loss (download the loss)".into());
         // The gradients are zero here: at the start, and after every Adam step.
         self.backward(&tape, &dy)?;
         self.step += 1;
@@ -275,5 +276,14 @@ impl<'a> DeviceTrainer<'a> {
         })?;
         adam.step = self.step;
         Ok(())
+    }
+}
+
+/// What the last conv adds to its output: U for GeometryNet (its estimate is U + R), uploaded
+/// by `up`; nothing for a map net.
+fn skip_of(loss: StepLoss, up: impl FnOnce() -> DResult<DevBuf>) -> DResult<Option<DevBuf>> {
+    match loss {
+        StepLoss::Geometry(_) => up().map(Some),
+        StepLoss::Map { .. } => Ok(None),
     }
 }
